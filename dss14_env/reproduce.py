@@ -1,0 +1,230 @@
+"""``dss14 reproduce``: redraw the report's figures and check its published figures.
+
+Writes PNG figures (Figs. 3, 4, 8, 9, 11, 12, 14, 15, 17, 19, 20, 21, 22 of [R]),
+``metrics.json`` (one entry per quantity: report, model, accepted, ok) and ``metrics.md``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .analysis import bandwidth_hz, loop_crossover_hz, peak_frequencies, spectral_abscissa, step, step_metrics
+from .board import board_dc_gains, board_ss
+from .calibration import peak_frequency, rate_response
+from .config import AXES
+from .gearbox import gearbox_ss
+from .hydraulics import hydraulics_ss
+from .linsys import freqresp
+from .model import DSS14Model, default_model, stability_sweep
+from .reduction import hankel_singular_values
+from .calibration import reduction_scales
+
+STEP_T_END, STEP_N = 40.0, 2001
+
+
+def _row(report, model, accepted, note: str = "") -> dict:
+    """One metrics entry; ``accepted`` is [lo, hi] (None: reported only)."""
+    ok = None if accepted is None else bool(accepted[0] <= model <= accepted[1])
+    return {"report": report, "model": float(model), "accepted": accepted, "ok": ok, "note": note}
+
+
+def compute_metrics(m: DSS14Model, sweep_levels: int = 3) -> dict:
+    """Every quantity of the reproduction table, keyed by a stable snake_case name."""
+    out: dict[str, dict] = {}
+    g_r, _ = board_dc_gains(m.cfg, "az")
+    out["board_gr_dc"] = _row(0.3323, g_r, [0.3323 * 0.995, 0.3323 * 1.005], "Eq. (6), A/(rad/s)")
+    for ax, rep in (("az", -0.7750e-4), ("el", -0.6525e-4)):
+        g_t = board_dc_gains(m.cfg, ax)[1]
+        out[f"board_gt_dc_{ax}"] = _row(rep, g_t, sorted([rep * 0.995, rep * 1.005]), "Eq. (8), A/(rad/s)")
+    rl = m.rate_loop
+    for ax in AXES:
+        dc, h03 = rate_response(rl, ax, [1e-4, 0.3])
+        out[f"rate_loop_dc_{ax}"] = _row(0.74, dc, [0.70, 0.78], "Fig. 17, r -> encoder rate")
+        out[f"rate_loop_0p3hz_{ax}"] = _row(0.74, h03, [0.6, 0.78], "Fig. 17 at 0.3 Hz (flat)")
+        tgt = m.cfg.calibration.gearbox_peak[ax]
+        out[f"gearbox_peak_hz_{ax}"] = _row(tgt, peak_frequency(rl, ax, 0.5 * tgt, 2 * tgt, 400),
+                                            [0.9 * tgt, 1.1 * tgt], "Fig. 17 gearbox resonance")
+    s = m.structure.to_ss()
+    f = np.geomspace(0.3, 3.0, 6000)
+    pk = peak_frequencies(f, np.abs(freqresp(s, f, "enc_rate_az", "T_a")))
+    for k, rep in enumerate((1.2, 2.2)):
+        near = pk[np.argmin(np.abs(pk - rep))] if pk.size else float("nan")
+        out[f"structure_peak{k + 1}_hz_az"] = _row(rep, near, [rep - 0.1, rep + 0.1], "Fig. 15(a)")
+    pk_el = peak_frequencies(f, np.abs(freqresp(s, f, "enc_rate_el", "T_e")))
+    out["structure_peaks_below_3hz_el"] = _row(0, pk_el.size, [0, 0], "Fig. 15(a): none in el")
+    fl = np.geomspace(0.005, 2.0, 3000)
+    for gname in m.cfg.gain_sets:
+        pl = m.position_loop(gname)
+        kp, ki = m.gains(gname)
+        for k, (ax, c_in, enc, other) in enumerate((("az", "c_a", "enc_az", "enc_el"),
+                                                    ("el", "c_e", "enc_el", "enc_az"))):
+            tag = f"{ax}_{gname}"
+            out[f"pi_bandwidth_hz_{tag}"] = _row(0.1, bandwidth_hz(pl, enc, c_in), [0.08, 0.2],
+                                                 "Fig. 19, -3 dB")
+            G = freqresp(rl, fl, enc, "r_a" if ax == "az" else "r_e")
+            L = (kp[k] + ki[k] / (2j * np.pi * fl)) * G
+            out[f"pi_crossover_hz_{tag}"] = _row(0.1, loop_crossover_hz(L, fl), None,
+                                                 "open-loop gain crossover (reported only)")
+            t, y = step(pl, c_in, [enc, other], STEP_T_END, STEP_N)
+            sm = step_metrics(t, y[:, 0])
+            out[f"pi_overshoot_pct_{tag}"] = _row("20-30", sm["overshoot_pct"], [15, 35], "Fig. 21")
+            out[f"pi_settling_2pct_s_{tag}"] = _row("7-9", sm["settling_2pct_s"], [0, 12], "Fig. 21, 2 %")
+            out[f"pi_settling_5pct_s_{tag}"] = _row("7-9", sm["settling_5pct_s"], None, "Fig. 21, 5 % (reported only)")
+            out[f"cross_coupling_{ax}_step_{gname}"] = _row(1e-3, float(np.max(np.abs(y[:, 1]))),
+                                                            [1e-4, 5e-3], f"Fig. 22, peak {other} per unit {ax} step")
+        out[f"stable_position_loop_{gname}"] = _row("stable", spectral_abscissa(pl), [-math.inf, 0.0],
+                                                    "Eq. (61): largest pole real part, 1/s")
+    sw = stability_sweep(m, levels=sweep_levels)
+    for gname, v in sw["gain_sets"].items():
+        out[f"sweep_stable_share_{gname}"] = _row("-", v["stable_share"], None,
+                                                  f"{sw['n']} combinations of {', '.join(sw['params'])}")
+        out[f"sweep_worst_abscissa_{gname}"] = _row("-", v["worst_abscissa"], None,
+                                                    "largest pole real part over the sweep, 1/s")
+    return out
+
+
+def metrics_markdown(metrics: dict) -> str:
+    """The metrics as a Markdown table."""
+    lines = ["| quantity | report | model | accepted | ok |", "|---|---|---|---|---|"]
+    for k, v in metrics.items():
+        acc = "—" if v["accepted"] is None else f"{_fmt(v['accepted'][0])} … {_fmt(v['accepted'][1])}"
+        ok = "—" if v["ok"] is None else ("yes" if v["ok"] else "**NO**")
+        lines.append(f"| `{k}` | {v['report']} | {_fmt(v['model'])} | {acc} | {ok} |")
+    return "\n".join(lines) + "\n"
+
+
+def _fmt(x) -> str:
+    if isinstance(x, str):
+        return x
+    if x in (math.inf, -math.inf):
+        return "∞" if x > 0 else "−∞"
+    return f"{x:.4g}"
+
+
+# ------------------------------------------------------------------------------ figures
+def _bode(ax_mag, f, curves, ylabel="magnitude", ax_phase=None):
+    for label, h in curves:
+        ax_mag.loglog(f, np.abs(h), label=label)
+        if ax_phase is not None:
+            ax_phase.semilogx(f, np.degrees(np.unwrap(np.angle(h))), label=label)
+    ax_mag.set_ylabel(ylabel)
+    ax_mag.grid(True, which="both", alpha=0.3)
+    ax_mag.legend()
+    (ax_phase or ax_mag).set_xlabel("frequency, Hz")
+    if ax_phase is not None:
+        ax_phase.set_ylabel("phase, deg")
+        ax_phase.grid(True, which="both", alpha=0.3)
+
+
+def draw_figures(m: DSS14Model, out: Path) -> list[str]:
+    """Draw the report's figures into ``out``; return the file names."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    files = []
+
+    def save(fig, name, title):
+        fig.suptitle(title)
+        fig.tight_layout()
+        fig.savefig(out / name, dpi=90)
+        plt.close(fig)
+        files.append(name)
+
+    f = np.geomspace(1e-3, 100, 600)
+    fig, (a, b) = plt.subplots(2, 1, figsize=(7, 6))
+    _bode(a, f, [("az (el identical)", freqresp(board_ss(m.cfg, "az"), f, "i", "r"))], "A/(rad/s)", b)
+    save(fig, "fig03_board_r_to_i.png", "Fig. 3: board, rate command r -> current i")
+    fig, a = plt.subplots(figsize=(7, 4))
+    _bode(a, f, [(ax, freqresp(board_ss(m.cfg, ax), f, "i", "tach_rate")) for ax in AXES], "A/(rad/s)")
+    save(fig, "fig04_board_tach_to_i.png", "Fig. 4: board, tach rate -> current i")
+    fh = np.geomspace(1e-2, 1e3, 600)
+    hyd = {ax: hydraulics_ss(m.drive_params(ax).hydraulics, ax) for ax in AXES}
+    fig, a = plt.subplots(figsize=(7, 4))
+    _bode(a, fh, [(ax, freqresp(hyd[ax], fh, "T_o", "i")) for ax in AXES], "N*m/A")
+    save(fig, "fig08_hydraulics_i_to_To.png", "Fig. 8: hydraulics, current -> motor torque")
+    fig, a = plt.subplots(figsize=(7, 4))
+    _bode(a, fh, [(ax, freqresp(hyd[ax], fh, "T_o", "motor_rate")) for ax in AXES], "N*m/(rad/s)")
+    save(fig, "fig09_hydraulics_wm_to_To.png", "Fig. 9: hydraulics, motor rate -> motor torque")
+    drv = {ax: m.drive(ax) for ax in AXES}
+    fig, a = plt.subplots(figsize=(7, 4))
+    _bode(a, fh, [(ax, freqresp(drv[ax], fh, "T", "r")) for ax in AXES], "N*m/(rad/s)")
+    save(fig, "fig11_drive_r_to_T.png", "Fig. 11: drive, rate command -> pinion torque")
+    fig, a = plt.subplots(figsize=(7, 4))
+    _bode(a, fh, [(ax, freqresp(drv[ax], fh, "T", "pinion_rate")) for ax in AXES], "N*m/(rad/s)")
+    save(fig, "fig12_drive_wp_to_T.png", "Fig. 12: drive, pinion rate -> pinion torque")
+    full = m.structure_full
+    hsv = hankel_singular_values(full, **reduction_scales(m.cfg, full))
+    fig, a = plt.subplots(figsize=(7, 4))
+    fr = full.omega / (2 * np.pi)
+    flex = np.isfinite(hsv)
+    kept = np.zeros(full.n_modes, bool)
+    kept[m.kept_modes] = True
+    a.semilogy(fr[flex & ~kept], hsv[flex & ~kept], "o", ms=3, label="truncated")
+    a.semilogy(fr[flex & kept], hsv[flex & kept], "s", ms=5, label="kept (22 flexible)")
+    a.set_xscale("log")
+    a.set_xlabel("natural frequency, Hz")
+    a.set_ylabel("Hankel singular value, Eq. (55)")
+    a.grid(True, which="both", alpha=0.3)
+    a.legend()
+    save(fig, "fig14_hankel_singular_values.png", "Fig. 14: Hankel singular values of the 150 modes")
+    s = m.structure.to_ss()
+    fs = np.geomspace(0.1, 100, 3000)
+    fig, (a, b) = plt.subplots(2, 1, figsize=(7, 7))
+    _bode(a, fs, [("az: T_a -> az rate", freqresp(s, fs, "enc_rate_az", "T_a")),
+                  ("el: T_e -> el rate", freqresp(s, fs, "enc_rate_el", "T_e"))], "(rad/s)/(N*m)")
+    a.set_title("(a) direct")
+    _bode(b, fs, [("T_a -> el rate", freqresp(s, fs, "enc_rate_el", "T_a")),
+                  ("T_e -> az rate", freqresp(s, fs, "enc_rate_az", "T_e"))], "(rad/s)/(N*m)")
+    b.set_title("(b) cross-coupling")
+    save(fig, "fig15_structure.png", "Fig. 15: structure, pinion torque -> axis (encoder) rate")
+    rl = m.rate_loop
+    fr = np.geomspace(1e-3, 100, 1500)
+    fig, a = plt.subplots(figsize=(7, 4))
+    _bode(a, fr, [("az", freqresp(rl, fr, "enc_rate_az", "r_a")),
+                  ("el", freqresp(rl, fr, "enc_rate_el", "r_e"))], "(rad/s)/(rad/s)")
+    save(fig, "fig17_rate_loop.png", "Fig. 17: rate loop, rate command -> encoder rate")
+    fc = np.geomspace(1e-3, 10, 1200)
+    pls = {g: m.position_loop(g) for g in m.cfg.gain_sets}
+    fig, (a, b) = plt.subplots(2, 1, figsize=(7, 7))
+    _bode(a, fc, [(f"az {g}", freqresp(pl, fc, "enc_az", "c_a")) for g, pl in pls.items()])
+    _bode(b, fc, [(f"el {g}", freqresp(pl, fc, "enc_el", "c_e")) for g, pl in pls.items()])
+    save(fig, "fig19_closed_loop.png", "Fig. 19: closed loop, command -> encoder")
+    fig, a = plt.subplots(figsize=(7, 4))
+    _bode(a, fc, [(f"{o} <- {i} {g}", freqresp(pl, fc, o, i)) for g, pl in pls.items()
+                  for i, o in (("c_a", "enc_el"), ("c_e", "enc_az"))])
+    save(fig, "fig20_closed_loop_cross.png", "Fig. 20: closed loop cross-coupling")
+    fig, (a, b) = plt.subplots(2, 1, figsize=(7, 7))
+    fig2, (a2, b2) = plt.subplots(2, 1, figsize=(7, 7))
+    for g, pl in pls.items():
+        for axp, axc, c_in, enc, oth in ((a, a2, "c_a", "enc_az", "enc_el"), (b, b2, "c_e", "enc_el", "enc_az")):
+            t, y = step(pl, c_in, [enc, oth], STEP_T_END, STEP_N)
+            axp.plot(t, y[:, 0], label=g)
+            axc.plot(t, y[:, 1], label=g)
+    for axx, lab in ((a, "az encoder (az step)"), (b, "el encoder (el step)"),
+                     (a2, "el encoder (az step)"), (b2, "az encoder (el step)")):
+        axx.set_ylabel(lab)
+        axx.set_xlabel("time, s")
+        axx.grid(True, alpha=0.3)
+        axx.legend()
+    save(fig, "fig21_step.png", "Fig. 21: closed-loop unit step responses")
+    save(fig2, "fig22_step_cross.png", "Fig. 22: cross-coupling step responses")
+    return files
+
+
+def reproduce(out_dir: str | Path, model: DSS14Model | None = None, figures: bool = True) -> dict:
+    """Run the reproduction: metrics (json, md) and figures into ``out_dir``."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    m = model if model is not None else default_model()
+    metrics = compute_metrics(m)
+    (out / "metrics.json").write_text(json.dumps(
+        {"metrics": metrics, "calibrated": m.derived(), "config": m.cfg.path}, indent=2, default=float))
+    md = metrics_markdown(metrics)
+    (out / "metrics.md").write_text("# DSS-14 model vs report\n\n" + md)
+    files = draw_figures(m, out) if figures else []
+    return {"metrics": metrics, "markdown": md, "figures": files}
