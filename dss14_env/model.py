@@ -2,7 +2,7 @@
 
 >>> m = default_model()
 >>> m.rate_loop.nstates, m.structure.n_modes, m.structure_full.n_modes
-(64, 24, 150)
+(60, 24, 150)
 """
 
 from __future__ import annotations
