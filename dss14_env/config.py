@@ -253,7 +253,7 @@ def _param(raw: Any, name: str, meta: Mapping[str, Any], path: Path) -> Param:
         if lo > hi:
             raise ConfigError(f"{where}: range low {rng[0]} > high {rng[1]}")
         rel = 1e-9 * max(abs(lo), abs(hi))
-        if not (lo - rel <= si <= hi + rel):
+        if not all(lo - rel <= v <= hi + rel for v in (si if meta["vector"] else (si,))):
             raise ConfigError(f"{where}: value {value} outside its range {rng}")
         rng_si = (lo, hi)
     return Param(name, si, meta["unit"], str(raw["source"]), rng_si, str(raw.get("note", "")))

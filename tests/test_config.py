@@ -179,6 +179,14 @@ def test_per_axis_field_el_value_bad(tmp_path: Path, raw: dict) -> None:
     _expect_error(_write(tmp_path, data), "hydraulics.v_o.el")
 
 
+def test_range_on_vector_field(tmp_path: Path, raw: dict) -> None:
+    """A ``range`` is allowed on every parameter; on a vector parameter a value outside it must
+    still give a ConfigError naming the field (not a TypeError)."""
+    data = copy.deepcopy(raw)
+    data["structure"]["j_alidade"]["range"] = [1.0e7, 1.2e8]  # 1.5e8 entries lie above
+    _expect_error(_write(tmp_path, data), "structure.j_alidade", "range")
+
+
 def test_value_at_range_edge_accepted(tmp_path: Path, raw: dict) -> None:
     data = copy.deepcopy(raw)
     data["hydraulics"]["zeta_o"]["value"] = 0.6

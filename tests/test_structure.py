@@ -62,10 +62,8 @@ def _rigid_by_hand(ls: LumpedStructure, axis: str) -> np.ndarray:
     else:
         rot = ["el.wheel", "el.tip", "el.cw"]
         R, a, lat, f = s.r_rail_el, s.alpha_el, "u", 1.0
-    for name, value in zip(ls.dofs, range(len(ls.dofs))):
-        del value
-        if name in rot:
-            q[ls.dofs.index(name)] = 1.0
+    for name in rot:
+        q[ls.dofs.index(name)] = 1.0
     q[ls.dofs.index(f"{axis}.n1x")] = -R * np.cos(a)
     q[ls.dofs.index(f"{axis}.n1y")] = R * np.sin(a)
     for j, phi in enumerate(ribs):
