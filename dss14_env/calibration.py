@@ -32,8 +32,9 @@ from .config import AXES, ModelConfig
 from .drive import DriveParams, drive_ss
 from .gearbox import GearboxParams
 from .hydraulics import HydraulicParams
+from .analysis import step
 from .linsys import freqresp
-from .loops import rate_loop
+from .loops import position_loop, rate_loop
 from .reduction import reduce_modes
 from .structure import LumpedStructure, ModalModel, modal_model
 
@@ -205,7 +206,6 @@ def calibrate_drives(cfg: ModelConfig, structure_ss, iterations: int = 4) -> tup
 
 def step_cross_coupling(pl, t_end: float = 40.0, n: int = 2001) -> float:
     """Peak |el encoder| per unit az step (rad/rad), Fig. 22, by exact ZOH simulation."""
-    from .analysis import step  # local import: analysis imports this module
     t, y = step(pl, "c_a", ["enc_el"], t_end, n)
     return float(np.max(np.abs(y[:, 0])))
 
@@ -213,7 +213,6 @@ def step_cross_coupling(pl, t_end: float = 40.0, n: int = 2001) -> float:
 def calibrate_cross_coupling(cfg: ModelConfig, scale, lam, kappa, k_g) -> float:
     """Product of inertia (calibration step 4) giving the Fig. 22 cross-coupling target with
     the first gain set; log-linear secant on |j_az_el| (the peak is close to proportional)."""
-    from .loops import position_loop
     g = next(iter(cfg.gain_sets.values()))
     s = cfg.structure
     j_max = 0.5 * np.sqrt(s.j_tip_az * s.j_tip_el)

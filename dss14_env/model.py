@@ -14,7 +14,6 @@ from functools import cached_property, lru_cache
 import control as ct
 import numpy as np
 
-from . import calibration as cal_mod
 from .calibration import Calibration, calibrate, drive_params, structure_models
 from .config import AXES, ModelConfig, load_model_config
 from .drive import DriveParams, drive_ss
@@ -113,13 +112,11 @@ def perturbed_rate_loop(model: DSS14Model, values: dict) -> ct.StateSpace:
     model's k_a moves over the report's relative spread (59,200-97,300 ratio).
     """
     cfg = model.cfg
-    over = {k.split(".")[1]: v for k, v in values.items() if k != "hydraulics.k_a_report"}
-    hyd = cfg.hydraulics.__class__(**{**cfg.hydraulics.__dict__, **over})
-    cfg2 = cfg.replace(hydraulics__zeta_o=hyd.zeta_o, hydraulics__k_s=hyd.k_s,
-                       hydraulics__mu=hyd.mu, hydraulics__k_a2=hyd.k_a2)
+    cfg2 = cfg.replace(**{f"hydraulics__{k.split('.')[1]}": v for k, v in values.items()
+                          if k != "hydraulics.k_a_report"})
     ka_scale = values.get("hydraulics.k_a_report", cfg.hydraulics.k_a_report) / cfg.hydraulics.k_a_report
     c = model.calibration
-    drives = {ax: drive_ss(cal_mod.drive_params(cfg2, ax, c.lam[ax] * ka_scale, c.kappa[ax], c.k_g[ax]))
+    drives = {ax: drive_ss(drive_params(cfg2, ax, c.lam[ax] * ka_scale, c.kappa[ax], c.k_g[ax]))
               for ax in AXES}
     return rate_loop(drives["az"], drives["el"], model.structure.to_ss())
 

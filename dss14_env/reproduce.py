@@ -14,14 +14,13 @@ import numpy as np
 
 from .analysis import bandwidth_hz, loop_crossover_hz, peak_frequencies, spectral_abscissa, step, step_metrics
 from .board import board_dc_gains, board_ss
-from .calibration import peak_frequency, rate_response
+from .calibration import peak_frequency, rate_response, reduction_scales
 from .config import AXES
 from .gearbox import gearbox_ss
 from .hydraulics import hydraulics_ss
 from .linsys import freqresp
 from .model import DSS14Model, default_model, stability_sweep
 from .reduction import hankel_singular_values
-from .calibration import reduction_scales
 
 STEP_T_END, STEP_N = 40.0, 2001
 
