@@ -21,8 +21,14 @@ from .hydraulics import hydraulics_ss
 from .linsys import freqresp
 from .model import DSS14Model, default_model, stability_sweep
 from .reduction import hankel_singular_values
+from .units import rad_to_mdeg
+from .windload import (DIRECTIONS, WindLoads, default_wind_loads, load_wind_config, simulate_wind_response,
+                       three_sigma_estimate, three_sigma_mdeg)
 
 STEP_T_END, STEP_N = 40.0, 2001
+WIND_SPEEDS_KMH = (30.0, 50.0, 70.0)
+WIND_SIM = dict(duration=1800.0, dt=0.05, n_records=4)  # 2 h per case: statistical error < 1 %
+WIND_SEED = 20261122
 
 
 def _row(report, model, accepted, note: str = "") -> dict:
@@ -84,6 +90,80 @@ def compute_metrics(m: DSS14Model, sweep_levels: int = 3) -> dict:
         out[f"sweep_worst_abscissa_{gname}"] = _row("-", v["worst_abscissa"], None,
                                                     "largest pole real part over the sweep, 1/s")
     return out
+
+
+def compute_wind_metrics(m: DSS14Model, loads: WindLoads | None = None, gain_set: str = "kp1",
+                         seed: int = WIND_SEED, sim: dict | None = None) -> tuple[dict, dict]:
+    """[R] Table 4: 3-sigma encoder servo errors of the PI loop in wind, report vs model.
+
+    For each direction, the exact stationary figure (Lyapunov, :func:`three_sigma_mdeg`) at 30,
+    50 and 70 km/h, and at 50 km/h also the figure of a time-domain simulation
+    (:func:`simulate_wind_response`, ``sim`` settings, default :data:`WIND_SIM`) with its
+    statistical error (batch means).
+
+    :return: ``(rows, records)``: metrics rows keyed ``wind_3sigma_mdeg_<axis>_<direction>``
+        (50 km/h, time domain, with the accepted range), ``..._lyap`` (50 km/h, exact),
+        ``..._<speed>kmh`` (other speeds, exact, reported only); and the simulated servo-error
+        records (mdeg) per direction for plotting.
+    """
+    loads = loads if loads is not None else default_wind_loads()
+    wcfg = load_wind_config()
+    sim = dict(WIND_SIM, **(sim or {}))
+    pl = m.position_loop(gain_set)
+    rng = np.random.default_rng(seed)
+    rows: dict[str, dict] = {}
+    records: dict[str, np.ndarray] = {}
+    for d in DIRECTIONS:
+        y = simulate_wind_response(pl, loads, wcfg.table4.speed, d, sim["duration"], sim["dt"], rng,
+                                   n_records=sim["n_records"])
+        ts, rel = three_sigma_estimate(y)
+        ts = rad_to_mdeg(ts)
+        records[d] = rad_to_mdeg(y[0])
+        exact = {v: three_sigma_mdeg(pl, loads, v / 3.6, d) for v in WIND_SPEEDS_KMH}
+        for k, ax in enumerate(("az", "el")):
+            p = wcfg.params[f"table4.{ax}_{d}"]
+            rep, acc = rad_to_mdeg(p.value), [rad_to_mdeg(v) for v in p.range]
+            hours = sim["duration"] * sim["n_records"] / 3600.0
+            rows[f"wind_3sigma_mdeg_{ax}_{d}"] = _row(
+                round(rep, 3), ts[k], [round(a, 3) for a in acc],
+                f"Table 4, 50 km/h, PI {gain_set}: {hours:g} h simulated, stat. error {100 * rel[k]:.1f} %")
+            rows[f"wind_3sigma_mdeg_{ax}_{d}_lyap"] = _row(
+                round(rep, 3), exact[50.0][k], [round(a, 3) for a in acc],
+                "Table 4, 50 km/h: exact stationary value (Lyapunov)")
+            for v in WIND_SPEEDS_KMH:
+                if v != 50.0:
+                    rows[f"wind_3sigma_mdeg_{ax}_{d}_{v:.0f}kmh"] = _row(
+                        "-", exact[v][k], None, f"{v:.0f} km/h, exact (reported only)")
+    return rows, records
+
+
+def draw_wind_figures(loads: WindLoads, records: dict, dt: float, out: Path) -> list[str]:
+    """Gust PSD vs the Davenport formula and the shaping filter; servo-error time histories."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .wind import plot_gust_psd
+
+    wcfg = load_wind_config()
+    plot_gust_psd(wcfg.table4.speed, np.random.default_rng(WIND_SEED), out / "wind_gust_psd.png",
+                  duration=2 * 3600.0, order=loads.cfg.filter_order, kappa=loads.cfg.davenport_kappa,
+                  length=loads.cfg.davenport_length)
+    fig, axes = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+    n = min(int(round(600.0 / dt)), next(iter(records.values())).shape[0])
+    t = np.arange(n) * dt
+    for axp, (d, y) in zip(axes, records.items()):
+        axp.plot(t, y[:n, 0], lw=0.7, label="azimuth")
+        axp.plot(t, y[:n, 1], lw=0.7, label="elevation")
+        axp.set_ylabel(f"{d} wind: servo error, mdeg")
+        axp.grid(True, alpha=0.3)
+        axp.legend(loc="upper right")
+    axes[-1].set_xlabel("time, s")
+    fig.suptitle("Encoder servo errors, PI kp 1 ki 0.3, 50 km/h Davenport gusts (Table 4)")
+    fig.tight_layout()
+    fig.savefig(out / "wind_servo_errors.png", dpi=90)
+    plt.close(fig)
+    return ["wind_gust_psd.png", "wind_servo_errors.png"]
 
 
 def metrics_markdown(metrics: dict) -> str:
@@ -215,15 +295,32 @@ def draw_figures(m: DSS14Model, out: Path) -> list[str]:
     return files
 
 
+def _gust_sigma(loads: WindLoads) -> dict:
+    """Standard deviation of the gust torques at the Table 4 speed, N*m (for the record)."""
+    from .wind import filter_variance
+    u = load_wind_config().table4.speed
+    sd = math.sqrt(filter_variance(loads.gust_filter(u)))
+    return {d: (np.abs(loads.gust_gain(u, d)) * sd).tolist() for d in DIRECTIONS}
+
+
 def reproduce(out_dir: str | Path, model: DSS14Model | None = None, figures: bool = True) -> dict:
     """Run the reproduction: metrics (json, md) and figures into ``out_dir``."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     m = model if model is not None else default_model()
     metrics = compute_metrics(m)
+    loads = default_wind_loads() if model is None else None
+    if loads is None:  # a user model: calibrate its own wind loads
+        from .windload import calibrate_wind_loads
+        loads = calibrate_wind_loads(m)
+    wind_rows, records = compute_wind_metrics(m, loads)
+    metrics.update(wind_rows)
     (out / "metrics.json").write_text(json.dumps(
-        {"metrics": metrics, "calibrated": m.derived(), "config": m.cfg.path}, indent=2, default=float))
+        {"metrics": metrics, "calibrated": m.derived(),
+         "wind_loads": {"c_front_az_el": loads.c_front.tolist(), "c_side_az_el": loads.c_side.tolist(),
+                        "gust_torque_sigma_Nm_50kmh": _gust_sigma(loads)},
+         "config": m.cfg.path}, indent=2, default=float))
     md = metrics_markdown(metrics)
     (out / "metrics.md").write_text("# DSS-14 model vs report\n\n" + md)
-    files = draw_figures(m, out) if figures else []
+    files = draw_figures(m, out) + draw_wind_figures(loads, records, WIND_SIM["dt"], out) if figures else []
     return {"metrics": metrics, "markdown": md, "figures": files}
