@@ -24,6 +24,33 @@ def _reproduce(args: argparse.Namespace) -> int:
     return 0
 
 
+def _train(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from agents.ppo import default_config_path, load_config, train
+
+    ckpt = Path(args.resume) if args.resume is not None else None
+    run_cfg = None  # with --resume and no --config: the config.yaml of the checkpoint's run
+    if ckpt is not None:
+        run = ckpt.parent.parent if ckpt.parent.name == "checkpoints" else ckpt.parent
+        run_cfg = run / "config.yaml"
+    if args.config is not None:
+        path = Path(args.config)
+    elif run_cfg is not None and run_cfg.is_file():
+        path = run_cfg
+    else:
+        path = default_config_path()
+    cfg = load_config(path)
+    changes = {k: v for k, v in (("total_timesteps", args.timesteps), ("seed", args.seed))
+               if v is not None}
+    if changes:
+        cfg = cfg.replace(**changes, source=f"{path} (command line)")
+    run = train(cfg, run_dir=args.out, resume=args.resume)
+    print(f"PPO run written to {run} (policy: {run / 'model.zip'}, "
+          f"stats: {run / 'vecnormalize.pkl'})")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``dss14`` console script."""
     parser = argparse.ArgumentParser(prog="dss14", description="DSS-14 antenna servo model and tools")
@@ -33,6 +60,15 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--config", default=None, help="model YAML (default: the shipped configs/model.yaml)")
     p.add_argument("--no-figures", action="store_true", help="metrics only")
     p.set_defaults(func=_reproduce)
+    p = sub.add_parser("train", help="train a learned controller (PPO)")
+    p.add_argument("algo", choices=["ppo"], help="algorithm")
+    p.add_argument("--config", default=None,
+                   help="PPO YAML (default: configs/ppo.yaml; on --resume the run's config.yaml)")
+    p.add_argument("--out", default=None, help="run folder (default: runs/ppo-<timestamp>/)")
+    p.add_argument("--resume", default=None, help="checkpoint zip to continue from")
+    p.add_argument("--timesteps", type=int, default=None, help="override total_timesteps")
+    p.add_argument("--seed", type=int, default=None, help="override seed")
+    p.set_defaults(func=_train)
     args = parser.parse_args(argv)
     try:
         return args.func(args)

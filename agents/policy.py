@@ -1,0 +1,172 @@
+"""A trained PPO policy behind the shared controller interface, and a small evaluation helper.
+
+:class:`PPOController` loads ``model.zip`` + ``vecnormalize.pkl`` (a run folder, its
+``eval/best/`` folder, or a checkpoint zip), normalises each observation with the *frozen*
+training statistics and returns the deterministic (mean) action::
+
+    from agents.policy import load_policy, evaluate
+    ctrl = load_policy("runs/ppo-20250101-120000")
+    ctrl.reset(seed=0)
+    action = ctrl.act(obs)            # shape of the action space, clipped to its bounds
+    ctrl.info["inference_time_s"]     # wall time of the last act()
+
+    evaluate("runs/ppo-20250101-120000", seeds=[0, 1, 2], n_episodes=1)
+"""
+
+from __future__ import annotations
+
+import pickle
+import time
+from pathlib import Path
+from typing import Any, Iterable, Mapping
+
+import numpy as np
+import yaml
+
+from baselines.base import Controller
+
+from .ppo import PPOConfig, make_env, vecnormalize_path_for
+
+
+def _model_paths(path: str | Path) -> tuple[Path, Path]:
+    """(model zip, VecNormalize pickle) for a folder or a zip path."""
+    p = Path(path)
+    if p.is_dir():
+        model = p / "model.zip"
+    elif p.suffix == ".zip":
+        model = p
+    elif p.with_suffix(".zip").is_file():  # SB3 style: the path without .zip
+        model = p.with_suffix(".zip")
+    else:
+        raise ValueError(f"no PPO policy at {p}: expected a folder with model.zip or a .zip file")
+    if not model.is_file():
+        raise ValueError(f"PPO model not found: {model}")
+    stats = vecnormalize_path_for(model)
+    if not stats.is_file():
+        raise ValueError(f"VecNormalize stats of {model} not found: {stats}")
+    return model, stats
+
+
+class PPOController(Controller):
+    """Deterministic PPO policy with frozen observation normalisation.
+
+    :param path: run folder, ``eval/best`` folder (both with ``model.zip`` and
+        ``vecnormalize.pkl``), or a model/checkpoint zip with its stats beside it
+    :param name: label in tables and plots, default None: ``"PPO (<folder name>)"``
+    :param torch_threads: ``torch.set_num_threads`` value (process-wide; one thread is fastest
+        for small MLPs), default 1; None leaves torch alone
+    """
+
+    def __init__(self, path: str | Path, name: str | None = None,
+                 torch_threads: int | None = 1) -> None:
+        import torch
+        from stable_baselines3 import PPO
+
+        model_path, stats_path = _model_paths(path)
+        run = model_path.parent
+        if run.name == "checkpoints":
+            run = run.parent
+        super().__init__(name or f"PPO ({run.name})")
+        if torch_threads is not None:
+            torch.set_num_threads(torch_threads)
+        self.model_path, self.stats_path = model_path, stats_path
+        self.model = PPO.load(model_path, device="cpu")
+        with open(stats_path, "rb") as fh:  # what VecNormalize.load does, without a venv
+            self.vec_normalize = pickle.load(fh)
+        self.vec_normalize.training = False  # frozen statistics
+        self.vec_normalize.norm_reward = False
+        self.observation_space = self.model.observation_space
+        self.action_space = self.model.action_space
+
+    def act(self, observation: np.ndarray) -> np.ndarray:
+        """Deterministic action for one observation.
+
+        :param observation: one observation of the environment (not normalised)
+        :return: the action, shape of the action space, clipped to its bounds
+        """
+        t0 = time.perf_counter()
+        obs = np.asarray(observation, dtype=np.float32)
+        if obs.shape != self.observation_space.shape:
+            raise ValueError(f"{self.name}: observation shape {obs.shape}, the policy expects "
+                             f"{self.observation_space.shape}")
+        action, _ = self.model.predict(self.vec_normalize.normalize_obs(obs), deterministic=True)
+        dt = time.perf_counter() - t0
+        # "solve_time_s" too, so that tables of solve times include the learned controller
+        self.info = {"inference_time_s": dt, "solve_time_s": dt}
+        return action
+
+
+def load_policy(path: str | Path, name: str | None = None) -> PPOController:
+    """Load a trained PPO policy as a :class:`baselines.base.Controller`.
+
+    :param path: run folder, ``eval/best`` folder, or a model/checkpoint zip
+    :param name: label, default None (from the folder name)
+    """
+    return PPOController(path, name=name)
+
+
+def _run_config(model_path: Path) -> PPOConfig | None:
+    for d in (model_path.parent, model_path.parent.parent, model_path.parent.parent.parent):
+        f = d / "config.yaml"
+        if f.is_file():
+            return PPOConfig.from_dict(yaml.safe_load(f.read_text()) or {}, source=str(f))
+    return None
+
+
+def evaluate(path: str | Path, env_id: str | None = None, seeds: Iterable[int] = (0,),
+             n_episodes: int = 1, env_kwargs: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """Mean and spread of the episode return of the deterministic policy (a quick check; the
+    project's runner does the real scoring).
+
+    For every seed the first episode starts with ``reset(seed=seed)``; the next
+    ``n_episodes - 1`` continue the environment's generator (as the training-time evaluation
+    does with ``eval_seeds`` and ``n_eval_episodes``).
+
+    :param path: run folder, ``eval/best`` folder, or a model/checkpoint zip
+    :param env_id: environment, default None: ``env_id`` of the run's ``config.yaml``
+    :param seeds: episode seeds, default ``(0,)``
+    :param n_episodes: episodes per seed, default 1
+    :param env_kwargs: ``gymnasium.make`` arguments, default None: the run's (or none when
+        ``env_id`` is given and differs from the run's)
+    :return: ``mean_return``, ``std_return``, ``min_return``, ``max_return``, ``returns``,
+        ``lengths``, ``n_episodes`` (total), ``seeds``, ``env_id``, ``mean_inference_time_s``
+    """
+    ctrl = PPOController(path)
+    cfg = _run_config(ctrl.model_path)
+    if env_id is None:
+        if cfg is None:
+            raise ValueError(f"no config.yaml near {ctrl.model_path}: pass env_id")
+        env_id = cfg.env_id
+    env_module = cfg.env_module if cfg is not None else None
+    if env_kwargs is None:
+        env_kwargs = cfg.env_kwargs if cfg is not None and cfg.env_id == env_id else {}
+    seeds = [int(s) for s in seeds]
+    if not seeds or n_episodes < 1:
+        raise ValueError("evaluate: need at least one seed and n_episodes >= 1")
+    env = make_env(env_id, env_kwargs, env_module)
+    returns, lengths, times = [], [], []
+    try:
+        for seed in seeds:
+            for k in range(n_episodes):
+                obs, _ = env.reset(seed=seed if k == 0 else None)
+                ctrl.reset(seed)
+                ret, n, done = 0.0, 0, False
+                while not done:
+                    obs, r, term, trunc, _ = env.step(ctrl.act(obs))
+                    times.append(ctrl.info["inference_time_s"])
+                    ret += float(r)
+                    n += 1
+                    done = term or trunc
+                returns.append(ret)
+                lengths.append(n)
+    finally:
+        env.close()
+    r = np.asarray(returns)
+    return {"env_id": env_id, "seeds": seeds, "n_episodes": len(returns),
+            "mean_return": float(r.mean()), "std_return": float(r.std()),
+            "min_return": float(r.min()), "max_return": float(r.max()),
+            "returns": [float(x) for x in r], "lengths": lengths,
+            "mean_inference_time_s": float(np.mean(times))}
+
+
+__all__ = ["PPOController", "evaluate", "load_policy"]
