@@ -1,0 +1,752 @@
+"""The model-based controllers' own NOMINAL design model (LQG, MPC and the yardstick).
+
+The simulator (``dss14_env``'s plant, possibly with randomised parameters) and the model a
+controller is designed on are separate objects: everything here is built from the shipped
+configuration (``configs/model.yaml``, ``configs/wind.yaml``, ``configs/controllers.yaml``)
+through :func:`dss14_env.model.default_model` and :func:`dss14_env.windload.default_wind_loads`,
+never from an environment instance.
+
+Design model (continuous time, SI, then discretised exactly for the control period)::
+
+    theta' = C_v x_v + D_v [r; T_w]          encoder angles (rad): integrators of the encoder rate
+    x_v'   = A_v x_v + B_v [r; T_w]          stable part of the rate loop, reduced to ``order``
+    x_w'   = A_w x_w + G_w w                 wind shaping filter, w unit white noise
+    T_w    = C_w x_w                         gust torques [Tw_az, Tw_el] (N*m)
+    y      = theta + v,   E[v v^T] = (q^2 / 12) I,   q = 2 pi / 2^bits
+
+Reduction.  The rate loop (60 states, :attr:`DSS14Model.rate_loop`) has two eigenvalues at 0:
+the encoder angles, which are exact integrators of the encoder rates
+(``C_enc A = C_enc_rate``, ``C_enc B = 0``).  :func:`split_rate_loop` separates them with an
+ordered Schur form and a Sylvester equation (an exact similarity), leaving a stable 58-state
+system ``[r; T_w] -> encoder rate``.  That system, with the inputs scaled by the rate limit and
+by the gust-torque standard deviations at the design wind speed, is balanced (square-root
+method, Lyapunov gramians from :func:`scipy.linalg.solve_continuous_lyapunov`) and reduced by
+*balanced residualisation* (singular perturbation of the balanced realisation: the discarded
+states are set to their quasi-steady values, so the DC gain -- the rate loop's 0.74 -- is kept
+exactly; the additive error bound ``2 sum(sigma_i, i > order)`` of balanced truncation holds).
+python-control's ``balred`` does the same but needs slycot, which the project does not depend
+on.  ``order = None`` keeps all 58 states (the full-order model of the yardstick).
+
+Wind.  ``wind=("design", speed)`` (LQG, MPC): a direction-free model, the front and the side
+gust as two independent coherent components, ``T_w = g_front u_1 + g_side u_2`` with ``u_1``,
+``u_2`` independent Davenport gusts (4th-order filter of :mod:`dss14_env.wind`) at the design
+speed.  Any direction's gust gain ``g(theta) = g_front cos(theta) + g_side sin(theta)`` lies in
+its span, front and side wind at full strength.  ``wind=(speed, direction)``
+(the yardstick): the scenario's own fully coherent gust, ``T_w = g(direction) u``.
+
+>>> dm = build_design_model(0.02, order=18)
+>>> dm.n, dm.n_theta, dm.n_v, dm.n_w
+(28, 2, 18, 8)
+>>> bool(np.allclose(dm.rate_dc_gain(), full_rate_dc_gain(), rtol=1e-8))
+True
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+from scipy import linalg
+
+from dss14_env.config import ConfigError, Param, _block, _read_yaml, _spec, default_config_path
+from dss14_env.linsys import balance, discretize, noise_factor
+from dss14_env.model import DSS14Model, default_model
+from dss14_env.windload import WindLoads, default_wind_loads, direction_angle
+
+ENCODER_OUTPUTS = ("enc_az", "enc_el")
+RATE_OUTPUTS = ("enc_rate_az", "enc_rate_el")
+COMMAND_INPUTS = ("r_a", "r_e")
+WIND_INPUTS = ("Tw_az", "Tw_el")
+DIRECTIONS = ("front", "side")
+#: floor of the measurement-noise standard deviation (rad): 1e-3 mdeg, for exact encoders
+MIN_MEASUREMENT_NOISE = 1e-3 * math.pi / 180e3
+
+
+# ------------------------------------------------------------------------- configuration
+@dataclass(frozen=True)
+class DesignConfig:
+    """Section ``design`` of ``configs/controllers.yaml`` (SI)."""
+
+    order: int = _spec("1", integer=True)
+    wind_speed: float = _spec("m/s")
+    encoder_bits: int = _spec("1", integer=True)
+    rate_limit: float = _spec("rad/s")
+    accel_limit: float = _spec("rad/s^2")
+
+
+@dataclass(frozen=True)
+class LQGConfig:
+    """Section ``lqg``: LQR weights (per control period), estimator and command shaper.
+
+    ``wind_model`` (a string, not a number): ``"inferred"`` (the wind direction and speed read
+    from the start command, :func:`infer_wind`) or ``"direction-free"``.
+    """
+
+    wind_model: str = field(metadata=dict(choices=("inferred", "direction-free")))
+    error_weight: float = _spec("1")
+    action_change_weight: float = _spec("1")
+    integral_weight: float = _spec("1")
+    integral_clip: float = _spec("rad")
+    input_noise: float = _spec("1", positive=True, nonzero=False)
+    disturbance_drift: float = _spec("1", positive=True, nonzero=False)
+    measurement_noise: float = _spec("rad", positive=True, nonzero=False)
+    min_wind_speed: float = _spec("m/s")
+    shaper: int = _spec("1", positive=True, nonzero=False, integer=False)
+    shaper_rate: float = _spec("rad/s")
+    shaper_accel: float = _spec("rad/s^2")
+    shaper_accel_max: float = _spec("rad/s^2")
+    reference_pull: float = _spec("1/s")
+
+
+@dataclass(frozen=True)
+class MPCConfig:
+    """Section ``mpc``: horizon, soft error constraint and OSQP settings."""
+
+    horizon: int = _spec("1", integer=True)
+    shaper: int = _spec("1", positive=True, nonzero=False, integer=False)
+    action_change_weight: float = _spec("1")
+    error_soft_limit: float = _spec("rad")
+    slack_weight_linear: float = _spec("1")
+    slack_weight_quadratic: float = _spec("1")
+    eps_abs: float = _spec("1")
+    eps_rel: float = _spec("1")
+    max_iter: int = _spec("1", integer=True)
+
+
+@dataclass(frozen=True)
+class ControllersConfig:
+    """The whole ``configs/controllers.yaml`` in SI plus its parameter registry."""
+
+    design: DesignConfig
+    lqg: LQGConfig
+    mpc: MPCConfig
+    params: dict
+    path: str
+
+
+def load_controllers_config(path: str | Path | None = None) -> ControllersConfig:
+    """Load and validate ``configs/controllers.yaml`` (or ``path``).
+
+    :param path: YAML file, default the shipped ``configs/controllers.yaml``
+    :return: the configuration in SI units
+    :raises ConfigError: naming the field and the file of the first problem found
+    """
+    path = Path(path) if path is not None else default_config_path("controllers.yaml")
+    data = _read_yaml(path)
+    registry: dict[str, Param] = {}
+    design = _block(DesignConfig, data.get("design"), "design", path, registry)
+    lqg = _section_with_choices(LQGConfig, data.get("lqg"), "lqg", path, registry)
+    mpc = _block(MPCConfig, data.get("mpc"), "mpc", path, registry)
+    for name, v in (("lqg.shaper", lqg.shaper), ("mpc.shaper", mpc.shaper)):
+        if v not in (0, 1):
+            raise ConfigError(f"{path}: field '{name}' must be 0 (off) or 1 (on), got {v!r}")
+    if design.order < 2:
+        raise ConfigError(f"{path}: field 'design.order' must be at least 2")
+    if mpc.horizon < 2:
+        raise ConfigError(f"{path}: field 'mpc.horizon' must be at least 2")
+    return ControllersConfig(design, lqg, mpc, registry, str(path))
+
+
+def _section_with_choices(cls: type, section: Any, block: str, path: Path, registry: dict) -> Any:
+    """:func:`dss14_env.config._block` for dataclasses that also have plain string choices
+    (fields with ``metadata['choices']``), given as ``{value, source}`` without a unit."""
+    import dataclasses
+    if not isinstance(section, dict):
+        raise ConfigError(f"{path}: section '{block}' missing or not a mapping")
+    section = dict(section)
+    strings = {}
+    for f in dataclasses.fields(cls):
+        if "choices" not in f.metadata:
+            continue
+        raw = section.pop(f.name, None)
+        if not isinstance(raw, dict) or "value" not in raw or "source" not in raw:
+            raise ConfigError(f"{path}: field '{block}.{f.name}' needs a mapping with 'value' and 'source'")
+        if raw["value"] not in f.metadata["choices"]:
+            raise ConfigError(f"{path}: field '{block}.{f.name}' must be one of "
+                              f"{list(f.metadata['choices'])}, got {raw['value']!r}")
+        strings[f.name] = raw["value"]
+
+    numeric = dataclasses.make_dataclass(
+        cls.__name__ + "Numbers",
+        [(f.name, f.type, dataclasses.field(metadata=f.metadata)) for f in dataclasses.fields(cls)
+         if "choices" not in f.metadata])
+    nums = _block(numeric, section, block, path, registry)
+    return cls(**strings, **{f.name: getattr(nums, f.name) for f in dataclasses.fields(numeric)})
+
+
+@lru_cache(maxsize=1)
+def default_controllers_config() -> ControllersConfig:
+    """The shipped controller configuration (cached)."""
+    return load_controllers_config()
+
+
+def encoder_step(bits: int) -> float:
+    """Encoder quantisation step ``2 pi / 2^bits`` in rad (20 bits: 0.343 mdeg).
+
+    >>> round(encoder_step(20) * 180e3 / math.pi, 4)
+    0.3433
+    """
+    if int(bits) != bits or bits < 1:
+        raise ValueError(f"encoder bits must be a positive integer, got {bits!r}")
+    return 2.0 * math.pi / 2.0 ** int(bits)
+
+
+# ------------------------------------------------------------------------- reduction
+@dataclass(frozen=True)
+class StableRateLoop:
+    """The rate loop split into encoder-angle integrators and a stable part (exact).
+
+    ``theta' = C x + D [r; T_w]``, ``x' = A x + B [r; T_w]`` with ``A`` Hurwitz; inputs in the
+    order ``r_a, r_e, Tw_az, Tw_el``.
+    """
+
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+
+
+def split_rate_loop(model: DSS14Model) -> StableRateLoop:
+    """Separate the encoder integrators from the stable part of the rate loop.
+
+    The (balanced, :func:`dss14_env.linsys.balance`) rate loop is brought to an ordered real
+    Schur form with the stable eigenvalues first; a Sylvester equation removes the coupling
+    block, so ``x = T [x_s; x_0]`` with ``x_s' = A_s x_s + B_s u``.  The encoder rate reads
+    only ``x_s`` (the zero modes are the rigid rotations), and the angle is its integral.
+
+    :param model: calibrated servo model
+    :raises ValueError: if the rate loop does not have exactly two eigenvalues at zero or the
+        encoder angle is not the integral of the encoder rate
+    """
+    rl = model.rate_loop
+    il, ol = list(rl.input_labels), list(rl.output_labels)
+    ii = [il.index(s) for s in COMMAND_INPUTS + WIND_INPUTS]
+    ie = [ol.index(s) for s in ENCODER_OUTPUTS]
+    iv = [ol.index(s) for s in RATE_OUTPUTS]
+    A, B, C, _ = balance(rl.A, rl.B[:, ii], rl.C)
+    scale = np.abs(C[iv]).max()
+    if (np.abs(C[ie] @ A - C[iv]).max() > 1e-9 * scale or np.abs(C[ie] @ B).max() > 1e-9 * scale
+            or np.any(rl.D[np.ix_(ie + iv, ii)])):
+        raise ValueError("the rate loop's encoder angle is not the integral of its encoder rate")
+    tol = 1e-8 * max(1.0, np.abs(A).max())
+    T, Z, n_s = linalg.schur(A, output="real", sort=lambda re, im: re < -tol)
+    if A.shape[0] - n_s != 2:
+        raise ValueError(f"expected 2 rigid-body (zero) eigenvalues in the rate loop, found {A.shape[0] - n_s}")
+    X = linalg.solve_sylvester(T[:n_s, :n_s], -T[n_s:, n_s:], -T[:n_s, n_s:])
+    M = np.eye(A.shape[0])
+    M[:n_s, n_s:] = X
+    Tm = Z @ M
+    Ti = np.linalg.solve(Tm, np.eye(A.shape[0]))
+    As = (Ti @ A @ Tm)[:n_s, :n_s]
+    Bs = (Ti @ B)[:n_s]
+    Cs = (C[iv] @ Tm)[:, :n_s]
+    return StableRateLoop(As, Bs, Cs, np.zeros((2, len(ii))))
+
+
+def balanced_reduction(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray,
+                       order: int | None, method: str = "residualise"
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Square-root balanced reduction of a stable system (scipy only).
+
+    :param A: (n, n) Hurwitz state matrix
+    :param B: (n, m) input matrix (inputs already scaled to comparable size)
+    :param C: (p, n) output matrix (outputs already scaled)
+    :param D: (p, m) feedthrough
+    :param order: states kept; ``None`` keeps every state (balanced realisation, exact)
+    :param method: ``"residualise"`` (singular perturbation, DC gain exact) or ``"truncate"``
+    :return: ``(A_r, B_r, C_r, D_r, hsv)`` with the Hankel singular values of the full system
+    :raises ValueError: if ``A`` is not Hurwitz, the order is out of range or the method unknown
+    """
+    n = A.shape[0]
+    if np.max(np.linalg.eigvals(A).real) >= 0:
+        raise ValueError("balanced reduction needs an asymptotically stable system")
+    if method not in ("residualise", "truncate"):
+        raise ValueError(f"unknown reduction method {method!r}; use 'residualise' or 'truncate'")
+    Wc = linalg.solve_continuous_lyapunov(A, -B @ B.T)
+    Wo = linalg.solve_continuous_lyapunov(A.T, -C.T @ C)
+    Lc, Lo = noise_factor(Wc), noise_factor(Wo)
+    U, s, Vt = np.linalg.svd(Lo.T @ Lc)
+    k = n if order is None else int(order)
+    if not 1 <= k <= n:
+        raise ValueError(f"reduced order must be in [1, {n}], got {order}")
+    keep = n if method == "residualise" else k
+    nz = int(np.sum(s > s[0] * 1e-13))  # balanced realisation of the minimal part
+    keep = min(keep, nz)
+    k = min(k, nz)
+    sq = np.sqrt(s[:keep])
+    T = Lc @ Vt[:keep].T / sq
+    Ti = (U[:, :keep] / sq).T @ Lo.T
+    Ab, Bb, Cb = Ti @ A @ T, Ti @ B, C @ T
+    if method == "truncate" or k == keep:
+        return Ab[:k, :k], Bb[:k], Cb[:, :k], D.copy(), s
+    A11, A12, A21, A22 = Ab[:k, :k], Ab[:k, k:], Ab[k:, :k], Ab[k:, k:]
+    X = np.linalg.solve(A22, np.hstack([A21, Bb[k:]]))
+    X21, X2b = X[:, :k], X[:, k:]
+    return (A11 - A12 @ X21, Bb[:k] - A12 @ X2b, Cb[:, :k] - Cb[:, k:] @ X21,
+            D - Cb[:, k:] @ X2b, s)
+
+
+def gust_torque_std(loads: WindLoads, speed: float, direction: str | float) -> np.ndarray:
+    """Standard deviation of the gust torques ``[Tw_az, Tw_el]`` (N*m) for one direction."""
+    A_w, G_w, C_w, _ = loads.disturbance(speed, direction)
+    P = linalg.solve_continuous_lyapunov(A_w, -G_w @ G_w.T)
+    return np.sqrt(np.diag(C_w @ P @ C_w.T))
+
+
+@dataclass(frozen=True)
+class ReducedRateLoop:
+    """The rate loop as ``theta' = C x + D u``, ``x' = A x + B u``, ``u = [r; T_w]`` (SI).
+
+    :param hsv: Hankel singular values of the scaled stable part (all 58)
+    :param input_scale: scaling used for the balancing (rad/s for r, N*m for T_w)
+    """
+
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    hsv: np.ndarray
+    input_scale: np.ndarray
+    order: int
+
+    def freqresp_angle(self, f_hz: Sequence[float]) -> np.ndarray:
+        """Frequency response ``[r; T_w] -> theta`` (``(len(f), 2, 4)``), f > 0."""
+        out = []
+        eye = np.eye(self.A.shape[0])
+        for f in np.atleast_1d(np.asarray(f_hz, float)):
+            s = 2j * math.pi * f
+            out.append((self.C @ np.linalg.solve(s * eye - self.A, self.B) + self.D) / s)
+        return np.array(out)
+
+    def to_ss(self) -> Any:
+        """Named python-control system with the rate loop's labels (inputs ``r_a, r_e,
+        Tw_az, Tw_el``; outputs ``enc_az, enc_el``), usable with
+        :func:`dss14_env.loops.position_loop`."""
+        from dss14_env.linsys import ss
+        n = self.A.shape[0]
+        A = np.block([[np.zeros((2, 2)), self.C], [np.zeros((n, 2)), self.A]])
+        B = np.vstack([self.D, self.B])
+        C = np.hstack([np.eye(2), np.zeros((2, n))])
+        return ss(A, B, C, np.zeros((2, 4)), list(COMMAND_INPUTS + WIND_INPUTS),
+                  list(ENCODER_OUTPUTS), name=f"rate_loop_reduced_{self.order}")
+
+
+_CACHE: dict[tuple, Any] = {}
+
+
+def _cached(key: tuple, refs: tuple, build: Any) -> Any:
+    """Memoise on object identity (the model and the loads are not hashable); the referenced
+    objects are kept alive with the entry so their ids stay unique."""
+    k = key + tuple(id(r) for r in refs)
+    if k not in _CACHE:
+        if len(_CACHE) > 64:
+            _CACHE.clear()
+        _CACHE[k] = (build(), refs)
+    return _CACHE[k][0]
+
+
+def reduce_rate_loop(order: int | None, model: DSS14Model | None = None,
+                     loads: WindLoads | None = None, speed: float | None = None,
+                     rate_limit: float | None = None) -> ReducedRateLoop:
+    """Balanced residualisation of the rate loop's stable part (see the module docstring).
+
+    :param order: states kept of the 58-state stable part; ``None``: all (exact)
+    :param model: nominal model, default :func:`default_model`
+    :param loads: wind loads, default :func:`default_wind_loads`
+    :param speed: design wind speed (m/s) for the torque scaling, default from the config
+    :param rate_limit: rate-command scaling (rad/s), default from the config
+    """
+    model = model or default_model()
+    loads = loads or default_wind_loads()
+    return _cached(("reduce", order, speed, rate_limit), (model, loads),
+                   lambda: _reduce(order, model, loads, speed, rate_limit))
+
+
+def _reduce(order, model, loads, speed, rate_limit) -> ReducedRateLoop:
+    cfg = default_controllers_config().design
+    speed = cfg.wind_speed if speed is None else float(speed)
+    rate_limit = cfg.rate_limit if rate_limit is None else float(rate_limit)
+    srl = _split(model)
+    t_std = np.max([gust_torque_std(loads, speed, d) for d in DIRECTIONS], axis=0)
+    su = np.concatenate([[rate_limit, rate_limit], t_std])
+    Ar, Br, Cr, Dr, hsv = balanced_reduction(srl.A, srl.B * su, srl.C / rate_limit, srl.D * su / rate_limit,
+                                             order)
+    return ReducedRateLoop(Ar, Br / su, Cr * rate_limit, Dr * rate_limit / su, hsv, su, Ar.shape[0])
+
+
+def _split(model: DSS14Model) -> StableRateLoop:
+    return _cached(("split",), (model,), lambda: split_rate_loop(model))
+
+
+def full_rate_dc_gain(model: DSS14Model | None = None) -> np.ndarray:
+    """DC gain (2x2) rate command -> encoder rate of the full rate loop."""
+    srl = _split(model or default_model())
+    return (srl.D - srl.C @ np.linalg.solve(srl.A, srl.B))[:, :2]
+
+
+def reduction_error(orders: Sequence[int], f_hz: Sequence[float] | None = None,
+                    band_hz: float = 3.0) -> list[dict]:
+    """Frequency-response error of reduced rate loops against the full one.
+
+    For each order and each diagonal channel (``r_a -> enc_az``, ``r_e -> enc_el``,
+    ``Tw_az -> enc_az``, ``Tw_el -> enc_el``): the largest relative error
+    ``|G_r - G| / |G|`` over ``f <= band_hz`` and the largest error over all frequencies
+    relative to the channel's peak ``max |G|``.
+
+    :param orders: reduced orders to compare
+    :param f_hz: frequency grid (Hz), default 400 log-spaced points 1 mHz - 25 Hz (Nyquist at 50 Hz)
+    :param band_hz: upper end of the band of the relative error, default 3 Hz
+    :return: list of dicts (JSON-ready), one per order
+    """
+    f = np.geomspace(1e-3, 25.0, 400) if f_hz is None else np.asarray(f_hz, float)
+    full = reduce_rate_loop(None)
+    G = full.freqresp_angle(f)
+    chans = {"r_a->enc_az": (0, 0), "r_e->enc_el": (1, 1), "Tw_az->enc_az": (0, 2), "Tw_el->enc_el": (1, 3)}
+    out = []
+    for k in orders:
+        red = reduce_rate_loop(int(k))
+        E = red.freqresp_angle(f) - G
+        row: dict[str, Any] = {"order": int(k),
+                               "hinf_bound_rel": float(2 * red.hsv[int(k):].sum() / red.hsv[0])}
+        for name, (o, i) in chans.items():
+            g = np.abs(G[:, o, i])
+            row[name] = {"rel_in_band": float(np.max(np.abs(E[f <= band_hz, o, i]) / g[f <= band_hz])),
+                         "rel_to_peak": float(np.max(np.abs(E[:, o, i])) / g.max())}
+        out.append(row)
+    return out
+
+
+# ------------------------------------------------------------------------- design model
+@dataclass(frozen=True)
+class DesignModel:
+    """Discrete design model of one control period (see the module docstring).
+
+    State ``x = [theta (2), x_v (n_v), x_w (n_w)]``; input ``r`` (applied rate commands, rad/s);
+    measurement ``y = C x + v`` (encoder angles, rad).  ``Ad, Bd`` are the exact ZOH
+    discretisation, ``Qd`` the covariance of the wind noise increment (Van Loan), ``R`` the
+    quantisation-noise covariance.  The continuous matrices ``A, B, G`` are kept too.
+    """
+
+    dt: float
+    A: np.ndarray
+    B: np.ndarray
+    G: np.ndarray
+    C: np.ndarray
+    Ad: np.ndarray
+    Bd: np.ndarray
+    Qd: np.ndarray
+    R: np.ndarray
+    n_theta: int
+    n_v: int
+    n_w: int
+    order: int
+    wind: Any
+    hsv: np.ndarray = field(repr=False)
+    Tw_matrix: np.ndarray = field(repr=False)  # gust torques = Tw_matrix @ x
+
+    @property
+    def n(self) -> int:
+        """Number of states."""
+        return self.A.shape[0]
+
+    def rate_dc_gain(self) -> np.ndarray:
+        """DC gain (2x2) rate command -> encoder rate of the model."""
+        nv = slice(2, 2 + self.n_v)
+        Av, Bv, Cv = self.A[nv, nv], self.B[nv], self.A[:2, nv]
+        return self.B[:2] - Cv @ np.linalg.solve(Av, Bv)
+
+    def reference_state(self, c: np.ndarray, c_rate: np.ndarray, c_acc: np.ndarray | None = None
+                        ) -> tuple[np.ndarray, np.ndarray]:
+        """State and command of the model following ``c + c_rate t + c_acc t^2 / 2`` (no wind).
+
+        For a ramp (``c_acc = 0``): ``A x + B r = [c_rate; 0]``, ``theta = c`` -- the rate-loop
+        states at their equilibrium for the constant command ``r`` that moves the encoders at
+        ``c_rate``.  With an acceleration the rate-loop states and the command grow linearly,
+        ``x_v = x_0 + x_1 t``, ``r = r_0 + r_1 t``; matching ``theta''= c_acc`` gives
+        ``[A_v B_v; C_v D_v] [x_1; r_1] = [0; c_acc]`` and ``[A_v B_v; C_v D_v] [x_0; r_0] =
+        [x_1; c_rate]``.  The state and command at t = 0 are returned.
+
+        :param c: command angles (rad), shape (2,)
+        :param c_rate: command rates (rad/s), shape (2,)
+        :param c_acc: command accelerations (rad/s^2), default zero
+        :return: ``(x_ref, r_ref)``
+        """
+        nv = slice(2, 2 + self.n_v)
+        M = np.block([[self.A[nv, nv], self.B[nv]], [self.A[:2, nv], self.B[:2]]])
+        k = self.n_v
+        rhs1 = np.zeros(k + 2)
+        if c_acc is not None:
+            rhs1[k:] = c_acc
+        s1 = np.linalg.solve(M, rhs1)
+        rhs0 = np.concatenate([s1[:k], np.asarray(c_rate, float)])
+        s0 = np.linalg.solve(M, rhs0)
+        x = np.zeros(self.n)
+        x[:2] = c
+        x[nv] = s0[:k]
+        return x, s0[k:]
+
+
+def _wind_model(loads: WindLoads, wind: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(A_w, G_w, C_w)`` of the gust torques, see :func:`build_design_model`."""
+    if isinstance(wind, tuple) and len(wind) == 2 and wind[0] == "design":
+        # direction-free: the front and the side gust as two independent coherent components
+        speed = float(wind[1])
+        f = loads.gust_filter(speed)
+        a, g, c = (np.asarray(m, float) for m in (f.A, f.B, f.C))
+        A_w = linalg.block_diag(a, a)
+        G_w = linalg.block_diag(g, g)
+        C_w = np.hstack([np.outer(loads.gust_gain(speed, d), c) for d in DIRECTIONS])
+        return A_w, G_w, C_w
+    if isinstance(wind, tuple) and len(wind) == 2:
+        speed, direction = float(wind[0]), wind[1]
+        direction_angle(direction)  # validates
+        A_w, G_w, C_w, _ = loads.disturbance(speed, direction)
+        return A_w, G_w, C_w
+    raise ValueError(f"wind must be ('design', speed) or (speed, direction), got {wind!r}")
+
+
+def build_design_model(dt: float, order: int | None | str = "config", wind: Any = None,
+                       encoder_noise: float = 0.0, bits: int | None | str = "config",
+                       model: DSS14Model | None = None, loads: WindLoads | None = None) -> DesignModel:
+    """Nominal design model, discretised exactly for the period ``dt``.
+
+    :param dt: control period, s
+    :param order: reduced order of the rate loop's stable part; ``"config"`` (default) takes
+        ``design.order`` of ``configs/controllers.yaml``; ``None`` keeps the full 58 states
+    :param wind: ``None`` (default): the direction-free design wind at the configured speed,
+        ``("design", speed)``; or ``(speed, direction)``: the coherent gust of one scenario
+    :param encoder_noise: extra white measurement noise (rad rms) on top of the quantisation
+    :param bits: encoder resolution (bits per turn) for the quantisation noise ``q^2/12``;
+        ``"config"``: ``design.encoder_bits``; ``None``: exact encoder (a floor of
+        :data:`MIN_MEASUREMENT_NOISE` keeps the Kalman problem regular)
+    :param model: nominal model, default :func:`default_model`
+    :param loads: wind loads, default :func:`default_wind_loads`
+    :raises ValueError: for a non-positive ``dt`` or an unknown wind specification
+    """
+    if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
+        raise ValueError(f"dt must be a positive period in s, got {dt!r}")
+    cfg = default_controllers_config().design
+    if order == "config":
+        order = cfg.order
+    if wind is None:
+        wind = ("design", cfg.wind_speed)
+    if bits == "config":
+        bits = cfg.encoder_bits
+    model = model or default_model()
+    loads = loads or default_wind_loads()
+    wind = tuple(wind)
+    return _cached(("design", float(dt), order, wind, float(encoder_noise), bits), (model, loads),
+                   lambda: _build(float(dt), order, wind, float(encoder_noise), bits, model, loads))
+
+
+def _build(dt, order, wind, encoder_noise, bits, model, loads) -> DesignModel:
+    red = reduce_rate_loop(order, model, loads)
+    A_w, G_w, C_w = _wind_model(loads, wind)
+    nv, nw = red.A.shape[0], A_w.shape[0]
+    n = 2 + nv + nw
+    A = np.zeros((n, n))
+    B = np.zeros((n, 2))
+    G = np.zeros((n, G_w.shape[1]))
+    v, w = slice(2, 2 + nv), slice(2 + nv, n)
+    A[:2, v] = red.C
+    A[:2, w] = red.D[:, 2:] @ C_w
+    A[v, v] = red.A
+    A[v, w] = red.B[:, 2:] @ C_w
+    A[w, w] = A_w
+    B[:2] = red.D[:, :2]
+    B[v] = red.B[:, :2]
+    G[w] = G_w
+    C = np.zeros((2, n))
+    C[:, :2] = np.eye(2)
+    Tw = np.zeros((2, n))
+    Tw[:, w] = C_w
+    Ad, Bd, Qd = discretize(A, B, dt, G)
+    q2 = encoder_step(bits) ** 2 / 12.0 if bits is not None else 0.0
+    R = max(q2 + encoder_noise ** 2, MIN_MEASUREMENT_NOISE ** 2) * np.eye(2)
+    return DesignModel(dt, A, B, G, C, Ad, Bd, Qd, R, 2, nv, nw, nv, wind, red.hsv, Tw)
+
+
+def smallest_order(budget_rel: float) -> int:
+    """Smallest even order whose balanced-reduction error bound ``2 sum sigma_tail / sigma_1``
+    is at most ``budget_rel`` (the rule behind ``design.order``)."""
+    hsv = reduce_rate_loop(None).hsv
+    for k in range(2, hsv.size + 1, 2):
+        if 2 * hsv[k:].sum() / hsv[0] <= budget_rel:
+            return k
+    return hsv.size
+
+
+# ------------------------------------------------------------------------- wind inference
+def rate_dc_gains(model: DSS14Model | None = None) -> np.ndarray:
+    """DC gains (2x4) ``[r_a, r_e, Tw_az, Tw_el] -> encoder rates`` of the nominal rate loop."""
+    srl = _split(model or default_model())
+    return srl.D - srl.C @ np.linalg.solve(srl.A, srl.B)
+
+
+def infer_wind(r0: np.ndarray, c_rate0: np.ndarray, model: DSS14Model | None = None,
+               loads: WindLoads | None = None) -> tuple[float, float]:
+    """Wind speed and direction read from the command that holds the antenna at the start.
+
+    The environment starts in steady motion at the command rate ``c_rate0`` under the wind
+    torque of t = 0, held by the applied command ``r0`` (both observed).  With the nominal DC
+    gains ``v = G_r r + G_T T`` the torque is ``T = G_T^-1 (c_rate0 - G_r r0)``.  The quasi-steady
+    load model gives ``T = (rho A D / 2) U^2 (1 + 2 u_0 / U) (C_front cos theta + C_side sin
+    theta)``, so ``[U^2 cos theta, U^2 sin theta]`` solves a 2x2 system: the direction is exact
+    on the nominal plant, the speed is off by the start gust ``u_0`` (about +-17 % at 1 sigma).
+    A gust gain is proportional to the same vector, which is what makes the direction worth
+    knowing.  The direction is returned modulo pi (``T`` and ``-T`` give the same gust model).
+
+    :param r0: applied rate command at the start, rad/s
+    :param c_rate0: command rate at the start, rad/s
+    :return: ``(U, theta)`` in m/s and rad (theta in [0, pi))
+    """
+    loads = loads or default_wind_loads()
+    G = rate_dc_gains(model)
+    T = np.linalg.solve(G[:, 2:], np.asarray(c_rate0, float) - G[:, :2] @ np.asarray(r0, float))
+    q = 0.5 * loads.cfg.air_density * loads.dish_area * loads.cfg.dish_diameter
+    M = q * np.column_stack([loads.c_front, loads.c_side])
+    a, b = np.linalg.solve(M, T)
+    return float(math.sqrt(math.hypot(a, b))), float(math.atan2(b, a) % math.pi)
+
+
+# ------------------------------------------------------------------------- command shaper
+class CommandShaper:
+    """Command preprocessor: a rate- and acceleration-limited copy of the command.
+
+    The DSN LQG servos need one ([DETC99], lit. Q4): an LQG that is handed a command its
+    limits cannot follow saturates the command limiter and limit-cycles.  The shaped command
+    ``(c_s, v_s)`` moves with a piecewise-constant acceleration ``acc_s`` (held over each
+    period, so ``c_s`` is exactly a parabola between steps) chosen each step from the raw
+    command ``(c, v)``: the raw command's own acceleration passes through, a gap (a step) is
+    closed with at most ``accel``, the total is capped at ``accel_max``::
+
+        p      = c - c_s                                  (gap)
+        k      = sqrt(1/4 + 2 |p| / (a dt^2)) - 1/2       (steps needed to brake over p)
+        v_des  = clip(v + sign(p) min(a dt k, |p| / dt), -v_max, v_max)
+        dv_raw = v - v_prev                               (raw command's change)
+        acc_s  = clip(dv_raw + clip(v_des - v_s - dv_raw, -a dt, a dt), -a_max dt, a_max dt) / dt
+
+    A command that respects the limits is passed through (``p = 0``, ``v_s = v``).
+
+    :param rate: largest shaped rate (encoder rad/s)
+    :param accel: largest acceleration used to close a gap (rad/s^2)
+    :param dt: period, s
+    :param accel_max: largest shaped acceleration in all (rad/s^2), default ``accel``
+    """
+
+    def __init__(self, rate: float, accel: float, dt: float, accel_max: float | None = None) -> None:
+        accel_max = accel if accel_max is None else accel_max
+        for name, v in (("rate", rate), ("accel", accel), ("dt", dt), ("accel_max", accel_max)):
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"shaper {name} must be positive and finite, got {v!r}")
+        self.rate, self.accel, self.dt = float(rate), float(accel), float(dt)
+        self.accel_max = max(float(accel_max), self.accel)
+        self.tol = 1e-3 * math.pi / 180e3  # 1e-3 mdeg
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the shaped command (the next call starts on the raw one)."""
+        self.active = False
+        self.c: np.ndarray | None = None
+        self.v = np.zeros(2)
+        self.acc = np.zeros(2)
+        self.v_raw = np.zeros(2)
+
+    def __call__(self, c: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Shaped ``(c_s, v_s, acc_s)`` for the raw command ``(c, v)`` of this step (rad,
+        rad/s, rad/s^2); ``acc_s`` is held over the coming period."""
+        c, v = np.asarray(c, float), np.asarray(v, float)
+        a, dt = self.accel, self.dt
+        if self.c is None:
+            self.c, self.v = c.copy(), np.clip(v, -self.rate, self.rate)
+            self.v_raw = v.copy()
+        else:
+            self.c = self.c + self.v * dt + 0.5 * self.acc * dt * dt
+            self.v = self.v + self.acc * dt
+        p = c - self.c
+        ap = np.abs(p)
+        k = np.sqrt(0.25 + 2.0 * ap / (a * dt * dt)) - 0.5
+        v_des = np.clip(v + np.sign(p) * np.minimum(a * dt * k, ap / dt), -self.rate, self.rate)
+        dv_raw = v - self.v_raw
+        self.v_raw = v.copy()
+        am = self.accel_max * dt
+        self.acc = np.clip(dv_raw + np.clip(v_des - self.v - dv_raw, -a * dt, a * dt), -am, am) / dt
+        #: True while the shaped command differs from the raw one (a step or a slew is shaped)
+        self.active = bool(np.any(ap > self.tol))
+        return self.c.copy(), self.v.copy(), self.acc.copy()
+
+
+class ReferenceGenerator:
+    """Feasible reference for the model-based controllers: shaper + reference model.
+
+    The raw command goes through the :class:`CommandShaper`.  A noise-free copy of the design
+    model is driven along the shaped motion by the quasi-steady feedforward of the shaped
+    parabola and a gentle state feedback ``K_ref`` (the controllers use a position pull,
+    ``K_ref = [k_pos I, 0]``)::
+
+        x_qs, r_qs = reference_state(c_s, v_s, accel_ff * acc_s)
+        r_ff       = r_qs - K_ref [x_ref - x_qs; r_ff_prev - r_qs]    (limited to margin x limits)
+        x_ref(k+1) = Ad x_ref(k) + Bd r_ff(k)
+
+    The controller then regulates the deviation from ``(x_ref, r_ff)``, which the plant can
+    follow within the limits, so the feedback does not saturate on a step or a slew.  A command
+    the limits can follow (hold, track) passes through: the ramp feedforward is exact for the
+    model, ``x_ref = x_qs``.  The rate loop settles in 3-5 s (its lag compensator and the az
+    anti-resonance), so a shaped step of a few mdeg/s^2 is what it follows without overshoot.
+
+    :param dm: design model (its wind states stay at zero)
+    :param shaper: the command shaper
+    :param K_ref: state feedback of the reference model on ``[x; r_prev]`` (2 x (n + 2))
+    :param rate_limit: command limiter's rate limit, rad/s
+    :param rate_step: command limiter's largest change per period, rad/s
+    :param margin: fraction of the limits the feedforward may use
+    """
+
+    def __init__(self, dm: DesignModel, shaper: CommandShaper, K_ref: np.ndarray, rate_limit: float,
+                 rate_step: float, margin: float = 0.9, accel_ff: float = 0.0) -> None:
+        self.dm, self.shaper = dm, shaper
+        self.accel_ff = float(accel_ff)
+        if K_ref.shape != (2, dm.n + 2):
+            raise ValueError(f"K_ref must be 2 x {dm.n + 2}, got {K_ref.shape}")
+        self.K = K_ref
+        self.rate_limit, self.rate_step = float(rate_limit), float(rate_step)
+        self.margin = float(margin)
+        z2 = np.zeros(2)
+        n = dm.n
+        self.Xv, self.Xa = np.zeros((n, 2)), np.zeros((n, 2))
+        self.Rv, self.Ra = np.zeros((2, 2)), np.zeros((2, 2))
+        for i, e in enumerate(np.eye(2)):
+            self.Xv[:, i], self.Rv[:, i] = dm.reference_state(z2, e)
+            self.Xa[:, i], self.Ra[:, i] = dm.reference_state(z2, z2, e)
+        self.reset()
+
+    def reset(self) -> None:
+        """Start over at the next call."""
+        self.shaper.reset()
+        self.x: np.ndarray | None = None
+        self.r = np.zeros(2)
+
+    def quasi_steady(self, c: np.ndarray, v: np.ndarray, a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """State and command of the model on the parabola ``(c, v, a)``."""
+        x = self.Xv @ v + self.Xa @ a
+        x[:2] += c
+        return x, self.Rv @ v + self.Ra @ a
+
+    def __call__(self, c: np.ndarray, c_rate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(x_ref, r_ff)`` of this period for the raw command ``(c, c_rate)`` (SI)."""
+        c, c_rate = np.asarray(c, float), np.asarray(c_rate, float)
+        first = self.x is None
+        if not first:
+            self.x = self.dm.Ad @ self.x + self.dm.Bd @ self.r
+        c_s, v_s, a_s = self.shaper(c, c_rate)
+        x_qs, r_qs = self.quasi_steady(c_s, v_s, self.accel_ff * a_s)
+        if first:
+            self.x, self.r = x_qs, r_qs
+        r_des = r_qs - self.K @ np.concatenate([self.x - x_qs, self.r - r_qs])
+        step, lim = self.margin * self.rate_step, self.margin * self.rate_limit
+        self.r = np.clip(np.clip(r_des, self.r - step, self.r + step), -lim, lim)
+        return self.x.copy(), self.r.copy()

@@ -1,0 +1,202 @@
+"""The controllers' nominal design model: configuration, reduction, discretisation, wind
+inference, command shaper (baselines/design.py)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy import linalg
+
+from baselines.design import (CommandShaper, ReferenceGenerator, balanced_reduction,
+                              build_design_model, default_controllers_config, encoder_step,
+                              full_rate_dc_gain, infer_wind, load_controllers_config,
+                              rate_dc_gains, reduce_rate_loop, reduction_error, smallest_order,
+                              split_rate_loop)
+from dss14_env.config import ConfigError
+from dss14_env.linsys import freqresp
+from dss14_env.model import default_model
+
+DEG = math.pi / 180
+MDEG = DEG / 1e3
+DT = 0.02
+
+
+@pytest.fixture(scope="module")
+def dm():
+    return build_design_model(DT)
+
+
+# ------------------------------------------------------------------ configuration
+def test_config_loads_in_si() -> None:
+    cfg = load_controllers_config()
+    assert cfg.design.rate_limit == pytest.approx(0.25 * DEG)
+    assert cfg.mpc.error_soft_limit == pytest.approx(10 * MDEG)
+    assert cfg.lqg.wind_model in ("inferred", "direction-free")
+
+
+@pytest.mark.parametrize("old,new,message", [
+    ("order: {value: 18,", "order: {value: -3,", "design.order"),
+    ("horizon: {value: 20,", "horizon: {value: 1,", "mpc.horizon"),
+    ("wind_model: {value: inferred,", "wind_model: {value: sideways,", "lqg.wind_model"),
+    ('error_soft_limit: {value: 10.0, unit: "mdeg"', 'error_soft_limit: {value: 10.0, unit: "m"', "error_soft_limit"),
+])
+def test_config_errors_name_the_field(tmp_path: Path, old: str, new: str, message: str) -> None:
+    text = Path(load_controllers_config().path).read_text()
+    assert old in text
+    bad = tmp_path / "controllers.yaml"
+    bad.write_text(text.replace(old, new))
+    with pytest.raises(ConfigError, match=message.replace(".", r"\.")):
+        load_controllers_config(bad)
+
+
+def test_encoder_step_is_20_bit_resolution() -> None:
+    assert encoder_step(20) / MDEG == pytest.approx(360e3 / 2 ** 20)
+
+
+# ------------------------------------------------------------------ reduction
+def test_split_is_exact_on_the_encoder_rate() -> None:
+    """The stable part reproduces the full rate loop's encoder response (angle = rate / s)."""
+    rl = default_model().rate_loop
+    full = reduce_rate_loop(None)
+    f = np.array([0.01, 0.3, 1.2, 5.0, 20.0])
+    ref = freqresp(rl, f, ["enc_az", "enc_el"], ["r_a", "r_e", "Tw_az", "Tw_el"])
+    got = full.freqresp_angle(f)
+    assert np.max(np.abs(got - ref) / np.abs(ref).max(axis=0)) < 1e-8
+
+
+def test_balanced_reduction_hsv_match_gramians() -> None:
+    srl = split_rate_loop(default_model())
+    A, B, C = srl.A, srl.B[:, :2], srl.C
+    *_, hsv = balanced_reduction(A, B, C, np.zeros((2, 2)), None)
+    Wc = linalg.solve_continuous_lyapunov(A, -B @ B.T)
+    Wo = linalg.solve_continuous_lyapunov(A.T, -C.T @ C)
+    ref = np.sort(np.sqrt(np.abs(np.linalg.eigvals(Wc @ Wo))))[::-1]
+    assert hsv[:10] == pytest.approx(ref[:10], rel=1e-6)
+
+
+def test_configured_order_is_the_smallest_within_the_error_budget() -> None:
+    assert smallest_order(0.02) == default_controllers_config().design.order
+
+
+@pytest.mark.parametrize("order", [12, 18, 24])
+def test_residualisation_keeps_the_dc_gain(order: int) -> None:
+    red = reduce_rate_loop(order)
+    dc = red.D - red.C @ np.linalg.solve(red.A, red.B)
+    assert dc[:, :2] == pytest.approx(full_rate_dc_gain(), rel=1e-8, abs=1e-12)
+
+
+@pytest.mark.parametrize("channel,band_limit", [("r_a->enc_az", 0.005), ("r_e->enc_el", 0.005),
+                                                ("Tw_az->enc_az", 0.02), ("Tw_el->enc_el", 0.12)])
+def test_configured_order_frequency_response_error(channel: str, band_limit: float) -> None:
+    row = reduction_error([default_controllers_config().design.order])[0]
+    assert row[channel]["rel_in_band"] < band_limit
+    assert row[channel]["rel_to_peak"] < 1e-3
+
+
+def test_lower_order_is_clearly_worse() -> None:
+    lo, hi = reduction_error([14, default_controllers_config().design.order])
+    assert lo["Tw_el->enc_el"]["rel_in_band"] > 10 * hi["Tw_el->enc_el"]["rel_in_band"]
+
+
+# ------------------------------------------------------------------ design model
+def test_design_model_sizes(dm) -> None:
+    assert (dm.n_theta, dm.n_v, dm.n_w) == (2, default_controllers_config().design.order, 8)
+    assert dm.Ad.shape == (dm.n, dm.n) and dm.Qd.shape == (dm.n, dm.n)
+
+
+def test_measurement_noise_is_quantisation_variance(dm) -> None:
+    q = encoder_step(20)
+    assert np.diag(dm.R) == pytest.approx([q * q / 12] * 2)
+
+
+def test_discretisation_is_exact(dm) -> None:
+    A2 = build_design_model(2 * DT)
+    assert A2.Ad == pytest.approx(dm.Ad @ dm.Ad, abs=1e-10)
+
+
+@pytest.mark.parametrize("c_acc", [None, np.array([1e-3, -2e-3])])
+def test_reference_state_follows_the_motion(dm, c_acc) -> None:
+    """The model started in the reference state with its command moves as commanded."""
+    c, v = np.array([1e-3, 2e-3]), np.array([2e-3, -1e-3])
+    x, r = dm.reference_state(c, v, c_acc)
+    xdot = dm.A @ x + dm.B @ r
+    assert xdot[:2] == pytest.approx(v, rel=1e-9)
+    if c_acc is None:
+        assert np.abs(xdot[2:]).max() < 1e-9 * np.abs(x[2:]).max()
+
+
+@pytest.mark.parametrize("wind", [("design", 50 / 3.6), (50 / 3.6, "front"), (50 / 3.6, "side")])
+def test_design_model_is_stable_but_for_the_encoder_integrators(wind) -> None:
+    m = build_design_model(DT, wind=wind)
+    mags = np.sort(np.abs(np.linalg.eigvals(m.Ad)))
+    assert mags[-2:] == pytest.approx([1.0, 1.0], abs=1e-12)
+    assert mags[-3] < 1.0
+
+
+# ------------------------------------------------------------------ wind inference
+@pytest.mark.parametrize("deg", [0.0, 45.0, 90.0, 135.0, 180.0, 270.0])
+@pytest.mark.parametrize("rate", [0.0, 0.01])
+def test_infer_wind_recovers_direction_and_speed_on_the_nominal_plant(deg: float, rate: float) -> None:
+    from dss14_env.plant import get_plant
+    p = get_plant(50 / 3.6, DT)
+    th = math.radians(deg)
+    _, r0 = p.steady_start(np.zeros(8), p.mean_torque(th), np.full(2, rate * DEG))
+    speed, theta = infer_wind(r0, np.full(2, rate * DEG))
+    assert speed == pytest.approx(50 / 3.6, rel=1e-6)
+    assert theta == pytest.approx(th % math.pi, abs=1e-6)
+
+
+def test_dc_gains_rate_command_is_074() -> None:
+    assert np.diag(rate_dc_gains()[:, :2]) == pytest.approx([0.74, 0.74], rel=1e-6)
+
+
+# ------------------------------------------------------------------ shaper
+def _shape(shaper: CommandShaper, c: np.ndarray, v: np.ndarray):
+    out = [shaper(ci, vi) for ci, vi in zip(c, v)]
+    return tuple(np.array(z) for z in zip(*out))
+
+
+def test_shaper_passes_a_feasible_command() -> None:
+    t = np.arange(500) * DT
+    v = np.column_stack([0.01 * np.ones_like(t), -0.005 * np.ones_like(t)]) * DEG
+    c = v * t[:, None]
+    cs, vs, _ = _shape(CommandShaper(0.16 * DEG, 0.03 * DEG, DT), c, v)
+    assert np.abs(cs - c).max() < 1e-12 and np.abs(vs - v).max() < 1e-12
+
+
+@pytest.mark.parametrize("size_deg", [0.1, 5.0])
+def test_shaper_respects_its_limits_and_arrives(size_deg: float) -> None:
+    n = 3000
+    c = np.where(np.arange(n)[:, None] >= 50, size_deg, 0.0) * np.ones((n, 2)) * DEG
+    cs, vs, acc = _shape(CommandShaper(0.16 * DEG, 0.03 * DEG, DT), c, np.zeros_like(c))
+    assert np.abs(vs).max() <= 0.16 * DEG * (1 + 1e-12)
+    assert np.abs(acc).max() <= 0.03 * DEG * (1 + 1e-12)
+    assert cs[-1] == pytest.approx(c[-1], abs=1e-6 * MDEG)
+    assert np.all((cs.max(axis=0) - size_deg * DEG) / (size_deg * DEG) < 0.01)
+
+
+def test_reference_generator_feedforward_within_limits(dm) -> None:
+    K = np.zeros((2, dm.n + 2))
+    K[:, :2] = 0.3 * np.eye(2)
+    gen = ReferenceGenerator(dm, CommandShaper(0.16 * DEG, 0.03 * DEG, DT), K, 0.25 * DEG,
+                             0.2 * DEG * DT, accel_ff=1.0)
+    rs, th = [], []
+    for k in range(2000):
+        c = np.array([0.1, 1.0]) * DEG * (k >= 50)
+        x, r = gen(c, np.zeros(2))
+        rs.append(r)
+        th.append(x[:2])
+    rs, th = np.array(rs), np.array(th)
+    assert np.abs(rs).max() <= 0.9 * 0.25 * DEG * (1 + 1e-12)
+    assert np.abs(np.diff(rs, axis=0)).max() <= 0.9 * 0.2 * DEG * DT * (1 + 1e-12)
+    assert th[-1] == pytest.approx([0.1 * DEG, 1.0 * DEG], rel=2e-3)
+
+
+@pytest.mark.parametrize("bad", [{"rate": 0.0}, {"accel": -1.0}, {"dt": math.nan}])
+def test_shaper_rejects_bad_limits(bad: dict) -> None:
+    kw = {"rate": 0.1, "accel": 0.1, "dt": 0.02, **bad}
+    with pytest.raises(ValueError, match=next(iter(bad))):
+        CommandShaper(**kw)

@@ -1,0 +1,123 @@
+"""Tests of the numpy-batched vector environment (:mod:`dss14_env.vector_env`)."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import dss14_env  # noqa: F401  (registers the ids)
+from dss14_env.env import DSS14Env
+from dss14_env.vector_env import DSS14VectorEnv
+
+# (config, constant action or None for small random ones): the second makes sub-environments
+# hit the elevation limit at different steps, so autoresets desynchronise them
+CASES = {
+    "track-random-wind-encoder-noise": (dict(scenario="track", wind_speed_kmh="random",
+                                             wind_direction="random", encoder_noise_mdeg=0.1), None),
+    "hold-terminating-at-el-limit": (dict(scenario="hold", wind_speed_kmh="random",
+                                          start_el_range_deg=[6.05, 6.5]), -0.5),
+    "slew-exact-encoders": (dict(scenario="slew", wind_speed_kmh=30.0, encoder_bits=None), None),
+}
+
+
+def _actions(const: float | None, T: int, N: int) -> np.ndarray:
+    if const is None:
+        return np.random.default_rng(1).uniform(-0.02, 0.02, (T, N, 2)).astype(np.float32)
+    return np.full((T, N, 2), const, np.float32)
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_vector_env_equals_single_envs_with_seeds_seed_plus_i(case: str) -> None:
+    # seeding rule: sub-environment i == a single env reset with seed + i; NEXT_STEP autoreset;
+    # 700 steps cross two noise blocks of 256 steps, episodes end at 400 steps or earlier
+    kw, const = CASES[case]
+    N, T, max_steps, seed = 3, 700, 400, 10
+    acts = _actions(const, T, N)
+    venv = DSS14VectorEnv(num_envs=N, max_episode_steps=max_steps, **kw)
+    obs, _ = venv.reset(seed=seed)
+    v_obs, v_rew, v_term, v_trunc = [obs], [], [], []
+    for t in range(T):
+        obs, r, te, tr, _ = venv.step(acts[t])
+        v_obs.append(obs), v_rew.append(r), v_term.append(te), v_trunc.append(tr)
+    v_obs, v_rew, v_term, v_trunc = map(np.array, (v_obs, v_rew, v_term, v_trunc))
+    for i in range(N):
+        env = DSS14Env(**kw)
+        obs, _ = env.reset(seed=seed + i)
+        s_obs, s_rew, s_term, s_trunc = [obs], [], [], []
+        done = False
+        for t in range(T):
+            if done:  # the vector env's autoreset step
+                obs, _ = env.reset()
+                r, te, tr, done = 0.0, False, False, False
+            else:
+                obs, r, te, tr, _ = env.step(acts[t, i])
+                tr = env.elapsed_steps >= max_steps
+                done = te or tr
+            s_obs.append(obs), s_rew.append(r), s_term.append(te), s_trunc.append(tr)
+        assert np.array_equal(np.array(s_term), v_term[:, i])
+        assert np.array_equal(np.array(s_trunc), v_trunc[:, i])
+        np.testing.assert_allclose(np.array(s_obs), v_obs[:, i], rtol=1e-6, atol=1e-6)
+        np.testing.assert_allclose(np.array(s_rew), v_rew[:, i], rtol=1e-9, atol=1e-12)
+    if case == "hold-terminating-at-el-limit":
+        assert v_term.sum() >= N  # the desynchronising terminations did happen
+
+
+def test_make_vec_vector_entry_point_equals_the_sync_vector_env() -> None:
+    N, T = 3, 60
+    acts = _actions(None, T, N)
+    a = gym.make_vec("DSS14-v0", num_envs=N, vectorization_mode="vector_entry_point")
+    b = gym.make_vec("DSS14-v0", num_envs=N, vectorization_mode="sync")
+    assert isinstance(a, DSS14VectorEnv) and a.max_episode_steps == 3000
+    oa, _ = a.reset(seed=7)
+    ob, _ = b.reset(seed=7)
+    np.testing.assert_allclose(oa, ob, rtol=1e-6, atol=1e-6)
+    for t in range(T):
+        oa, ra, *_ = a.step(acts[t])
+        ob, rb, *_ = b.step(acts[t])
+    np.testing.assert_allclose(oa, ob, rtol=1e-6, atol=1e-6)
+    np.testing.assert_allclose(ra, rb, rtol=1e-9)
+
+
+def test_one_plant_per_wind_speed_groups_the_batch() -> None:
+    venv = DSS14VectorEnv(num_envs=64, max_episode_steps=100, scenario="track", wind_speed_kmh="random",
+                          wind_direction="random")
+    venv.reset(seed=0)
+    speeds = {p.wind_speed for p in venv._plants}
+    assert len(venv._plants) == len(speeds) == 5  # directions do not need plants of their own
+    assert sum(b - a for _, a, b in venv._groups) == 64
+
+
+@pytest.mark.parametrize("actions, match", [
+    (np.full((4, 2), np.nan, np.float32), "finite"),
+    (np.zeros((3, 2), np.float32), "shape"),
+    (np.zeros(8, np.float32), "shape"),
+])
+def test_vector_env_rejects_bad_actions(actions: np.ndarray, match: str) -> None:
+    venv = DSS14VectorEnv(num_envs=4, max_episode_steps=10)
+    venv.reset(seed=0)
+    with pytest.raises(ValueError, match=match):
+        venv.step(actions)
+
+
+@pytest.mark.parametrize("kw, match", [
+    (dict(num_envs=0), "num_envs"),
+    (dict(num_envs=2, max_episode_steps=0), "max_episode_steps"),
+    (dict(num_envs=2, render_mode="rgb_array"), "render"),
+    (dict(num_envs=2, dt=-1.0), "dt"),
+])
+def test_vector_env_rejects_bad_arguments(kw: dict, match: str) -> None:
+    with pytest.raises(ValueError, match=match):
+        DSS14VectorEnv(**kw)
+
+
+def test_vector_env_info_arrays_and_counters() -> None:
+    venv = DSS14VectorEnv(num_envs=5, max_episode_steps=50, scenario="hold", wind_speed_kmh=50.0)
+    venv.reset(seed=0)
+    _, _, _, _, info = venv.step(np.ones((5, 2), np.float32))
+    for key in ("servo_error_az_mdeg", "measured_error_el_mdeg", "pointing_error_xel_mdeg", "wind_speed_mps",
+                "rate_command_az_deg_s", "accel_limited"):
+        assert info[key].shape == (5,)
+    assert info["action_unclipped"].shape == (5, 2)
+    assert np.all(info["accel_limited"]) and np.all(venv.n_accel_limited == 1) and np.all(info["n_accel_limited"] == 1)
+    assert np.allclose(info["wind_speed_mps"], 50 / 3.6)
