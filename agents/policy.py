@@ -5,7 +5,7 @@
 training statistics and returns the deterministic (mean) action::
 
     from agents.policy import load_policy, evaluate
-    ctrl = load_policy("runs/ppo-20250101-120000")
+    ctrl = load_policy("runs/ppo-20250101-120000")   # or load_policy(): the shipped policy
     ctrl.reset(seed=0)
     action = ctrl.act(obs)            # shape of the action space, clipped to its bounds
     ctrl.info["inference_time_s"]     # wall time of the last act()
@@ -26,6 +26,9 @@ import yaml
 from baselines.base import Controller
 
 from .ppo import PPOConfig, make_env, vecnormalize_path_for
+
+#: the policy shipped with the package (docs/ppo.md: how it was trained, how to reproduce it)
+DEFAULT_POLICY = Path(__file__).resolve().parent / "policies" / "residual_pi"
 
 
 def _model_paths(path: str | Path) -> tuple[Path, Path]:
@@ -55,10 +58,17 @@ class PPOController(Controller):
     :param name: label in tables and plots, default None: ``"PPO (<folder name>)"``
     :param torch_threads: ``torch.set_num_threads`` value (process-wide; one thread is fastest
         for small MLPs), default 1; None leaves torch alone
+    :param env: the DSS14 environment the controller will act on, default None; only used by a
+        residual policy (run trained on ``DSS14-Residual-v0``, :mod:`agents.residual`), whose PI
+        takes the period and scales from it; None: the run's base environment
+
+    A residual policy's controller composes ``PI + residual_scale * policy`` itself (the run's
+    ``config.yaml`` names the gains and scale), so like every other controller it takes the
+    environment's plain 12 observations.
     """
 
     def __init__(self, path: str | Path, name: str | None = None,
-                 torch_threads: int | None = 1) -> None:
+                 torch_threads: int | None = 1, env: Any = None) -> None:
         import torch
         from stable_baselines3 import PPO
 
@@ -77,6 +87,20 @@ class PPOController(Controller):
         self.vec_normalize.norm_reward = False
         self.observation_space = self.model.observation_space
         self.action_space = self.model.action_space
+        self.config = _run_config(model_path)
+        self.residual = _residual_core(self.config, env)
+        if self.residual is not None and self.observation_space.shape != (self.residual.obs_dim,):
+            raise ValueError(f"{model_path}: this residual run's policy must observe "
+                             f"{self.residual.obs_dim} entries, got {self.observation_space.shape}")
+
+    def reset(self, seed: int | None = None) -> None:
+        """New episode (restarts a residual policy's PI).
+
+        :param seed: unused (the policy is deterministic)
+        """
+        super().reset(seed)
+        if self.residual is not None:
+            self.residual.reset()
 
     def act(self, observation: np.ndarray) -> np.ndarray:
         """Deterministic action for one observation.
@@ -86,23 +110,47 @@ class PPOController(Controller):
         """
         t0 = time.perf_counter()
         obs = np.asarray(observation, dtype=np.float32)
-        if obs.shape != self.observation_space.shape:
+        expected = (12,) if self.residual is not None else self.observation_space.shape
+        if obs.shape != expected:
             raise ValueError(f"{self.name}: observation shape {obs.shape}, the policy expects "
-                             f"{self.observation_space.shape}")
+                             f"{expected}")
+        if self.residual is not None:
+            obs = self.residual.observe(obs)
         action, _ = self.model.predict(self.vec_normalize.normalize_obs(obs), deterministic=True)
+        if self.residual is not None:
+            action = self.residual.combine(action)
         dt = time.perf_counter() - t0
         # "solve_time_s" too, so that tables of solve times include the learned controller
         self.info = {"inference_time_s": dt, "solve_time_s": dt}
         return action
 
 
-def load_policy(path: str | Path, name: str | None = None) -> PPOController:
+def load_policy(path: str | Path | None = None, env: Any = None,
+                name: str | None = None) -> PPOController:
     """Load a trained PPO policy as a :class:`baselines.base.Controller`.
 
-    :param path: run folder, ``eval/best`` folder, or a model/checkpoint zip
+    :param path: run folder, ``eval/best`` folder, or a model/checkpoint zip; default None:
+        the policy shipped with the package (:data:`DEFAULT_POLICY`)
+    :param env: the environment it will act on (see :class:`PPOController`), default None
     :param name: label, default None (from the folder name)
     """
-    return PPOController(path, name=name)
+    return PPOController(DEFAULT_POLICY if path is None else path, name=name, env=env)
+
+
+def _residual_core(cfg: PPOConfig | None, env: Any) -> Any:
+    """The :class:`agents.residual.ResidualPI` of a residual run, else None."""
+    from .residual import DEFAULT_BASE_ID, DEFAULT_GAINS, DEFAULT_HISTORY, DEFAULT_RESIDUAL_SCALE, \
+        RESIDUAL_ENV_ID, RESIDUAL_KEYS, ResidualPI
+
+    if cfg is None or cfg.env_id != RESIDUAL_ENV_ID:
+        return None
+    kw = dict(cfg.env_kwargs)
+    if env is None:
+        env = make_env(kw.get("base_id", DEFAULT_BASE_ID),
+                       {k: v for k, v in kw.items() if k not in RESIDUAL_KEYS})
+    gains = kw.get("gains", DEFAULT_GAINS)
+    return ResidualPI(env, tuple(gains) if isinstance(gains, list) else gains,
+                      kw.get("residual_scale", DEFAULT_RESIDUAL_SCALE), kw.get("history", DEFAULT_HISTORY))
 
 
 def _run_config(model_path: Path) -> PPOConfig | None:
@@ -130,6 +178,9 @@ def evaluate(path: str | Path, env_id: str | None = None, seeds: Iterable[int] =
         ``env_id`` is given and differs from the run's)
     :return: ``mean_return``, ``std_return``, ``min_return``, ``max_return``, ``returns``,
         ``lengths``, ``n_episodes`` (total), ``seeds``, ``env_id``, ``mean_inference_time_s``
+
+    A residual policy (trained on ``DSS14-Residual-v0``) composes its actions itself, so it
+    is stepped on the base environment underneath (same episodes, same rewards).
     """
     ctrl = PPOController(path)
     cfg = _run_config(ctrl.model_path)
@@ -143,6 +194,11 @@ def evaluate(path: str | Path, env_id: str | None = None, seeds: Iterable[int] =
     seeds = [int(s) for s in seeds]
     if not seeds or n_episodes < 1:
         raise ValueError("evaluate: need at least one seed and n_episodes >= 1")
+    from .residual import DEFAULT_BASE_ID, RESIDUAL_ENV_ID, RESIDUAL_KEYS
+
+    if ctrl.residual is not None and env_id == RESIDUAL_ENV_ID:  # step the base environment
+        env_id = dict(env_kwargs).get("base_id", DEFAULT_BASE_ID)
+        env_kwargs = {k: v for k, v in dict(env_kwargs).items() if k not in RESIDUAL_KEYS}
     env = make_env(env_id, env_kwargs, env_module)
     returns, lengths, times = [], [], []
     try:
@@ -169,4 +225,4 @@ def evaluate(path: str | Path, env_id: str | None = None, seeds: Iterable[int] =
             "mean_inference_time_s": float(np.mean(times))}
 
 
-__all__ = ["PPOController", "evaluate", "load_policy"]
+__all__ = ["DEFAULT_POLICY", "PPOController", "evaluate", "load_policy"]

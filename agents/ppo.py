@@ -106,6 +106,8 @@ class PPOConfig:
     :param n_eval_episodes: evaluation episodes per evaluation seed, default 1
     :param eval_seeds: one evaluation environment per seed, reset with it at every evaluation,
         default ``[1000, 1001, 1002, 1003, 1004]``
+    :param eval_env_kwargs: keys laid over ``env_kwargs`` for the evaluation environments (the
+        validation task that picks ``eval/best``), default ``{}``: the training environment
     :param checkpoint_freq: save model + VecNormalize stats every this many steps, default
         200_000
     :param progress_bar: tqdm/rich progress bar (skipped with a note if not installed), default
@@ -140,6 +142,7 @@ class PPOConfig:
     eval_freq: int = 50_000
     n_eval_episodes: int = 1
     eval_seeds: list = field(default_factory=_default_eval_seeds)
+    eval_env_kwargs: dict = field(default_factory=dict)
     checkpoint_freq: int = 200_000
     progress_bar: bool = True
     verbose: int = 1
@@ -254,6 +257,10 @@ def _check_values(c: dict[str, Any], source: str) -> dict[str, Any]:
     if not isinstance(kw, Mapping) or not all(isinstance(k, str) for k in kw):
         raise _bad(source, "env_kwargs", "must be a mapping of keyword arguments", c["env_kwargs"])
     out["env_kwargs"] = dict(c["env_kwargs"])
+    kw = c["eval_env_kwargs"]
+    if not isinstance(kw, Mapping) or not all(isinstance(k, str) for k in kw):
+        raise _bad(source, "eval_env_kwargs", "must be a mapping of keyword arguments", kw)
+    out["eval_env_kwargs"] = dict(kw)
     mod = c["env_module"]
     if mod is not None and (not isinstance(mod, str) or not mod):
         raise _bad(source, "env_module", "must be a module name or null", c["env_module"])
@@ -382,9 +389,17 @@ def _check_env(cfg: PPOConfig) -> tuple[Any, Any]:
         raise ValueError(f"{cfg.source}: key 'env_id': cannot make {cfg.env_id!r} with env_kwargs "
                          f"{cfg.env_kwargs}: {type(exc).__name__}: {exc}") from exc
     try:
-        return env.observation_space, env.action_space
+        spaces_ = env.observation_space, env.action_space
     finally:
         env.close()
+    if cfg.eval_env_kwargs:
+        kw = {**cfg.env_kwargs, **cfg.eval_env_kwargs}
+        try:
+            make_env(cfg.env_id, kw, cfg.env_module).close()
+        except Exception as exc:  # noqa: BLE001 - same as above, for the evaluation environment
+            raise ValueError(f"{cfg.source}: key 'eval_env_kwargs': cannot make {cfg.env_id!r} with "
+                             f"{kw}: {type(exc).__name__}: {exc}") from exc
+    return spaces_
 
 
 class EvalSeedWrapper(gym.Wrapper):
@@ -417,7 +432,7 @@ class EvalSeedWrapper(gym.Wrapper):
 def _make_eval_env(cfg: PPOConfig, seed: int) -> Any:
     from stable_baselines3.common.monitor import Monitor
 
-    env = Monitor(make_env(cfg.env_id, cfg.env_kwargs, cfg.env_module))
+    env = Monitor(make_env(cfg.env_id, {**cfg.env_kwargs, **cfg.eval_env_kwargs}, cfg.env_module))
     return EvalSeedWrapper(env, seed)
 
 

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 import yaml
 
-from agents.policy import PPOController, evaluate, load_policy
+from agents.policy import DEFAULT_POLICY, PPOController, evaluate, load_policy
 from agents.ppo import PPOConfig, default_config_path, load_config, train, vecnormalize_path_for
 from dss14_env.cli import main
 
@@ -56,7 +56,10 @@ def pendulum_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
 # ---------------------------------------------------------------------------------- config
 def test_shipped_configs_load_and_round_trip() -> None:
     cfg = load_config()
-    assert cfg.env_id == "DSS14-v0" and cfg.n_envs == 8 and cfg.n_steps == 256
+    assert cfg.env_id == "DSS14-Residual-v0" and cfg.env_module == "agents.residual"
+    # the shipped policy was trained with exactly the shipped config (docs/ppo.md)
+    assert load_config(DEFAULT_POLICY / "config.yaml") == cfg
+    assert load_config(default_config_path("ppo_plain.yaml")).env_id == "DSS14-Hold-v0"
     assert cfg.source == str(default_config_path())
     assert cfg.batch_size <= cfg.n_steps * cfg.n_envs
     smoke = load_config(default_config_path("ppo_smoke.yaml"))
@@ -78,6 +81,7 @@ def test_shipped_configs_load_and_round_trip() -> None:
     ({"normalize_obs": "yes"}, "normalize_obs"),
     ({"total_timesteps": 1.5}, "total_timesteps"),
     ({"activation_fn": "sigmoid"}, "activation_fn"),
+    ({"eval_env_kwargs": [1, 2]}, "eval_env_kwargs"),
 ])
 def test_config_errors_name_key_and_file(tmp_path: Path, bad: dict, key: str) -> None:
     path = tmp_path / "ppo_bad.yaml"
@@ -202,6 +206,11 @@ def test_cli_train_missing_config_exit_2(tmp_path: Path, capsys: pytest.CaptureF
     assert main(["train", "ppo", "--config", str(default_config_path("ppo_smoke.yaml")),
                  "--resume", str(tmp_path / "nope.zip")]) == 2
     assert "nope.zip" in capsys.readouterr().err
+
+
+def test_eval_env_kwargs_that_cannot_make_an_env_are_named(tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match="eval_env_kwargs"):
+        train(tiny(eval_env_kwargs={"no_such_pendulum_key": 1}), run_dir=tmp_path / "r")
 
 
 def test_cli_train_bad_config_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
