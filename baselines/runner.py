@@ -119,9 +119,9 @@ def step_response(t: np.ndarray, theta: np.ndarray, size: float, t_step: float,
     :param size: step size (signed)
     :param t_step: time of the step, s
     """
-    if size == 0:
-        return {"overshoot_pct": math.nan, "settling_time_s": math.nan}
     m = t >= t_step
+    if size == 0 or not np.any(m):  # no step, or the episode ended before it
+        return {"overshoot_pct": math.nan, "settling_time_s": math.nan}
     y = np.asarray(theta, float)[m] / size
     over = max(0.0, float(y.max()) - 1.0) * 100.0
     outside = np.nonzero(np.abs(y - 1.0) > band)[0]
@@ -204,10 +204,17 @@ def _resolve_scenario(s: Any) -> tuple[str, Scenario]:
                     f"pair, got {s!r}")
 
 
-def run_episode(ctrl: Controller, env: Any, seed: int, steps: int, warmup_s: float = 0.0
-                ) -> dict[str, Any]:
+def run_episode(ctrl: Controller, env: Any, seed: int, steps: int, warmup_s: float = 0.0,
+                record: bool = False) -> dict[str, Any]:
     """One episode of one controller; returns :func:`episode_metrics` plus ``seed``,
-    ``terminated``, ``failures``, ``fallbacks`` and the episode's wind."""
+    ``terminated``, ``failures``, ``fallbacks`` and the episode's wind.
+
+    :param record: also return the time histories under ``"trace"`` (numpy arrays, one row per
+        step taken: ``t`` (s, end of the step), ``servo_error_mdeg`` (n, 2) true az/el errors,
+        ``command_deg`` (n, 2) and ``encoder_deg`` (n, 2) commanded position and encoder reading
+        relative to the start, ``rate_command_deg_s`` (n, 2) applied rate commands); off by
+        default, the output is then unchanged
+    """
     cfg = env.unwrapped.config
     obs, info = env.reset(seed=seed)
     if hasattr(ctrl, "set_scenario"):
@@ -220,6 +227,7 @@ def run_episode(ctrl: Controller, env: Any, seed: int, steps: int, warmup_s: flo
     cost = np.zeros(steps)
     hits = np.zeros((steps, 2), bool)
     tc = np.zeros(steps)
+    enc = np.zeros((steps, 2)) if record else None
     terminated, failure, k = False, None, 0
     for k in range(steps):
         t0 = time.perf_counter()
@@ -236,6 +244,8 @@ def run_episode(ctrl: Controller, env: Any, seed: int, steps: int, warmup_s: flo
         r[k] = info["rate_command_az_deg_s"], info["rate_command_el_deg_s"]
         cost[k] = -rew
         hits[k] = info["rate_limited"], info["accel_limited"]
+        if enc is not None:
+            enc[k] = obs[8], obs[9]
         if terminated:
             k += 1
             break
@@ -254,6 +264,10 @@ def run_episode(ctrl: Controller, env: Any, seed: int, steps: int, warmup_s: flo
               "failure": failure, "fallbacks": int(ctrl.info.get("n_fallbacks", 0)),
               "wind_speed_mps": float(info.get("wind_speed_mps", 0.0)),
               "wind_direction_rad": float(info.get("wind_direction_rad", 0.0))})
+    if enc is not None:
+        m["trace"] = {"t": (np.arange(n) + 1) * cfg.dt, "servo_error_mdeg": e[:n].copy(),
+                      "command_deg": c[:n].copy(), "encoder_deg": enc[:n].copy(),
+                      "rate_command_deg_s": r[:n].copy()}
     return m
 
 
@@ -300,7 +314,7 @@ def yardstick_reference(scenario: Scenario, env: Any) -> dict[str, Any] | None:
 
 def run(controllers: Iterable[Any], scenarios: Iterable[Any], seeds: Iterable[int],
         env_kwargs: Mapping[str, Any] | None = None, steps: int | None = None,
-        progress: Callable[[str], None] | None = None) -> dict[str, Any]:
+        progress: Callable[[str], None] | None = None, record: bool = False) -> dict[str, Any]:
     """Score controllers on scenarios over seeds.
 
     :param controllers: names of :data:`CONTROLLERS`, :class:`Controller` instances or
@@ -311,6 +325,9 @@ def run(controllers: Iterable[Any], scenarios: Iterable[Any], seeds: Iterable[in
         ``{"randomize_params": True}``)
     :param steps: episode length overriding the scenarios' (control periods)
     :param progress: called with a line per finished episode
+    :param record: keep each episode's time histories under ``episodes[i]["trace"]``
+        (:func:`run_episode`; numpy arrays, left out of the JSON conversion -- drop them before
+        ``json.dump``); default False: no traces
     :return: ``{"meta", "episodes", "summary", "yardstick"}``, JSON-serialisable:
         ``summary[controller][scenario]`` (:func:`summarise`, plus ``vs_yardstick`` -- the
         median 3-sigma per axis divided by the yardstick's expected one -- where the scenario
@@ -339,7 +356,7 @@ def run(controllers: Iterable[Any], scenarios: Iterable[Any], seeds: Iterable[in
             ctrl = factory(env)
             eps = []
             for seed in seeds:
-                m = run_episode(ctrl, env, seed, n_steps, sc.warmup_s)
+                m = run_episode(ctrl, env, seed, n_steps, sc.warmup_s, record=record)
                 m.update({"controller": cname, "scenario": sname})
                 eps.append(m)
                 if progress is not None:
@@ -356,7 +373,12 @@ def run(controllers: Iterable[Any], scenarios: Iterable[Any], seeds: Iterable[in
     meta = {"controllers": names, "scenarios": [n for n, _ in scens], "seeds": seeds,
             "env_kwargs": env_kwargs, "steps": {n: int(steps or sc.steps) for n, sc in scens},
             "warmup_s": {n: sc.warmup_s for n, sc in scens}, "wall_time_s": time.perf_counter() - t_start}
-    return _jsonable({"meta": meta, "episodes": episodes, "summary": summary, "yardstick": yard})
+    traces = [ep.pop("trace", None) for ep in episodes]
+    out = _jsonable({"meta": meta, "episodes": episodes, "summary": summary, "yardstick": yard})
+    if record:
+        for ep, tr in zip(out["episodes"], traces):
+            ep["trace"] = tr
+    return out
 
 
 def ratio(summary: Mapping[str, Any], num: str, den: str, scenario: str, axis: str,

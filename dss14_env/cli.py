@@ -51,6 +51,27 @@ def _train(args: argparse.Namespace) -> int:
     return 0
 
 
+def _bench(args: argparse.Namespace) -> int:
+    import shlex
+
+    from baselines.bench import bench, build_plan
+
+    cmd = "dss14 " + shlex.join(args.argv)
+    plan = build_plan(controllers=args.controllers, scenarios=args.scenarios, seeds=args.seeds,
+                      wind_speeds=args.wind_speeds, steps=args.steps, quick=args.quick,
+                      ppo_model=args.ppo_model, randomize=args.randomize, out=args.out,
+                      figures=not args.no_figures, sweep=not args.no_sweep,
+                      sweep_seeds=args.sweep_seeds, command=cmd)
+    for note in plan.notes:
+        print(f"dss14 bench: warning: {note}", file=sys.stderr)
+    print(plan.describe(), flush=True)
+    res = bench(plan, progress=not args.no_progress)
+    print(res["main_table"])
+    print(f"results.json, results.md and {len(res['figures'])} figures written to {plan.out} "
+          f"in {res['wall_time_s']:.1f} s")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``dss14`` console script."""
     parser = argparse.ArgumentParser(prog="dss14", description="DSS-14 antenna servo model and tools")
@@ -69,7 +90,36 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--timesteps", type=int, default=None, help="override total_timesteps")
     p.add_argument("--seed", type=int, default=None, help="override seed")
     p.set_defaults(func=_train)
+    p = sub.add_parser("bench", help="score PI, LQG, MPC and PPO on the same scenarios and seeds",
+                       description="Run every controller through the runner on the same "
+                       "scenarios and seeds; write results.json, results.md and PNG figures "
+                       "(docs/bench.md).")
+    p.add_argument("--quick", action="store_true",
+                   help="short version: 1 seed, shorter episodes, wind speeds 30 50 70 (under a minute)")
+    p.add_argument("--seeds", nargs="+", metavar="SEED", default=None,
+                   help="one value N: seeds 0..N-1; several: those seeds (default: 0 1)")
+    p.add_argument("--controllers", nargs="+", metavar="NAME", default=None,
+                   help="pi_kp1 pi_kp0.7 lqg mpc ppo yardstick (default: all but yardstick)")
+    p.add_argument("--scenarios", nargs="+", metavar="NAME", default=None,
+                   help="hold_front hold_side step track slew (default: all)")
+    p.add_argument("--wind-speeds", nargs="+", metavar="KMH", default=None,
+                   help="speeds of the error-vs-wind sweep, km/h (default: 30 40 50 60 70)")
+    p.add_argument("--no-sweep", action="store_true", help="skip the error-vs-wind sweep")
+    p.add_argument("--sweep-seeds", type=int, default=None, metavar="N",
+                   help="run the sweep on the first N seeds (default 1)")
+    p.add_argument("--steps", type=int, default=None,
+                   help="episode length of every scenario and sweep point, control periods "
+                   "(default: the scenario's; 50 per second)")
+    p.add_argument("--ppo-model", default=None, metavar="PATH",
+                   help="PPO run folder, eval/best folder or zip (default: the shipped policy)")
+    p.add_argument("--randomize", action="store_true",
+                   help="randomised plant parameters every episode (randomize_params=True)")
+    p.add_argument("--out", default="bench_out", help="output folder (default: bench_out)")
+    p.add_argument("--no-figures", action="store_true", help="results.json and results.md only")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=_bench)
     args = parser.parse_args(argv)
+    args.argv = list(argv) if argv is not None else sys.argv[1:]
     try:
         return args.func(args)
     except (ValueError, KeyError, RuntimeError) as exc:  # config errors etc.: one clear line
