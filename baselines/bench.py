@@ -926,36 +926,6 @@ def draw_figures(results: Mapping[str, Any], ran: Mapping[str, Any], out: str | 
 
 
 # ------------------------------------------------------------------------------ threads
-_BLAS_SYMBOLS = (("scipy_openblas_set_num_threads64_", "scipy_openblas_get_num_threads64_"),
-                 ("scipy_openblas_set_num_threads", "scipy_openblas_get_num_threads"),
-                 ("openblas_set_num_threads64_", "openblas_get_num_threads64_"),
-                 ("openblas_set_num_threads", "openblas_get_num_threads"))
-
-
-def _loaded_openblas() -> list[Any]:
-    """(set, get) functions of every OpenBLAS loaded in this process (numpy and scipy each
-    bundle one); empty where ``/proc/self/maps`` does not exist."""
-    import ctypes
-
-    try:
-        with open("/proc/self/maps") as fh:
-            paths = sorted({ln.split()[-1] for ln in fh
-                            if "openblas" in ln.rsplit("/", 1)[-1].lower() and "/" in ln})
-    except OSError:
-        return []
-    found = []
-    for path in paths:
-        try:
-            lib = ctypes.CDLL(path)
-        except OSError:
-            continue
-        for set_name, get_name in _BLAS_SYMBOLS:
-            if hasattr(lib, set_name) and hasattr(lib, get_name):
-                found.append((getattr(lib, set_name), getattr(lib, get_name)))
-                break
-    return found
-
-
 class blas_threads:
     """Context manager: run with ``n`` OpenBLAS threads in numpy's and scipy's BLAS, restored
     on exit.
@@ -963,7 +933,8 @@ class blas_threads:
     The bench's matrices are small (at most 132 states); with two threads on two busy cores
     OpenBLAS spends its time waiting (the yardstick's design took 4 s instead of 0.1 s when
     another job shared the machine), and one thread makes the controllers' timings steadier.
-    Does nothing where the libraries cannot be found (no ``/proc``); ``n`` None: unchanged.
+    Uses threadpoolctl (numpy and scipy each bundle an OpenBLAS; both are limited);
+    ``n`` None: unchanged.
 
     :param n: threads, default 1
     """
@@ -971,24 +942,24 @@ class blas_threads:
     def __init__(self, n: int | None = 1) -> None:
         self.n = n
         self.n_libraries = 0
-        self._saved: list[tuple[Any, int]] = []
+        self._limiter: Any = None
 
     def __enter__(self) -> "blas_threads":
         if self.n is None:
             return self
         import numpy  # noqa: F401  (load both BLAS libraries first)
         import scipy.linalg  # noqa: F401
+        from threadpoolctl import ThreadpoolController
 
-        for set_fn, get_fn in _loaded_openblas():
-            self._saved.append((set_fn, int(get_fn())))
-            set_fn(int(self.n))
-        self.n_libraries = len(self._saved)
+        blas = ThreadpoolController().select(user_api="blas")
+        self.n_libraries = len(blas.lib_controllers)
+        self._limiter = blas.limit(limits=int(self.n))
         return self
 
     def __exit__(self, *exc: Any) -> None:
-        for set_fn, n in self._saved:
-            set_fn(n)
-        self._saved = []
+        if self._limiter is not None:
+            self._limiter.restore_original_limits()
+            self._limiter = None
 
 
 # ------------------------------------------------------------------------------ all of it

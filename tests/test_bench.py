@@ -243,3 +243,17 @@ def test_cli_quick_end_to_end(tmp_path, capsys) -> None:
     assert sum(v["failures"] for c in js["summary"].values() for v in c.values()) == 0
     for f in ("results.md",) + B.FIGURES:
         assert (out / f).stat().st_size > 0, f
+
+
+def test_blas_threads_limits_and_restores() -> None:
+    import scipy.linalg  # noqa: F401  (its OpenBLAS loaded, as blas_threads does)
+    from threadpoolctl import threadpool_info
+
+    def blas() -> list[int]:
+        return [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
+    before = blas()
+    with B.blas_threads(1) as bt:
+        assert bt.n_libraries == len(before) >= 1 and blas() == [1] * len(before)
+    assert blas() == before
+    with B.blas_threads(None) as bt:
+        assert bt.n_libraries == 0 and blas() == before
