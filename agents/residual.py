@@ -93,7 +93,7 @@ class ResidualPI:
         """
         obs = np.asarray(observation, np.float32)
         self._pi_action = self.pi.act(obs)
-        integral = self.pi.ki * self.pi._I * self.pi._inv_scale
+        integral = self.pi.integral_action()
         parts = [obs, np.clip(integral, -INTEGRAL_BOUND, INTEGRAL_BOUND).astype(np.float32)]
         if self.history:
             now = obs[list(HISTORY_ENTRIES)]

@@ -107,6 +107,13 @@ class PIController(Controller):
         if self._fresh is not None:
             self._fresh |= np.asarray(mask, bool)
 
+    def integral_action(self) -> np.ndarray:
+        """The integral part ``ki * I`` of the last command, in action units (zeros before the
+        first :meth:`act`)."""
+        if self._I is None:
+            return np.zeros(2)
+        return self.ki * self._I * self._inv_scale
+
     def act(self, observation: np.ndarray) -> np.ndarray:
         """Action(s) for one observation ``(12,)`` or a batch ``(N, 12)``.
 

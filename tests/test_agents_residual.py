@@ -50,6 +50,7 @@ def test_observation_adds_the_pi_integral_term() -> None:
     scale = core.config.action_scale_deg_s * np.pi / 180.0
     pi = _find_wrapper(env).core.pi
     np.testing.assert_allclose(obs[12:], pi.ki * pi._I / scale, rtol=1e-5)
+    np.testing.assert_allclose(pi.integral_action(), pi.ki * pi._I / scale, rtol=1e-12)
     # bumpless start: at reset the PI's command equals the previous applied rate command
     obs, _ = env.reset(seed=2)
     pi_action = _find_wrapper(env).core._pi_action
