@@ -139,15 +139,14 @@ def load_policy(path: str | Path | None = None, env: Any = None,
 
 def _residual_core(cfg: PPOConfig | None, env: Any) -> Any:
     """The :class:`agents.residual.ResidualPI` of a residual run, else None."""
-    from .residual import DEFAULT_BASE_ID, DEFAULT_GAINS, DEFAULT_HISTORY, DEFAULT_RESIDUAL_SCALE, \
-        RESIDUAL_ENV_ID, RESIDUAL_KEYS, ResidualPI
+    from .residual import DEFAULT_GAINS, DEFAULT_HISTORY, DEFAULT_RESIDUAL_SCALE, RESIDUAL_ENV_ID, \
+        ResidualPI, base_env_args
 
     if cfg is None or cfg.env_id != RESIDUAL_ENV_ID:
         return None
     kw = dict(cfg.env_kwargs)
     if env is None:
-        env = make_env(kw.get("base_id", DEFAULT_BASE_ID),
-                       {k: v for k, v in kw.items() if k not in RESIDUAL_KEYS})
+        env = make_env(*base_env_args(kw))
     gains = kw.get("gains", DEFAULT_GAINS)
     return ResidualPI(env, tuple(gains) if isinstance(gains, list) else gains,
                       kw.get("residual_scale", DEFAULT_RESIDUAL_SCALE), kw.get("history", DEFAULT_HISTORY))
@@ -194,11 +193,10 @@ def evaluate(path: str | Path, env_id: str | None = None, seeds: Iterable[int] =
     seeds = [int(s) for s in seeds]
     if not seeds or n_episodes < 1:
         raise ValueError("evaluate: need at least one seed and n_episodes >= 1")
-    from .residual import DEFAULT_BASE_ID, RESIDUAL_ENV_ID, RESIDUAL_KEYS
+    from .residual import RESIDUAL_ENV_ID, base_env_args
 
     if ctrl.residual is not None and env_id == RESIDUAL_ENV_ID:  # step the base environment
-        env_id = dict(env_kwargs).get("base_id", DEFAULT_BASE_ID)
-        env_kwargs = {k: v for k, v in dict(env_kwargs).items() if k not in RESIDUAL_KEYS}
+        env_id, env_kwargs = base_env_args(env_kwargs)
     env = make_env(env_id, env_kwargs, env_module)
     returns, lengths, times = [], [], []
     try:

@@ -166,6 +166,16 @@ def make_residual_env(base_id: str = DEFAULT_BASE_ID, gains: str | tuple = DEFAU
     return ResidualPIWrapper(gym.make(base_id, **env_kwargs), gains, residual_scale, history)
 
 
+def base_env_args(env_kwargs: dict[str, Any]) -> tuple[str, dict[str, Any]]:
+    """``(base_id, base env keyword arguments)`` of :func:`make_residual_env`'s keyword arguments.
+
+    >>> base_env_args({"base_id": "DSS14-Step-v0", "history": 8, "wind_speed_kmh": 30.0})
+    ('DSS14-Step-v0', {'wind_speed_kmh': 30.0})
+    """
+    kw = dict(env_kwargs)
+    return kw.get("base_id", DEFAULT_BASE_ID), {k: v for k, v in kw.items() if k not in RESIDUAL_KEYS}
+
+
 def _register() -> None:
     from gymnasium.envs.registration import register, registry
 
@@ -176,5 +186,5 @@ def _register() -> None:
 
 _register()
 
-__all__ = ["DEFAULT_BASE_ID", "DEFAULT_GAINS", "DEFAULT_HISTORY", "DEFAULT_RESIDUAL_SCALE", "RESIDUAL_ENV_ID", "RESIDUAL_KEYS", "ResidualPI",
+__all__ = ["base_env_args", "DEFAULT_BASE_ID", "DEFAULT_GAINS", "DEFAULT_HISTORY", "DEFAULT_RESIDUAL_SCALE", "RESIDUAL_ENV_ID", "RESIDUAL_KEYS", "ResidualPI",
            "ResidualPIWrapper", "make_residual_env"]
