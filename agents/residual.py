@@ -40,12 +40,13 @@ from baselines.pi import PIController
 INTEGRAL_BOUND = 1.0e3
 #: the registered residual environment
 RESIDUAL_ENV_ID = "DSS14-Residual-v0"
-#: defaults of the residual composition (PI gain set, action units per unit of policy output)
+#: defaults of the residual composition: base environment, PI gain set, action units per unit
+#: of policy output, previous steps in the observation
 DEFAULT_BASE_ID = "DSS14-Hold-v0"
 DEFAULT_GAINS = "kp1"
 DEFAULT_RESIDUAL_SCALE = 0.05
-#: keys of ``make_residual_env`` that are not keyword arguments of the base environment
 DEFAULT_HISTORY = 0
+#: keys of ``make_residual_env`` that are not keyword arguments of the base environment
 RESIDUAL_KEYS = ("base_id", "gains", "residual_scale", "history")
 #: environment observation entries kept in the history: servo errors, previous applied rates
 HISTORY_ENTRIES = (0, 1, 10, 11)
