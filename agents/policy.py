@@ -149,7 +149,8 @@ def _residual_core(cfg: PPOConfig | None, env: Any) -> Any:
         env = make_env(*base_env_args(kw))
     gains = kw.get("gains", DEFAULT_GAINS)
     return ResidualPI(env, tuple(gains) if isinstance(gains, list) else gains,
-                      kw.get("residual_scale", DEFAULT_RESIDUAL_SCALE), kw.get("history", DEFAULT_HISTORY))
+                      kw.get("residual_scale", DEFAULT_RESIDUAL_SCALE),
+                      kw.get("history", DEFAULT_HISTORY))
 
 
 def _run_config(model_path: Path) -> PPOConfig | None:

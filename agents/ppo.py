@@ -397,8 +397,8 @@ def _check_env(cfg: PPOConfig) -> tuple[Any, Any]:
         try:
             make_env(cfg.env_id, kw, cfg.env_module).close()
         except Exception as exc:  # noqa: BLE001 - same as above, for the evaluation environment
-            raise ValueError(f"{cfg.source}: key 'eval_env_kwargs': cannot make {cfg.env_id!r} with "
-                             f"{kw}: {type(exc).__name__}: {exc}") from exc
+            raise ValueError(f"{cfg.source}: key 'eval_env_kwargs': cannot make {cfg.env_id!r} "
+                             f"with {kw}: {type(exc).__name__}: {exc}") from exc
     return spaces_
 
 

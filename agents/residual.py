@@ -66,7 +66,8 @@ class ResidualPI:
     """
 
     def __init__(self, env: Any, gains: str | tuple = DEFAULT_GAINS,
-                 residual_scale: float = DEFAULT_RESIDUAL_SCALE, history: int = DEFAULT_HISTORY) -> None:
+                 residual_scale: float = DEFAULT_RESIDUAL_SCALE,
+                 history: int = DEFAULT_HISTORY) -> None:
         scale = float(residual_scale)
         if not (math.isfinite(scale) and scale > 0.0):
             raise ValueError(f"residual_scale must be finite and > 0, got {residual_scale!r}")
@@ -121,7 +122,8 @@ class ResidualPIWrapper(gym.Wrapper):
     """A DSS14 environment driven by ``PI + residual_scale * action`` (see the module doc).
 
     Action: ``Box(-1, 1, (2,))`` residual; observation: ``Box((14 + 4 history,))`` (the
-    environment's 12 entries, the PI integral term az, el in action units, the history).  Reward, termination and info
+    environment's 12 entries, the PI integral term az, el in action units, the history).
+    Reward, termination and info
     are the environment's (the reward's action-change term acts on the applied total action).
 
     :param env: a DSS14 environment (``gymnasium.make("DSS14-Hold-v0")`` etc.)
@@ -131,7 +133,8 @@ class ResidualPIWrapper(gym.Wrapper):
     """
 
     def __init__(self, env: gym.Env, gains: str | tuple = DEFAULT_GAINS,
-                 residual_scale: float = DEFAULT_RESIDUAL_SCALE, history: int = DEFAULT_HISTORY) -> None:
+                 residual_scale: float = DEFAULT_RESIDUAL_SCALE,
+                 history: int = DEFAULT_HISTORY) -> None:
         super().__init__(env)
         self.core = ResidualPI(env, gains, residual_scale, history)
         high = env.observation_space.high
@@ -140,7 +143,8 @@ class ResidualPIWrapper(gym.Wrapper):
         self.observation_space = spaces.Box(-high, high, dtype=np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
 
-    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
+    def reset(self, *, seed: int | None = None,
+              options: dict | None = None) -> tuple[np.ndarray, dict]:
         obs, info = self.env.reset(seed=seed, options=options)
         self.core.reset()
         return self.core.observe(obs), info
@@ -151,8 +155,8 @@ class ResidualPIWrapper(gym.Wrapper):
 
 
 def make_residual_env(base_id: str = DEFAULT_BASE_ID, gains: str | tuple = DEFAULT_GAINS,
-                      residual_scale: float = DEFAULT_RESIDUAL_SCALE, history: int = DEFAULT_HISTORY,
-                      **env_kwargs: Any) -> ResidualPIWrapper:
+                      residual_scale: float = DEFAULT_RESIDUAL_SCALE,
+                      history: int = DEFAULT_HISTORY, **env_kwargs: Any) -> ResidualPIWrapper:
     """``ResidualPIWrapper(gymnasium.make(base_id, **env_kwargs))``: the registered entry point.
 
     :param base_id: the DSS14 environment underneath, default ``"DSS14-Hold-v0"``
@@ -174,7 +178,8 @@ def base_env_args(env_kwargs: dict[str, Any]) -> tuple[str, dict[str, Any]]:
     ('DSS14-Step-v0', {'wind_speed_kmh': 30.0})
     """
     kw = dict(env_kwargs)
-    return kw.get("base_id", DEFAULT_BASE_ID), {k: v for k, v in kw.items() if k not in RESIDUAL_KEYS}
+    base = {k: v for k, v in kw.items() if k not in RESIDUAL_KEYS}
+    return kw.get("base_id", DEFAULT_BASE_ID), base
 
 
 def _register() -> None:
@@ -187,5 +192,6 @@ def _register() -> None:
 
 _register()
 
-__all__ = ["base_env_args", "DEFAULT_BASE_ID", "DEFAULT_GAINS", "DEFAULT_HISTORY", "DEFAULT_RESIDUAL_SCALE", "RESIDUAL_ENV_ID", "RESIDUAL_KEYS", "ResidualPI",
-           "ResidualPIWrapper", "make_residual_env"]
+__all__ = ["DEFAULT_BASE_ID", "DEFAULT_GAINS", "DEFAULT_HISTORY", "DEFAULT_RESIDUAL_SCALE",
+           "RESIDUAL_ENV_ID", "RESIDUAL_KEYS", "ResidualPI", "ResidualPIWrapper", "base_env_args",
+           "make_residual_env"]

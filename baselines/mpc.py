@@ -25,7 +25,8 @@ offset; the problem is DPP (:meth:`cvxpy.Problem.is_dpp`) and canonicalised by c
 ``P`` and ``A`` constant, so each step only updates ``q`` and ``u`` of one OSQP workspace and
 re-solves it warm-started.  (Calling ``Problem.solve`` every step re-applies the parameters
 through cvxpy's sparse tensors; with cvxpy 1.9 / scipy 1.17 that alone costs 2-4 ms a step.
-Both paths give the same solution, tested.)  A solver exception, a status other than optimal, or a first
+Both paths give the same solution, tested.)  A solver exception, a status other than optimal,
+or a first
 move that violates the hard limits makes the controller use the LQG action (clipped to the
 limits) for that step; the fallbacks are counted in ``info`` and never end the episode.
 """
@@ -79,8 +80,9 @@ class CanonicalQP:
 
     At construction every parameter entry is probed (cvxpy's own ``get_problem_data`` with a
     unit value, the others zero) to get the affine maps ``q = q0 + Mq p``, ``u = u0 + Mu p``;
-    a random parameter vector then checks that ``P``, ``A`` and ``l`` stay constant and the
-    maps are exact, else :class:`ValueError`.  One OSQP workspace is set up; :meth:`solve`
+    a random parameter vector then checks that ``P`` and ``A`` stay constant and the maps are
+    exact (``l`` is -inf: cvxpy's OSQP data has inequalities only here), else
+    :class:`ValueError`.  One OSQP workspace is set up; :meth:`solve`
     updates ``q``, ``u`` and solves, warm-started from the previous solution (OSQP's default).
 
     :param problem: DPP problem whose parameters enter only the linear cost and the upper
@@ -132,22 +134,21 @@ class CanonicalQP:
         self.sl = slice(col, col + int(variable.size))
         self.status_map = CvxpyOSQP.STATUS_MAP
         self.solver = osqp.OSQP()
-        P, F = (sp.csc_matrix(M) for M in (P, F))  # as cvxpy hands them to OSQP
+        # rebuilt from (data, indices, indptr) as cvxpy does: OSQP needs 32-bit indices
+        P, F = (sp.csc_matrix(M) for M in (P, F))
         P, F = (sp.csc_matrix((M.data, M.indices, M.indptr), shape=M.shape) for M in (P, F))
         self.solver.setup(P, q0, F, np.full(u0.size, -np.inf), u0, verbose=False, **solver_opts)
-        self.solve_time_s = 0.0
 
     def solve(self) -> tuple[np.ndarray | None, str]:
         """Solve at the parameters' current values.
 
-        :return: ``(value of the variable or None, cvxpy status string)``
+        :return: ``(value of the variable, or None unless optimal; cvxpy status string)``
         """
         p = np.concatenate([np.ravel(prm.value) for prm in self.params])
         self.solver.update(q=self.q0 + self.Mq @ p, u=self.u0 + self.Mu @ p)
         res = self.solver.solve(raise_error=False)
-        self.solve_time_s = float(res.info.solve_time)
         status = str(self.status_map.get(res.info.status_val, cp.SOLVER_ERROR))
-        if status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) or res.x is None:
+        if status != cp.OPTIMAL or res.x is None:
             return None, status
         return np.array(res.x[self.sl], float), status
 
@@ -198,7 +199,8 @@ class CondensedMPC:
             + w2 * cp.sum_squares(self.s)
         self.problem = cp.Problem(cp.Minimize(obj), cons)
         if not self.problem.is_dpp():
-            raise RuntimeError("the MPC problem is not DPP: it would be re-canonicalised every step")
+            raise RuntimeError("the MPC problem is not DPP: it would be re-canonicalised every "
+                               "step")
         self._solver_opts = dict(solver=cp.OSQP, warm_start=True, eps_abs=st.eps_abs,
                                  eps_rel=st.eps_rel, max_iter=int(st.max_iter), polishing=True,
                                  verbose=False)

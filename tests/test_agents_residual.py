@@ -145,7 +145,8 @@ def test_shipped_policy_beats_the_report_pi_on_unseen_seeds(scenario: str, axis:
     """The issue's target, on test seeds disjoint from training (10000+) and validation
     (1000-1005); docs/ppo.md has the 10-seed figures."""
     seeds = [0, 1, 2]
-    res = run([("ppo", lambda env: load_policy(env=env)), "pi_kp1"], [scenario], seeds=seeds, steps=1500)
+    res = run([("ppo", lambda env: load_policy(env=env)), "pi_kp1"], [scenario], seeds=seeds,
+              steps=1500)
     e = {(ep["controller"], ep["seed"]): ep["servo_error_mdeg"][axis]["three_sigma"]
          for ep in res["episodes"]}
     for s in seeds:
