@@ -4,7 +4,7 @@
 ``eval/best/`` folder, or a checkpoint zip), normalises each observation with the *frozen*
 training statistics and returns the deterministic (mean) action::
 
-    from agents.policy import load_policy, evaluate
+    from dss14_env.agents.policy import load_policy, evaluate
     ctrl = load_policy("runs/ppo-20250101-120000")   # or load_policy(): the shipped policy
     ctrl.reset(seed=0)
     action = ctrl.act(obs)            # shape of the action space, clipped to its bounds
@@ -23,9 +23,8 @@ from typing import Any, Iterable, Mapping
 import numpy as np
 import yaml
 
-from baselines.base import Controller
-
-from .ppo import PPOConfig, make_env, vecnormalize_path_for
+from dss14_env.agents.ppo import PPOConfig, make_env, vecnormalize_path_for
+from dss14_env.baselines.base import Controller
 
 #: the policy shipped with the package (docs/ppo.md: how it was trained, how to reproduce it)
 DEFAULT_POLICY = Path(__file__).resolve().parent / "policies" / "residual_pi"
@@ -59,7 +58,7 @@ class PPOController(Controller):
     :param torch_threads: ``torch.set_num_threads`` value (process-wide; one thread is fastest
         for small MLPs), default 1; None leaves torch alone
     :param env: the DSS14 environment the controller will act on, default None; only used by a
-        residual policy (run trained on ``DSS14-Residual-v0``, :mod:`agents.residual`), whose PI
+        residual policy (run trained on ``DSS14-Residual-v0``, :mod:`dss14_env.agents.residual`), whose PI
         takes the period and scales from it; None: the run's base environment
 
     A residual policy's controller composes ``PI + residual_scale * policy`` itself (the run's
@@ -127,7 +126,7 @@ class PPOController(Controller):
 
 def load_policy(path: str | Path | None = None, env: Any = None,
                 name: str | None = None) -> PPOController:
-    """Load a trained PPO policy as a :class:`baselines.base.Controller`.
+    """Load a trained PPO policy as a :class:`dss14_env.baselines.base.Controller`.
 
     :param path: run folder, ``eval/best`` folder, or a model/checkpoint zip; default None:
         the policy shipped with the package (:data:`DEFAULT_POLICY`)
@@ -138,9 +137,15 @@ def load_policy(path: str | Path | None = None, env: Any = None,
 
 
 def _residual_core(cfg: PPOConfig | None, env: Any) -> Any:
-    """The :class:`agents.residual.ResidualPI` of a residual run, else None."""
-    from .residual import DEFAULT_GAINS, DEFAULT_HISTORY, DEFAULT_RESIDUAL_SCALE, RESIDUAL_ENV_ID, \
-        ResidualPI, base_env_args
+    """The :class:`dss14_env.agents.residual.ResidualPI` of a residual run, else None."""
+    from dss14_env.agents.residual import (
+        DEFAULT_GAINS,
+        DEFAULT_HISTORY,
+        DEFAULT_RESIDUAL_SCALE,
+        RESIDUAL_ENV_ID,
+        ResidualPI,
+        base_env_args,
+    )
 
     if cfg is None or cfg.env_id != RESIDUAL_ENV_ID:
         return None
@@ -194,7 +199,7 @@ def evaluate(path: str | Path, env_id: str | None = None, seeds: Iterable[int] =
     seeds = [int(s) for s in seeds]
     if not seeds or n_episodes < 1:
         raise ValueError("evaluate: need at least one seed and n_episodes >= 1")
-    from .residual import RESIDUAL_ENV_ID, base_env_args
+    from dss14_env.agents.residual import RESIDUAL_ENV_ID, base_env_args
 
     if ctrl.residual is not None and env_id == RESIDUAL_ENV_ID:  # step the base environment
         env_id, env_kwargs = base_env_args(env_kwargs)

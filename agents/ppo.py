@@ -12,8 +12,8 @@ everything of one run into one folder (default ``runs/ppo-<timestamp>/``)::
     monitor/                     per-env training episode CSVs (SB3 Monitor)
     train_summary.json           timesteps, wall time, throughput, versions
 
-Load a trained policy with :func:`agents.policy.load_policy` (a
-:class:`baselines.base.Controller`), score it with :func:`agents.policy.evaluate`.
+Load a trained policy with :func:`dss14_env.agents.policy.load_policy` (a
+:class:`dss14_env.baselines.base.Controller`), score it with :func:`dss14_env.agents.policy.evaluate`.
 
 >>> cfg = PPOConfig.from_dict({"env_id": "Pendulum-v1", "n_envs": 2, "n_steps": 64,
 ...                            "batch_size": 64})
@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 from datetime import datetime
 from importlib import resources
 from pathlib import Path
-from typing import Any, Callable, Mapping
+from typing import Any, Mapping
 
 import gymnasium as gym
 import numpy as np
@@ -48,7 +48,7 @@ import yaml
 
 #: modules imported (when present) before ``gymnasium.make`` if ``env_id`` is not registered and
 #: the config names no ``env_module``: where ``DSS14-v0`` registers itself.
-DEFAULT_ENV_MODULES = ("dss14_env", "dss14_env.env")
+DEFAULT_ENV_MODULES = ("dss14_env",)
 
 _ACTIVATIONS = ("tanh", "relu", "elu", "leaky_relu")
 _VEC_ENVS = ("dummy", "subproc")
@@ -76,7 +76,7 @@ class PPOConfig:
     :param env_id: Gymnasium id (``"module:Id"`` also works), default ``"DSS14-v0"``
     :param env_kwargs: keyword arguments of ``gymnasium.make``, default ``{}``
     :param env_module: module imported before ``gymnasium.make`` to register ``env_id``; default
-        None: ``dss14_env`` / ``dss14_env.env`` are tried when the id is not registered
+        None: ``dss14_env`` / ``dss14_env.envs.env`` are tried when the id is not registered
     :param n_envs: parallel environment copies, default 8
     :param vec_env: ``"dummy"`` (one process) or ``"subproc"`` (one process per copy), default
         ``"dummy"``
@@ -308,7 +308,7 @@ def default_config_path(name: str = "ppo.yaml") -> Path:
 
     :param name: file name, default ``"ppo.yaml"`` (``"ppo_smoke.yaml"``: Pendulum-v1 smoke run)
     """
-    return Path(str(resources.files("configs").joinpath(name)))
+    return Path(str(resources.files("dss14_env.configs").joinpath(name)))
 
 
 def load_config(path: str | Path | None = None) -> PPOConfig:
@@ -407,7 +407,7 @@ class EvalSeedWrapper(gym.Wrapper):
 
     The evaluation environment of one eval seed: every evaluation starts from the same episode,
     later episodes of the same evaluation continue the environment's generator, exactly as
-    :func:`agents.policy.evaluate` does.
+    :func:`dss14_env.agents.policy.evaluate` does.
 
     :param env: the environment
     :param seed: its evaluation seed

@@ -6,7 +6,7 @@ correction to its rate command (residual policy learning, Johannink et al. 2019,
 
     a[k] = a_PI[k] + residual_scale * u[k],        u[k] in [-1, 1]^2 from the policy
 
-with ``a_PI`` the action of :class:`baselines.pi.PIController` (the report's gains, default
+with ``a_PI`` the action of :class:`dss14_env.baselines.pi.PIController` (the report's gains, default
 ``kp1``: kp 1 1/s, ki 0.3 1/s^2) and ``a`` clipped to the environment's [-1, 1].  At ``u = 0``
 the closed loop is exactly the report's, so training starts from a stable, sensible controller
 and the policy only has to learn what PI leaves on the table (wind rejection).  The policy sees
@@ -20,8 +20,8 @@ one-step error rate mostly quantisation noise, and a short history lets the netw
 Two faces of one :class:`ResidualPI` core, so training and scoring compose actions the same way:
 
 * :class:`ResidualPIWrapper` (Gymnasium wrapper; id ``DSS14-Residual-v0`` registered when this
-  module is imported, ``env_module: agents.residual`` in a PPO config) -- what PPO trains on;
-* :class:`agents.policy.PPOController` of a residual run -- what the runner scores; it sees the
+  module is imported, ``env_module: dss14_env.agents.residual`` in a PPO config) -- what PPO trains on;
+* :class:`dss14_env.agents.policy.PPOController` of a residual run -- what the runner scores; it sees the
   plain 12 observations like every other controller.
 """
 
@@ -34,7 +34,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from baselines.pi import PIController
+from dss14_env.baselines.pi import PIController
 
 #: extra observation entries: the PI integral term, action units; bound of the Box
 INTEGRAL_BOUND = 1.0e3
@@ -181,16 +181,6 @@ def base_env_args(env_kwargs: dict[str, Any]) -> tuple[str, dict[str, Any]]:
     base = {k: v for k, v in kw.items() if k not in RESIDUAL_KEYS}
     return kw.get("base_id", DEFAULT_BASE_ID), base
 
-
-def _register() -> None:
-    from gymnasium.envs.registration import register, registry
-
-    if RESIDUAL_ENV_ID not in registry:
-        # the base environment's TimeLimit truncates; no second one here
-        register(id=RESIDUAL_ENV_ID, entry_point="agents.residual:make_residual_env")
-
-
-_register()
 
 __all__ = ["DEFAULT_BASE_ID", "DEFAULT_GAINS", "DEFAULT_HISTORY", "DEFAULT_RESIDUAL_SCALE",
            "RESIDUAL_ENV_ID", "RESIDUAL_KEYS", "ResidualPI", "ResidualPIWrapper", "base_env_args",

@@ -1,8 +1,8 @@
 """The one controller interface shared by the classical, optimal and learned controllers.
 
 A controller sees only what the environment observes: it gets the observation vector of
-``DSS14-v0`` (see :class:`dss14_env.env.DSS14Env`) and returns an action in the environment's
-action space ([-1, 1]^2, scaled rate commands).  The runner (``baselines/runner.py``) calls
+``DSS14-v0`` (see :class:`dss14_env.envs.env.DSS14Env`) and returns an action in the environment's
+action space ([-1, 1]^2, scaled rate commands).  The runner (``dss14_env/bench/runner.py``) calls
 every controller the same way::
 
     ctrl.reset(seed)                 # once per episode, before the first act()

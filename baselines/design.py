@@ -3,7 +3,7 @@
 The simulator (``dss14_env``'s plant, possibly with randomised parameters) and the model a
 controller is designed on are separate objects: everything here is built from the shipped
 configuration (``configs/model.yaml``, ``configs/wind.yaml``, ``configs/controllers.yaml``)
-through :func:`dss14_env.model.default_model` and :func:`dss14_env.windload.default_wind_loads`,
+through :func:`dss14_env.model.default_model` and :func:`dss14_env.wind.loads.default_wind_loads`,
 never from an environment instance.
 
 Design model (continuous time, SI, then discretised exactly for the control period)::
@@ -29,7 +29,7 @@ on.  ``order = None`` keeps all 58 states (the full-order model of the yardstick
 
 Wind.  ``wind=("design", speed)`` (LQG, MPC): a direction-free model, the front and the side
 gust as two independent coherent components, ``T_w = g_front u_1 + g_side u_2`` with ``u_1``,
-``u_2`` independent Davenport gusts (4th-order filter of :mod:`dss14_env.wind`) at the design
+``u_2`` independent Davenport gusts (4th-order filter of :mod:`dss14_env.wind.gusts`) at the design
 speed.  Any direction's gust gain ``g(theta) = g_front cos(theta) + g_side sin(theta)`` lies in
 its span, front and side wind at full strength.  ``wind=(speed, direction)``
 (the yardstick): the scenario's own fully coherent gust, ``T_w = g(direction) u``.
@@ -52,10 +52,10 @@ from typing import Any, Sequence
 import numpy as np
 from scipy import linalg
 
-from dss14_env.config import ConfigError, Param, _block, _read_yaml, _spec, default_config_path
-from dss14_env.linsys import balance, discretize, noise_factor
-from dss14_env.model import DSS14Model, default_model
-from dss14_env.windload import WindLoads, default_wind_loads, direction_angle
+from dss14_env.core.schema import ConfigError, Param, default_config_path, load_block, read_yaml, spec
+from dss14_env.model.assembly import DSS14Model, default_model
+from dss14_env.model.linsys import balance, discretize, noise_factor
+from dss14_env.wind.loads import WindLoads, default_wind_loads, direction_angle
 
 ENCODER_OUTPUTS = ("enc_az", "enc_el")
 RATE_OUTPUTS = ("enc_rate_az", "enc_rate_el")
@@ -71,11 +71,11 @@ MIN_MEASUREMENT_NOISE = 1e-3 * math.pi / 180e3
 class DesignConfig:
     """Section ``design`` of ``configs/controllers.yaml`` (SI)."""
 
-    order: int = _spec("1", integer=True)
-    wind_speed: float = _spec("m/s")
-    encoder_bits: int = _spec("1", integer=True)
-    rate_limit: float = _spec("rad/s")
-    accel_limit: float = _spec("rad/s^2")
+    order: int = spec("1", integer=True)
+    wind_speed: float = spec("m/s")
+    encoder_bits: int = spec("1", integer=True)
+    rate_limit: float = spec("rad/s")
+    accel_limit: float = spec("rad/s^2")
 
 
 @dataclass(frozen=True)
@@ -87,34 +87,34 @@ class LQGConfig:
     """
 
     wind_model: str = field(metadata=dict(choices=("inferred", "direction-free")))
-    error_weight: float = _spec("1")
-    action_change_weight: float = _spec("1")
-    integral_weight: float = _spec("1")
-    integral_clip: float = _spec("rad")
-    input_noise: float = _spec("1", positive=True, nonzero=False)
-    disturbance_drift: float = _spec("1", positive=True, nonzero=False)
-    measurement_noise: float = _spec("rad", positive=True, nonzero=False)
-    min_wind_speed: float = _spec("m/s")
-    shaper: int = _spec("1", positive=True, nonzero=False, integer=False)
-    shaper_rate: float = _spec("rad/s")
-    shaper_accel: float = _spec("rad/s^2")
-    shaper_accel_max: float = _spec("rad/s^2")
-    reference_pull: float = _spec("1/s")
+    error_weight: float = spec("1")
+    action_change_weight: float = spec("1")
+    integral_weight: float = spec("1")
+    integral_clip: float = spec("rad")
+    input_noise: float = spec("1", positive=True, nonzero=False)
+    disturbance_drift: float = spec("1", positive=True, nonzero=False)
+    measurement_noise: float = spec("rad", positive=True, nonzero=False)
+    min_wind_speed: float = spec("m/s")
+    shaper: int = spec("1", positive=True, nonzero=False, integer=False)
+    shaper_rate: float = spec("rad/s")
+    shaper_accel: float = spec("rad/s^2")
+    shaper_accel_max: float = spec("rad/s^2")
+    reference_pull: float = spec("1/s")
 
 
 @dataclass(frozen=True)
 class MPCConfig:
     """Section ``mpc``: horizon, soft error constraint and OSQP settings."""
 
-    horizon: int = _spec("1", integer=True)
-    shaper: int = _spec("1", positive=True, nonzero=False, integer=False)
-    action_change_weight: float = _spec("1")
-    error_soft_limit: float = _spec("rad")
-    slack_weight_linear: float = _spec("1")
-    slack_weight_quadratic: float = _spec("1")
-    eps_abs: float = _spec("1")
-    eps_rel: float = _spec("1")
-    max_iter: int = _spec("1", integer=True)
+    horizon: int = spec("1", integer=True)
+    shaper: int = spec("1", positive=True, nonzero=False, integer=False)
+    action_change_weight: float = spec("1")
+    error_soft_limit: float = spec("rad")
+    slack_weight_linear: float = spec("1")
+    slack_weight_quadratic: float = spec("1")
+    eps_abs: float = spec("1")
+    eps_rel: float = spec("1")
+    max_iter: int = spec("1", integer=True)
 
 
 @dataclass(frozen=True)
@@ -136,11 +136,11 @@ def load_controllers_config(path: str | Path | None = None) -> ControllersConfig
     :raises ConfigError: naming the field and the file of the first problem found
     """
     path = Path(path) if path is not None else default_config_path("controllers.yaml")
-    data = _read_yaml(path)
+    data = read_yaml(path)
     registry: dict[str, Param] = {}
-    design = _block(DesignConfig, data.get("design"), "design", path, registry)
+    design = load_block(DesignConfig, data.get("design"), "design", path, registry)
     lqg = _section_with_choices(LQGConfig, data.get("lqg"), "lqg", path, registry)
-    mpc = _block(MPCConfig, data.get("mpc"), "mpc", path, registry)
+    mpc = load_block(MPCConfig, data.get("mpc"), "mpc", path, registry)
     for name, v in (("lqg.shaper", lqg.shaper), ("mpc.shaper", mpc.shaper)):
         if v not in (0, 1):
             raise ConfigError(f"{path}: field '{name}' must be 0 (off) or 1 (on), got {v!r}")
@@ -152,7 +152,7 @@ def load_controllers_config(path: str | Path | None = None) -> ControllersConfig
 
 
 def _section_with_choices(cls: type, section: Any, block: str, path: Path, registry: dict) -> Any:
-    """:func:`dss14_env.config._block` for dataclasses that also have plain string choices
+    """:func:`dss14_env.model.config._block` for dataclasses that also have plain string choices
     (fields with ``metadata['choices']``), given as ``{value, source}`` without a unit."""
     import dataclasses
     if not isinstance(section, dict):
@@ -174,7 +174,7 @@ def _section_with_choices(cls: type, section: Any, block: str, path: Path, regis
         cls.__name__ + "Numbers",
         [(f.name, f.type, dataclasses.field(metadata=f.metadata)) for f in dataclasses.fields(cls)
          if "choices" not in f.metadata])
-    nums = _block(numeric, section, block, path, registry)
+    nums = load_block(numeric, section, block, path, registry)
     return cls(**strings, **{f.name: getattr(nums, f.name) for f in dataclasses.fields(numeric)})
 
 
@@ -213,7 +213,7 @@ class StableRateLoop:
 def split_rate_loop(model: DSS14Model) -> StableRateLoop:
     """Separate the encoder integrators from the stable part of the rate loop.
 
-    The (balanced, :func:`dss14_env.linsys.balance`) rate loop is brought to an ordered real
+    The (balanced, :func:`dss14_env.model.linsys.balance`) rate loop is brought to an ordered real
     Schur form with the stable eigenvalues first; a Sylvester equation removes the coupling
     block, so ``x = T [x_s; x_0]`` with ``x_s' = A_s x_s + B_s u``.  The encoder rate reads
     only ``x_s`` (the zero modes are the rigid rotations), and the angle is its integral.
@@ -325,8 +325,8 @@ class ReducedRateLoop:
     def to_ss(self) -> Any:
         """Named python-control system with the rate loop's labels (inputs ``r_a, r_e,
         Tw_az, Tw_el``; outputs ``enc_az, enc_el``), usable with
-        :func:`dss14_env.loops.position_loop`."""
-        from dss14_env.linsys import ss
+        :func:`dss14_env.model.loops.position_loop`."""
+        from dss14_env.model.linsys import ss
         n = self.A.shape[0]
         A = np.block([[np.zeros((2, 2)), self.C], [np.zeros((n, 2)), self.A]])
         B = np.vstack([self.D, self.B])

@@ -1,6 +1,6 @@
 """LQG position controller: steady-state Kalman filter + LQR with integral action.
 
-Design (all on the nominal design model of :mod:`baselines.design`, never on the plant)::
+Design (all on the nominal design model of :mod:`dss14_env.baselines.design`, never on the plant)::
 
     estimator   x^-_{k+1} = Ad x_k|k + Bd r_k          (r_k the APPLIED command, after the limiter)
                 x_k|k     = x^-_k + L (y_k - C x^-_k)  (steady-state Kalman gain, DARE)
@@ -35,9 +35,16 @@ from typing import Any
 import numpy as np
 from scipy import linalg
 
-from baselines.base import Controller
-from baselines.design import (CommandShaper, DesignModel, LQGConfig, ReferenceGenerator,
-                              build_design_model, default_controllers_config, infer_wind)
+from dss14_env.baselines.base import Controller
+from dss14_env.baselines.design import (
+    CommandShaper,
+    DesignModel,
+    LQGConfig,
+    ReferenceGenerator,
+    build_design_model,
+    default_controllers_config,
+    infer_wind,
+)
 
 
 # ------------------------------------------------------------------------- Riccati helpers
@@ -146,7 +153,7 @@ def design_lqg(dm: DesignModel, weights: Weights, w_e: float = 1.0, w_a: float =
                rate_limit: float | None = None) -> LQGDesign:
     """LQR (with optional integral action) + steady-state Kalman filter on ``dm``.
 
-    :param dm: design model (:func:`baselines.design.build_design_model`)
+    :param dm: design model (:func:`dss14_env.baselines.design.build_design_model`)
     :param weights: the environment's cost scales
     :param w_e: weight on the normalised servo error
     :param w_a: multiplier on the env's action-change weight
@@ -363,7 +370,7 @@ class EnvSpec:
 
     @classmethod
     def from_config(cls, cfg: Any) -> "EnvSpec":
-        """From a :class:`dss14_env.scenarios.EnvConfig` (or anything with its key names)."""
+        """From a :class:`dss14_env.envs.scenarios.EnvConfig` (or anything with its key names)."""
         return cls(float(cfg.dt), cfg.action_scale_deg_s * DEG, cfg.rate_limit_deg_s * DEG,
                    cfg.accel_limit_deg_s2 * DEG, cfg.error_scale_mdeg * MDEG,
                    float(cfg.action_change_weight), cfg.encoder_bits, cfg.encoder_noise_mdeg * MDEG)
@@ -379,7 +386,7 @@ class EnvSpec:
     @classmethod
     def default(cls, **overrides: Any) -> "EnvSpec":
         """From the shipped ``configs/env.yaml`` (keys of it as overrides)."""
-        from dss14_env.scenarios import load_env_config
+        from dss14_env.envs.scenarios import load_env_config
         return cls.from_config(load_env_config(**overrides))
 
     @property
@@ -404,7 +411,7 @@ def as_spec(env_or_spec: Any) -> EnvSpec:
 
 
 class ObservationReader:
-    """Decode the ``DSS14-v0`` observation (layout in :class:`dss14_env.env.DSS14Env`) to SI.
+    """Decode the ``DSS14-v0`` observation (layout in :class:`dss14_env.envs.env.DSS14Env`) to SI.
 
     :return: of :meth:`read`: ``(y, c, c_rate, r_prev)`` -- encoder reading relative to the
         start (rad), command relative to the start (rad), command rate (rad/s), previous applied
@@ -429,7 +436,7 @@ class EstimatorController(Controller):
 
     Per step: predict with the previously APPLIED command (observation 10, 11, so the command
     limiter is accounted for), correct with the encoder reading, build the ramp reference from
-    the observed (optionally shaped, :class:`baselines.design.CommandShaper`) command and rate,
+    the observed (optionally shaped, :class:`dss14_env.baselines.design.CommandShaper`) command and rate,
     compute the command (:meth:`law`), then advance the integrator with the measured servo
     error clipped to ``integral_clip``.  The first step chooses the episode's design
     (:meth:`select_design`) and initialises bumplessly: the estimate sits on the reference and
@@ -440,7 +447,7 @@ class EstimatorController(Controller):
     :param name: label
     :param integral_clip: anti-windup clip of the integrated error, rad
     :param shaper: command preprocessor (then the reference is a
-        :class:`baselines.design.ReferenceGenerator` on the design model), or None (the raw
+        :class:`dss14_env.baselines.design.ReferenceGenerator` on the design model), or None (the raw
         command as a ramp)
     :param reference_pull: gain (1/s) pulling the reference model onto the shaped command
     """
@@ -658,7 +665,7 @@ class LQGController(EstimatorController):
 
     With ``wind_model: inferred`` the gust model of each episode is the coherent Davenport gust
     at the design speed from the direction read from the start command
-    (:func:`baselines.design.infer_wind`; designs cached per 2 deg); when the inferred speed is
+    (:func:`dss14_env.baselines.design.infer_wind`; designs cached per 2 deg); when the inferred speed is
     below ``min_wind_speed`` (no wind) and with ``direction-free`` it is the front+side model.
 
     :param env: the environment (or its config / an :class:`EnvSpec`; None: shipped defaults)

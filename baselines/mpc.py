@@ -1,7 +1,7 @@
 """Model-predictive position controller (cvxpy + OSQP), condensed and parametrised once.
 
 The MPC shares the LQG's design model, estimator, integrator and weights
-(:mod:`baselines.lqg`); it replaces the LQR law by a constrained finite-horizon problem.
+(:mod:`dss14_env.baselines.lqg`); it replaces the LQR law by a constrained finite-horizon problem.
 
 Prediction (condensed: the commands are the only decision variables).  In deviation
 coordinates about the commanded ramp ``c + c_rate t`` the LQR state ``z = [x - x_ref; xi;
@@ -33,6 +33,7 @@ limits) for that step; the fallbacks are counted in ``info`` and never end the e
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass
@@ -43,10 +44,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy import linalg
 
-import dataclasses
-
-from baselines.design import LQGConfig, MPCConfig, default_controllers_config
-from baselines.lqg import LQGController, LQGDesign
+from dss14_env.baselines.design import LQGConfig, MPCConfig, default_controllers_config
+from dss14_env.baselines.lqg import LQGController, LQGDesign
 
 
 @dataclass(frozen=True)

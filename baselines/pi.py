@@ -18,7 +18,7 @@ batch, :meth:`PIController.restart` re-initialises the sub-environments that wer
 
 :func:`sampled_three_sigma_mdeg` gives the exact stationary 3-sigma servo error of this
 sampled PI on the env's discretised plant in wind (discrete Lyapunov equation), the
-counterpart of :func:`dss14_env.windload.three_sigma_mdeg` for the continuous PI loop.
+counterpart of :func:`dss14_env.wind.loads.three_sigma_mdeg` for the continuous PI loop.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 from scipy import linalg
 
-from .base import Controller
+from dss14_env.baselines.base import Controller
 
 DEG = math.pi / 180.0
 MDEG = math.pi / 180.0e3
@@ -40,7 +40,7 @@ def gain_set(name: str) -> tuple[np.ndarray, np.ndarray]:
 
     :raises ValueError: naming the unknown set
     """
-    from dss14_env.config import load_model_config
+    from dss14_env.model.config import load_model_config
 
     sets = load_model_config().gain_sets
     if name not in sets:
@@ -62,7 +62,7 @@ class PIController(Controller):
     """The report's PI (Eqs. 57-58), discretised for the environment's period.
 
     :param env: a DSS14 environment (single or vector, wrapped or not) or its
-        :class:`~dss14_env.scenarios.EnvConfig`: supplies ``dt``, the action scale, the rate
+        :class:`~dss14_env.envs.scenarios.EnvConfig`: supplies ``dt``, the action scale, the rate
         limit and the observation's error scale
     :param gains: a gain-set name of ``configs/model.yaml`` (default ``"kp1"``) or ``(kp, ki)``
         (scalars or per-axis pairs, 1/s and 1/s^2)
@@ -149,8 +149,8 @@ def sampled_loop(plant: Any, kappa: np.ndarray, kp: np.ndarray, ki: np.ndarray
     No quantisation, no limiter, command fixed: ``e[k] = -theta[k]``.  State
     ``s[k] = [x[k], I[k-1], e[k-1]]``; ``s[k+1] = Phi s[k] + W xi[k]``.
 
-    :param plant: a :class:`dss14_env.plant.Plant`
-    :param kappa: wind-direction factors (:meth:`dss14_env.plant.Plant.kappa`)
+    :param plant: a :class:`dss14_env.envs.plant.Plant`
+    :param kappa: wind-direction factors (:meth:`dss14_env.envs.plant.Plant.kappa`)
     :param kp: proportional gains ``[az, el]``, 1/s
     :param ki: integral gains ``[az, el]``, 1/s^2
     :return: ``(Phi, W, C_e)`` with ``e[k] = C_e s[k]``
@@ -178,7 +178,7 @@ def sampled_three_sigma_mdeg(plant: Any, direction: float, gains: str | tuple = 
     Solves ``S = Phi S Phi^T + W W^T`` for :func:`sampled_loop`; the mean wind torque only
     shifts the mean, which the integral action removes.
 
-    :param plant: a :class:`dss14_env.plant.Plant` (its ``dt`` and wind speed)
+    :param plant: a :class:`dss14_env.envs.plant.Plant` (its ``dt`` and wind speed)
     :param direction: wind direction relative to the dish, rad
     :param gains: gain-set name or ``(kp, ki)``
     :raises ValueError: if the sampled loop is unstable

@@ -19,7 +19,7 @@ controller with the same measurements does better on this cost, whatever its ord
 structure; every reduced-order, constrained or learned controller is therefore scored as a
 multiple of the yardstick's expected error.  Its expected 3-sigma error and cost come from the
 Riccati solutions through the closed-loop stationary covariance (discrete Lyapunov equation,
-:func:`baselines.lqg.stationary_performance`); :func:`riccati_cost` gives the same cost from
+:func:`dss14_env.baselines.lqg.stationary_performance`); :func:`riccati_cost` gives the same cost from
 the two Riccati solutions alone (checked in the tests).
 
 Two caveats, both reported: the optimality is for the model (quantisation as white noise, no
@@ -37,10 +37,18 @@ from typing import Any
 
 import numpy as np
 
-from baselines.design import build_design_model
-from baselines.lqg import (EnvSpec, EstimatorController, LQGDesign, as_spec, closed_loop,
-                           design_lqg, lqg_as_linear, stationary_performance)
-from dss14_env.windload import direction_angle
+from dss14_env.baselines.design import build_design_model
+from dss14_env.baselines.lqg import (
+    EnvSpec,
+    EstimatorController,
+    LQGDesign,
+    as_spec,
+    closed_loop,
+    design_lqg,
+    lqg_as_linear,
+    stationary_performance,
+)
+from dss14_env.wind.loads import direction_angle
 
 #: tiny random walk of the command-level disturbance in the runnable yardstick (fraction of
 #: the rate limit per step): keeps it offset-free on a plant whose start gust is unknown

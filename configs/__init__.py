@@ -1,0 +1,1 @@
+"""The shipped configuration files (YAML data only), addressable by name."""

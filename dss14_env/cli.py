@@ -8,9 +8,9 @@ import time
 
 
 def _reproduce(args: argparse.Namespace) -> int:
-    from .config import load_model_config
-    from .model import build_model, default_model
-    from .reproduce import reproduce
+    from dss14_env.model.assembly import build_model, default_model
+    from dss14_env.model.config import load_model_config
+    from dss14_env.reproduce import reproduce
 
     t0 = time.perf_counter()
     model = build_model(load_model_config(args.config)) if args.config else default_model()
@@ -27,7 +27,7 @@ def _reproduce(args: argparse.Namespace) -> int:
 def _train(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from agents.ppo import default_config_path, load_config, train
+    from dss14_env.agents.ppo import default_config_path, load_config, train
 
     ckpt = Path(args.resume) if args.resume is not None else None
     run_cfg = None  # with --resume and no --config: the config.yaml of the checkpoint's run
@@ -54,7 +54,7 @@ def _train(args: argparse.Namespace) -> int:
 def _bench(args: argparse.Namespace) -> int:
     import shlex
 
-    from baselines.bench import bench, build_plan
+    from dss14_env.bench.bench import bench, build_plan
 
     cmd = "dss14 " + shlex.join(args.argv)
     plan = build_plan(controllers=args.controllers, scenarios=args.scenarios, seeds=args.seeds,

@@ -12,18 +12,31 @@ from pathlib import Path
 
 import numpy as np
 
-from .analysis import bandwidth_hz, loop_crossover_hz, peak_frequencies, spectral_abscissa, step, step_metrics
-from .board import board_dc_gains, board_ss
-from .calibration import peak_frequency, rate_response, reduction_scales
-from .config import AXES
-from .gearbox import gearbox_ss
-from .hydraulics import hydraulics_ss
-from .linsys import freqresp
-from .model import DSS14Model, default_model, stability_sweep
-from .reduction import hankel_singular_values
-from .units import rad_to_mdeg
-from .windload import (DIRECTIONS, WindLoads, default_wind_loads, load_wind_config, simulate_wind_response,
-                       three_sigma_estimate, three_sigma_mdeg)
+from dss14_env.core.units import AXES, rad_to_mdeg
+from dss14_env.model.analysis import (
+    bandwidth_hz,
+    loop_crossover_hz,
+    peak_frequencies,
+    spectral_abscissa,
+    step,
+    step_metrics,
+)
+from dss14_env.model.assembly import DSS14Model, default_model
+from dss14_env.model.board import board_dc_gains, board_ss
+from dss14_env.model.calibration import peak_frequency, rate_response, reduction_scales
+from dss14_env.model.hydraulics import hydraulics_ss
+from dss14_env.model.linsys import freqresp
+from dss14_env.model.reduction import hankel_singular_values
+from dss14_env.model.uncertainty import stability_sweep
+from dss14_env.wind.loads import (
+    DIRECTIONS,
+    WindLoads,
+    default_wind_loads,
+    load_wind_config,
+    simulate_wind_response,
+    three_sigma_estimate,
+    three_sigma_mdeg,
+)
 
 STEP_T_END, STEP_N = 40.0, 2001
 WIND_SPEEDS_KMH = (30.0, 50.0, 70.0)
@@ -143,7 +156,7 @@ def draw_wind_figures(loads: WindLoads, records: dict, dt: float, out: Path) -> 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .wind import plot_gust_psd
+    from dss14_env.wind.gusts import plot_gust_psd
 
     wcfg = load_wind_config()
     plot_gust_psd(wcfg.table4.speed, np.random.default_rng(WIND_SEED), out / "wind_gust_psd.png",
@@ -297,7 +310,7 @@ def draw_figures(m: DSS14Model, out: Path) -> list[str]:
 
 def _gust_sigma(loads: WindLoads) -> dict:
     """Standard deviation of the gust torques at the Table 4 speed, N*m (for the record)."""
-    from .wind import filter_variance
+    from dss14_env.wind.gusts import filter_variance
     u = load_wind_config().table4.speed
     sd = math.sqrt(filter_variance(loads.gust_filter(u)))
     return {d: (np.abs(loads.gust_gain(u, d)) * sd).tolist() for d in DIRECTIONS}
@@ -311,7 +324,7 @@ def reproduce(out_dir: str | Path, model: DSS14Model | None = None, figures: boo
     metrics = compute_metrics(m)
     loads = default_wind_loads() if model is None else None
     if loads is None:  # a user model: calibrate its own wind loads
-        from .windload import calibrate_wind_loads
+        from dss14_env.wind.loads import calibrate_wind_loads
         loads = calibrate_wind_loads(m)
     wind_rows, records = compute_wind_metrics(m, loads)
     metrics.update(wind_rows)

@@ -20,9 +20,9 @@ import numpy as np
 
 def bench(scenario: str, steps: int, seed: int) -> dict:
     """Wall time of ``MPCController.act`` over one episode of ``scenario`` (runner scenarios)."""
-    from baselines.mpc import MPCController
-    from baselines.runner import SCENARIOS
-    from dss14_env.env import DSS14Env
+    from dss14_env.baselines.mpc import MPCController
+    from dss14_env.bench.runner import SCENARIOS
+    from dss14_env.envs.env import DSS14Env
 
     env = DSS14Env(**SCENARIOS[scenario].env)
     ctrl = MPCController(env)

@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 import yaml
 
-from agents.policy import DEFAULT_POLICY, PPOController, evaluate, load_policy
-from agents.ppo import PPOConfig, default_config_path, load_config, train, vecnormalize_path_for
+from dss14_env.agents.policy import DEFAULT_POLICY, PPOController, evaluate, load_policy
+from dss14_env.agents.ppo import PPOConfig, default_config_path, load_config, train, vecnormalize_path_for
 from dss14_env.cli import main
 
 UNIT_PENDULUM = "PendulumUnitAction-v0"  # Pendulum with actions rescaled to [-1, 1], like DSS14-v0
@@ -56,7 +56,7 @@ def pendulum_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
 # ---------------------------------------------------------------------------------- config
 def test_shipped_configs_load_and_round_trip() -> None:
     cfg = load_config()
-    assert cfg.env_id == "DSS14-Residual-v0" and cfg.env_module == "agents.residual"
+    assert cfg.env_id == "DSS14-Residual-v0" and cfg.env_module == "dss14_env.agents.residual"
     # the shipped policy was trained with exactly the shipped config (docs/ppo.md)
     assert load_config(DEFAULT_POLICY / "config.yaml") == cfg
     assert load_config(default_config_path("ppo_plain.yaml")).env_id == "DSS14-Hold-v0"
@@ -233,9 +233,9 @@ def test_cli_train_smoke(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
 
 def test_missing_optional_packages_give_notes(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                                capsys: pytest.CaptureFixture) -> None:
-    import agents.ppo
+    import dss14_env.agents.ppo
 
-    monkeypatch.setattr(agents.ppo, "_installed", lambda *modules: False)
+    monkeypatch.setattr(dss14_env.agents.ppo, "_installed", lambda *modules: False)
     run = train(tiny(total_timesteps=128, eval_freq=0, checkpoint_freq=0, progress_bar=True),
                 run_dir=tmp_path / "bare")
     out = capsys.readouterr().out

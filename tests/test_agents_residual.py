@@ -10,11 +10,11 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from agents.policy import load_policy
-from agents.ppo import load_config, train
-from agents.residual import RESIDUAL_ENV_ID, ResidualPI, ResidualPIWrapper
-from baselines.pi import PIController
-from baselines.runner import run
+from dss14_env.agents.policy import load_policy
+from dss14_env.agents.ppo import load_config, train
+from dss14_env.agents.residual import RESIDUAL_ENV_ID, ResidualPI, ResidualPIWrapper
+from dss14_env.baselines.pi import PIController
+from dss14_env.bench.runner import run
 
 HOLD = {"base_id": "DSS14-Hold-v0", "wind_direction": "front", "wind_speed_kmh": 50.0}
 

@@ -10,14 +10,25 @@ import numpy as np
 import pytest
 from scipy import linalg
 
-from baselines.design import (CommandShaper, ReferenceGenerator, balanced_reduction,
-                              build_design_model, default_controllers_config, encoder_step,
-                              full_rate_dc_gain, infer_wind, load_controllers_config,
-                              rate_dc_gains, reduce_rate_loop, reduction_error, smallest_order,
-                              split_rate_loop)
-from dss14_env.config import ConfigError
-from dss14_env.linsys import freqresp
-from dss14_env.model import default_model
+from dss14_env.baselines.design import (
+    CommandShaper,
+    ReferenceGenerator,
+    balanced_reduction,
+    build_design_model,
+    default_controllers_config,
+    encoder_step,
+    full_rate_dc_gain,
+    infer_wind,
+    load_controllers_config,
+    rate_dc_gains,
+    reduce_rate_loop,
+    reduction_error,
+    smallest_order,
+    split_rate_loop,
+)
+from dss14_env.core.schema import ConfigError
+from dss14_env.model.assembly import default_model
+from dss14_env.model.linsys import freqresp
 
 DEG = math.pi / 180
 MDEG = DEG / 1e3
@@ -140,7 +151,7 @@ def test_design_model_is_stable_but_for_the_encoder_integrators(wind) -> None:
 @pytest.mark.parametrize("deg", [0.0, 45.0, 90.0, 135.0, 180.0, 270.0])
 @pytest.mark.parametrize("rate", [0.0, 0.01])
 def test_infer_wind_recovers_direction_and_speed_on_the_nominal_plant(deg: float, rate: float) -> None:
-    from dss14_env.plant import get_plant
+    from dss14_env.envs.plant import get_plant
     p = get_plant(50 / 3.6, DT)
     th = math.radians(deg)
     _, r0 = p.steady_start(np.zeros(8), p.mean_torque(th), np.full(2, rate * DEG))

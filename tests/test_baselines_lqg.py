@@ -8,14 +8,25 @@ import math
 import numpy as np
 import pytest
 
-from baselines.design import build_design_model
-from baselines.lqg import (EnvSpec, LQGController, Weights, closed_loop,
-                           lqg_as_linear, lqg_design_from_config, stationary_performance)
-from baselines.pi import PIController
-from baselines.runner import run
-from baselines.yardstick import (YardstickController, expected_performance, riccati_cost,
-                                 yardstick_design)
-from dss14_env.env import DSS14Env
+from dss14_env.baselines.design import build_design_model
+from dss14_env.baselines.lqg import (
+    EnvSpec,
+    LQGController,
+    Weights,
+    closed_loop,
+    lqg_as_linear,
+    lqg_design_from_config,
+    stationary_performance,
+)
+from dss14_env.baselines.pi import PIController
+from dss14_env.baselines.yardstick import (
+    YardstickController,
+    expected_performance,
+    riccati_cost,
+    yardstick_design,
+)
+from dss14_env.bench.runner import run
+from dss14_env.envs.env import DSS14Env
 
 DEG = math.pi / 180
 MDEG = DEG / 1e3
@@ -192,7 +203,7 @@ def test_observation_of_wrong_shape_is_refused() -> None:
 
 def test_design_period_must_match_the_env() -> None:
     d = lqg_design_from_config(EnvSpec.default())
-    from baselines.lqg import EstimatorController
+    from dss14_env.baselines.lqg import EstimatorController
     with pytest.raises(ValueError, match="period"):
         EstimatorController(d, EnvSpec.default(dt=0.01), "x")
 
@@ -210,8 +221,8 @@ def test_yardstick_follows_the_episode_wind() -> None:
 
 @pytest.mark.parametrize("direction", ["front", "side"])
 def test_yardstick_expected_error_is_below_pi(direction: str) -> None:
-    from dss14_env.plant import get_plant
-    from baselines.pi import sampled_three_sigma_mdeg
+    from dss14_env.baselines.pi import sampled_three_sigma_mdeg
+    from dss14_env.envs.plant import get_plant
     y = expected_performance(None, U50, direction)
     pi = sampled_three_sigma_mdeg(get_plant(U50, 0.02), {"front": 0.0, "side": math.pi / 2}[direction])
     k = DOMINANT[direction]

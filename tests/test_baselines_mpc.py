@@ -9,10 +9,10 @@ import cvxpy as cp
 import numpy as np
 import pytest
 
-from baselines.lqg import EnvSpec, lqg_design_from_config
-from baselines.mpc import CondensedMPC, MPCController, MPCSettings
-from baselines.runner import run_episode
-from dss14_env.env import DSS14Env
+from dss14_env.baselines.lqg import EnvSpec, lqg_design_from_config
+from dss14_env.baselines.mpc import CondensedMPC, MPCController, MPCSettings
+from dss14_env.bench.runner import run_episode
+from dss14_env.envs.env import DSS14Env
 
 DEG = math.pi / 180
 MDEG = DEG / 1e3

@@ -1,4 +1,4 @@
-"""``dss14 bench`` (baselines/bench.py): options, results.json against the runner, results.md,
+"""``dss14 bench`` (dss14_env/bench/bench.py): options, results.json against the runner, results.md,
 figures, and the command end to end."""
 
 from __future__ import annotations
@@ -8,9 +8,9 @@ import json
 import numpy as np
 import pytest
 
-from baselines import bench as B
-from baselines import runner
 from dss14_env import cli
+from dss14_env.bench import bench as B
+from dss14_env.bench import runner
 
 CTRLS = ["pi_kp1", "lqg"]
 SCENS = ["hold_side", "step"]
@@ -59,8 +59,8 @@ def test_bad_options_are_named(kwargs, message) -> None:
 
 
 def test_missing_ppo_policy(monkeypatch, tmp_path) -> None:
-    import agents.policy
-    monkeypatch.setattr(agents.policy, "DEFAULT_POLICY", tmp_path / "none")
+    import dss14_env.agents.policy
+    monkeypatch.setattr(dss14_env.agents.policy, "DEFAULT_POLICY", tmp_path / "none")
     plan = B.build_plan()  # default run: a warning, and the others run
     assert "ppo" not in plan.controllers and plan.controllers == ["pi_kp1", "pi_kp0.7", "lqg", "mpc"]
     assert len(plan.notes) == 1 and str(tmp_path / "none") in plan.notes[0]
@@ -211,8 +211,8 @@ def test_an_episode_that_ends_before_the_step(tmp_path) -> None:
 
 
 def test_the_ppo_entry_loads_the_policy_on_the_env(monkeypatch, tmp_path) -> None:
-    import agents.policy
-    from baselines.pi import PIController
+    import dss14_env.agents.policy
+    from dss14_env.baselines.pi import PIController
 
     calls = []
 
@@ -221,7 +221,7 @@ def test_the_ppo_entry_loads_the_policy_on_the_env(monkeypatch, tmp_path) -> Non
         return PIController(env)
 
     monkeypatch.setattr(B, "_ppo_problem", lambda path: None)
-    monkeypatch.setattr(agents.policy, "load_policy", fake_load)
+    monkeypatch.setattr(dss14_env.agents.policy, "load_policy", fake_load)
     plan = B.build_plan(controllers=["ppo"], scenarios=["step"], seeds=["1"], steps=50,
                         out=tmp_path, figures=False)
     res = B.bench(plan, progress=False)

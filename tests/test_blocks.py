@@ -10,12 +10,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dss14_env.board import board_dc_gains, board_ss
-from dss14_env.drive import DriveParams, drive_by_interconnection, drive_ss
-from dss14_env.gearbox import gearbox_ss
-from dss14_env.hydraulics import HydraulicParams, hydraulics_ss
-from dss14_env.linsys import freqresp
-from dss14_env.model import DSS14Model, default_model
+from dss14_env.model.assembly import DSS14Model, default_model
+from dss14_env.model.board import board_dc_gains, board_ss
+from dss14_env.model.drive import DriveParams, drive_by_interconnection, drive_ss
+from dss14_env.model.gearbox import gearbox_ss
+from dss14_env.model.hydraulics import HydraulicParams, hydraulics_ss
+from dss14_env.model.linsys import freqresp
 
 AXES = ["az", "el"]
 

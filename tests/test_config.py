@@ -1,7 +1,7 @@
 """Configuration loader: SI conversions and validation errors.
 
 Expected SI values are hand conversions of the numbers printed in the report (and kept in
-``configs/model.yaml`` in the report's units); they are not taken from ``dss14_env.units``.
+``configs/model.yaml`` in the report's units); they are not taken from ``dss14_env.core.units``.
 """
 
 from __future__ import annotations
@@ -14,7 +14,8 @@ from typing import Any, Callable
 import pytest
 import yaml
 
-from dss14_env.config import ConfigError, ModelConfig, default_config_path, load_model_config
+from dss14_env.core.schema import ConfigError, default_config_path
+from dss14_env.model.config import ModelConfig, load_model_config
 
 IN3 = 16.387064e-6  # m^3 per cubic inch (exact: 2.54^3 cm^3)
 

@@ -1,4 +1,4 @@
-"""Tests of the DSS14 Gymnasium environment's interface (:mod:`dss14_env.env`)."""
+"""Tests of the DSS14 Gymnasium environment's interface (:mod:`dss14_env.envs.env`)."""
 
 from __future__ import annotations
 
@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 import dss14_env  # noqa: F401  (registers the ids)
-from dss14_env.env import OBS_NAMES, DSS14Env
-from dss14_env.model import SWEEP_PARAMS, default_model
-from dss14_env.plant import draw_stable_params, pi_loop_abscissa, rate_loop_stable
-from dss14_env.scenarios import EPISODE_KEYS, load_env_config
+from dss14_env.envs.env import OBS_NAMES, DSS14Env
+from dss14_env.envs.scenarios import EPISODE_KEYS, load_env_config
+from dss14_env.model.assembly import default_model
+from dss14_env.model.uncertainty import SWEEP_PARAMS, draw_stable_params, pi_loop_abscissa, rate_loop_stable
 
 IDS = ("DSS14-v0", "DSS14-Hold-v0", "DSS14-Step-v0", "DSS14-Slew-v0")
 Q_MDEG = 360.0e3 / 2**20  # encoder count, mdeg
@@ -278,7 +278,7 @@ def test_randomised_parameters_lie_in_the_stable_part_of_the_ranges() -> None:
             lo, hi = model.cfg.params[name].range
             assert lo <= v <= hi
     assert len({d["hydraulics.mu"] for d in draws}) == 8
-    from dss14_env.model import perturbed_rate_loop
+    from dss14_env.model.uncertainty import perturbed_rate_loop
 
     rl = perturbed_rate_loop(model, draws[0])
     assert rate_loop_stable(rl.A) and pi_loop_abscissa(rl, *model.gains("kp1")) < 0

@@ -1,6 +1,6 @@
 """Physics of the DSS14 environment checked against the continuous model: units, the start
 state, and the report's PI (baselines/pi.py) through the environment -- its 3-sigma wind
-errors ([R] Table 4, :func:`dss14_env.windload.three_sigma_mdeg`), its step overshoot
+errors ([R] Table 4, :func:`dss14_env.wind.loads.three_sigma_mdeg`), its step overshoot
 ([R] Fig. 21, ``dss14 reproduce``) and their independence of the control period."""
 
 from __future__ import annotations
@@ -10,14 +10,14 @@ import math
 import numpy as np
 import pytest
 
-from baselines.pi import PIController, gain_set, sampled_three_sigma_mdeg
-from dss14_env.analysis import step, step_metrics
-from dss14_env.env import DSS14Env
-from dss14_env.linsys import freqresp
-from dss14_env.model import default_model
-from dss14_env.plant import get_plant
-from dss14_env.vector_env import DSS14VectorEnv
-from dss14_env.windload import default_wind_loads, three_sigma_estimate, three_sigma_mdeg
+from dss14_env.baselines.pi import PIController, gain_set, sampled_three_sigma_mdeg
+from dss14_env.envs.env import DSS14Env
+from dss14_env.envs.plant import get_plant
+from dss14_env.envs.vector import DSS14VectorEnv
+from dss14_env.model.analysis import step, step_metrics
+from dss14_env.model.assembly import default_model
+from dss14_env.model.linsys import freqresp
+from dss14_env.wind.loads import default_wind_loads, three_sigma_estimate, three_sigma_mdeg
 
 KMH = 1.0 / 3.6
 DIRECTIONS = {"front": 0.0, "side": 0.5 * math.pi}

@@ -1,4 +1,4 @@
-"""Tests of the numpy-batched vector environment (:mod:`dss14_env.vector_env`)."""
+"""Tests of the numpy-batched vector environment (:mod:`dss14_env.envs.vector`)."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import dss14_env  # noqa: F401  (registers the ids)
-from dss14_env.env import DSS14Env
-from dss14_env.vector_env import DSS14VectorEnv
+from dss14_env.envs.env import DSS14Env
+from dss14_env.envs.vector import DSS14VectorEnv
 
 # (config, constant action or None for small random ones): the second makes sub-environments
 # hit the elevation limit at different steps, so autoresets desynchronise them

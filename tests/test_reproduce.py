@@ -11,7 +11,7 @@ import json
 import numpy as np
 import pytest
 
-from dss14_env.model import default_model
+from dss14_env.model.assembly import default_model
 from dss14_env.reproduce import compute_metrics, reproduce
 
 
@@ -98,8 +98,8 @@ def test_sweep_reports_share_and_margin(metrics: dict, gs: str) -> None:
 def test_sweep_finds_low_viscosity_instability() -> None:
     """docs/model.md: high leakage (low mu, high k_a2) with the lowest valve gain is unstable
     with kp 1, and the nominal point is stable."""
-    from dss14_env.loops import position_loop
-    from dss14_env.model import perturbed_rate_loop
+    from dss14_env.model.loops import position_loop
+    from dss14_env.model.uncertainty import perturbed_rate_loop
     m = default_model()
     h = m.cfg.params
     bad = {"hydraulics.mu": h["hydraulics.mu"].range[0], "hydraulics.k_a2": h["hydraulics.k_a2"].range[1],

@@ -1,4 +1,4 @@
-"""The benchmark runner (baselines/runner.py): metrics, same episodes for every controller,
+"""The benchmark runner (dss14_env/bench/runner.py): metrics, same episodes for every controller,
 JSON output, robustness on the randomised plant."""
 
 from __future__ import annotations
@@ -9,9 +9,16 @@ import math
 import numpy as np
 import pytest
 
-from baselines.base import Controller
-from baselines.runner import (CONTROLLERS, SCENARIOS, Scenario, episode_metrics, ratio, run,
-                              step_response)
+from dss14_env.baselines.base import Controller
+from dss14_env.bench.runner import (
+    CONTROLLERS,
+    SCENARIOS,
+    Scenario,
+    episode_metrics,
+    ratio,
+    run,
+    step_response,
+)
 
 
 class Recorder(Controller):

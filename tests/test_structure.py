@@ -13,11 +13,11 @@ import pytest
 import scipy.linalg
 import scipy.signal
 
-from dss14_env.calibration import lumped_structure
-from dss14_env.linsys import freqresp
-from dss14_env.model import DSS14Model, default_model
-from dss14_env.reduction import exact_mode_hsv, hankel_singular_values
-from dss14_env.structure import STRUCT_INPUTS, STRUCT_OUTPUTS, LumpedStructure, ModalModel
+from dss14_env.model.assembly import DSS14Model, default_model
+from dss14_env.model.calibration import lumped_structure
+from dss14_env.model.linsys import freqresp
+from dss14_env.model.reduction import exact_mode_hsv, hankel_singular_values
+from dss14_env.model.structure import STRUCT_INPUTS, STRUCT_OUTPUTS, LumpedStructure, ModalModel
 
 AXES = ["az", "el"]
 ZETA = 0.01  # [R] Section III: 1 % modal damping

@@ -1,4 +1,4 @@
-"""Tests of the Davenport gust model in :mod:`dss14_env.wind`."""
+"""Tests of the Davenport gust model in :mod:`dss14_env.wind.gusts`."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy import optimize, signal
 
-from dss14_env import wind
+from dss14_env.wind import gusts as wind
 
 KMH = 1.0 / 3.6  # m/s per km/h
 U_50 = 50.0 * KMH  # 13.889 m/s

@@ -15,14 +15,22 @@ import numpy as np
 import pytest
 from scipy import integrate, linalg, signal
 
-from dss14_env.config import ConfigError
-from dss14_env.linsys import balance, discretize, freqresp, noise_factor
-from dss14_env.model import default_model
-from dss14_env.units import rad_to_mdeg
-from dss14_env.wind import davenport_psd, filter_variance
-from dss14_env.windload import (WindLoads, augment_with_wind, default_wind_loads, direction_angle,
-                                load_wind_config, simulate_wind_response, three_sigma_estimate,
-                                three_sigma_mdeg, wind_error_covariance)
+from dss14_env.core.schema import ConfigError
+from dss14_env.core.units import rad_to_mdeg
+from dss14_env.model.assembly import default_model
+from dss14_env.model.linsys import balance, discretize, freqresp, noise_factor
+from dss14_env.wind.gusts import davenport_psd, filter_variance
+from dss14_env.wind.loads import (
+    WindLoads,
+    augment_with_wind,
+    default_wind_loads,
+    direction_angle,
+    load_wind_config,
+    simulate_wind_response,
+    three_sigma_estimate,
+    three_sigma_mdeg,
+    wind_error_covariance,
+)
 
 U50 = 50 / 3.6
 TABLE4 = {("el", "front"): (2.6, 2.2, 3.0), ("el", "side"): (0.7, 0.5, 0.9),

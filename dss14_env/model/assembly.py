@@ -7,18 +7,18 @@
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass
 from functools import cached_property, lru_cache
 
 import control as ct
 import numpy as np
 
-from .calibration import Calibration, calibrate, drive_params, structure_models
-from .config import AXES, ModelConfig, load_model_config
-from .drive import DriveParams, drive_ss
-from .loops import position_loop, rate_loop
-from .structure import ModalModel
+from dss14_env.core.units import AXES
+from dss14_env.model.calibration import Calibration, calibrate, drive_params, structure_models
+from dss14_env.model.config import ModelConfig, load_model_config
+from dss14_env.model.drive import DriveParams, drive_ss
+from dss14_env.model.loops import position_loop, rate_loop
+from dss14_env.model.structure import ModalModel
 
 
 @dataclass
@@ -26,7 +26,7 @@ class DSS14Model:
     """Calibrated model built from a configuration.
 
     :param cfg: validated configuration (SI)
-    :param calibration: result of :func:`dss14_env.calibration.calibrate` for ``cfg``
+    :param calibration: result of :func:`dss14_env.model.calibration.calibrate` for ``cfg``
     """
 
     cfg: ModelConfig
@@ -98,56 +98,3 @@ def build_model(cfg: ModelConfig | None = None) -> DSS14Model:
 def default_model() -> DSS14Model:
     """The model of the shipped configuration, built once per process."""
     return build_model()
-
-
-# ------------------------------------------------------------------------ stability sweep
-SWEEP_PARAMS = ("hydraulics.zeta_o", "hydraulics.k_s", "hydraulics.mu", "hydraulics.k_a2",
-                "hydraulics.k_a_report")
-
-
-def perturbed_rate_loop(model: DSS14Model, values: dict) -> ct.StateSpace:
-    """Rate loop with hydraulic parameters replaced (SI), calibration kept.
-
-    ``hydraulics.k_a_report`` scales the calibrated valve gain by value / nominal, i.e. the
-    model's k_a moves over the report's relative spread (59,200-97,300 ratio).
-    """
-    cfg = model.cfg
-    cfg2 = cfg.replace(**{f"hydraulics__{k.split('.')[1]}": v for k, v in values.items()
-                          if k != "hydraulics.k_a_report"})
-    ka_scale = values.get("hydraulics.k_a_report", cfg.hydraulics.k_a_report) / cfg.hydraulics.k_a_report
-    c = model.calibration
-    drives = {ax: drive_ss(drive_params(cfg2, ax, c.lam[ax] * ka_scale, c.kappa[ax], c.k_g[ax]))
-              for ax in AXES}
-    return rate_loop(drives["az"], drives["el"], model.structure.to_ss())
-
-
-def stability_sweep(model: DSS14Model, params=SWEEP_PARAMS, levels: int = 3) -> dict:
-    """Grid over the report's parameter ranges: stable share and worst margin of both loops.
-
-    :param levels: grid points per parameter (log-spaced over each range), default 3
-    :return: dict with ``n``, ``stable_share`` per gain set, ``worst_abscissa`` (largest real
-        part of the closed-loop poles, 1/s), the worst combination and the unstable ones
-    """
-    grids = []
-    for name in params:
-        p = model.cfg.params[name]
-        lo, hi = p.range
-        grids.append(np.geomspace(lo, hi, levels))
-    result = {"n": 0, "params": list(params), "gain_sets": {}}
-    combos = list(itertools.product(*grids))
-    result["n"] = len(combos)
-    for gname in model.cfg.gain_sets:
-        kp, ki = model.gains(gname)
-        worst, worst_combo, unstable = -np.inf, None, []
-        for combo in combos:
-            vals = dict(zip(params, combo))
-            pl = position_loop(perturbed_rate_loop(model, vals), kp, ki)
-            a = float(np.max(np.linalg.eigvals(pl.A).real))
-            if a > worst:
-                worst, worst_combo = a, vals
-            if a >= 0:
-                unstable.append(vals)
-        result["gain_sets"][gname] = {
-            "stable_share": 1.0 - len(unstable) / len(combos), "worst_abscissa": worst,
-            "worst_combination": worst_combo, "unstable": unstable}
-    return result

@@ -13,7 +13,7 @@ Flexible Structures* (ref. [12]); :func:`exact_mode_hsv` checks it against the b
 gramians.  Rigid-body modes have infinite values and are always kept.
 
 >>> import numpy as np
->>> from dss14_env.structure import ModalModel
+>>> from dss14_env.model.structure import ModalModel
 >>> m = ModalModel(np.array([0.0, 10.0, 20.0]), np.array([0.0, .01, .01]), np.ones(3),
 ...                np.ones((3, 1)), np.zeros((1, 3)), np.ones((1, 3)), (0,), ("u",), ("y",))
 >>> hsv = hankel_singular_values(m)
@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
-from .structure import ModalModel
+from dss14_env.model.structure import ModalModel
 
 
 def hankel_singular_values(m: ModalModel, w_b=1.0, w_q=1.0, w_r=1.0,

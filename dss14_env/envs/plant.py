@@ -3,7 +3,7 @@ discretised for a held rate command.
 
 Continuous model (SI).  The rate loop ``x_r' = A_r x_r + B_r r + B_w T_w`` (60 states, inputs
 the axis rate commands ``r`` in rad/s and the wind torques ``T_w = [Tw_az, Tw_el]`` in N*m) is
-driven by the Davenport gusts of :mod:`dss14_env.windload`: ``T_w = T_mean + g u``, with the
+driven by the Davenport gusts of :mod:`dss14_env.wind.loads`: ``T_w = T_mean + g u``, with the
 gust speed ``u = C_f x_f`` from the shaping filter ``x_f' = A_f x_f + G_f w`` (``w`` unit white
 noise) and the gust gain ``g = [g_az, g_el]`` (N*m per m/s), which depends on the mean speed
 ``U`` and the direction.  To make one discretised plant serve every direction, the filter is
@@ -15,9 +15,9 @@ carried twice, scaled by the direction factors ``kappa = g / g_0(U)``::
 coefficient), so ``|kappa| <= sqrt(2)``.  The joint state ``x = [x_r, x_a, x_e]`` (60 + 4 + 4 =
 68 states) obeys ``x' = A x + B_r r + B_T T_mean + (kappa_az G_a + kappa_el G_e) w`` with ``A``,
 ``B_r``, ``B_T``, ``G_a``, ``G_e`` independent of the direction.  The realisation is balanced
-(:func:`dss14_env.linsys.balance`) before anything else is computed from it.
+(:func:`dss14_env.model.linsys.balance`) before anything else is computed from it.
 
-Discretisation (:func:`dss14_env.linsys.discretize`, no Euler): over one control period ``dt``
+Discretisation (:func:`dss14_env.model.linsys.discretize`, no Euler): over one control period ``dt``
 with ``r`` and ``T_mean`` held (zero-order hold)::
 
     x[k+1] = Ad x[k] + Bd_r r[k] + Bd_T T_mean + L_a (kappa_az xi[k]) + L_e (kappa_el xi[k])
@@ -48,12 +48,12 @@ from typing import TYPE_CHECKING, Mapping
 import numpy as np
 from scipy import linalg
 
-from .linsys import balance, discretize, noise_factor
+from dss14_env.model.linsys import balance, discretize, noise_factor
 
 if TYPE_CHECKING:  # annotations only: keep this module's imports light
     import control as ct
 
-    from .windload import WindLoads
+    from dss14_env.wind.loads import WindLoads
 
 #: rows of :attr:`Plant.C`: encoder angles (rad), dish pointing errors (rad), gust torques (N*m)
 OUTPUTS = ("enc_az", "enc_el", "point_el", "point_xel", "gust_torque_az", "gust_torque_el")
@@ -85,8 +85,8 @@ class Plant:
 
     :param rate_loop: the rate loop (python-control ``StateSpace`` with inputs ``r_a, r_e,
         Tw_az, Tw_el`` and the outputs of :data:`OUTPUTS` / :data:`RATE_OUTPUTS`), e.g.
-        ``default_model().rate_loop`` or :func:`dss14_env.model.perturbed_rate_loop`
-    :param loads: calibrated wind loads (:func:`dss14_env.windload.default_wind_loads`)
+        ``default_model().rate_loop`` or :func:`dss14_env.model.uncertainty.perturbed_rate_loop`
+    :param loads: calibrated wind loads (:func:`dss14_env.wind.loads.default_wind_loads`)
     :param wind_speed: mean wind speed ``U`` in m/s (0 = no wind)
     :param dt: control period in s (> 0)
     :param params: hydraulic parameters the rate loop was built with (for the record)
@@ -304,7 +304,7 @@ def get_plant(wind_speed: float, dt: float, params: Mapping[str, float] | None =
 
     :param wind_speed: mean wind speed, m/s (0 = no wind)
     :param dt: control period, s
-    :param params: hydraulic parameters (SI, names of :data:`dss14_env.model.SWEEP_PARAMS`)
+    :param params: hydraulic parameters (SI, names of :data:`dss14_env.model.uncertainty.SWEEP_PARAMS`)
         replacing the nominal ones, default none
     :return: the plant; built at most once per key (LRU of 64 plants)
     """
@@ -313,8 +313,9 @@ def get_plant(wind_speed: float, dt: float, params: Mapping[str, float] | None =
     if plant is not None:
         _cache.move_to_end(key)
         return plant
-    from .model import default_model, perturbed_rate_loop
-    from .windload import default_wind_loads
+    from dss14_env.model.assembly import default_model
+    from dss14_env.model.uncertainty import perturbed_rate_loop
+    from dss14_env.wind.loads import default_wind_loads
 
     model = default_model()
     rl = perturbed_rate_loop(model, dict(params)) if params else model.rate_loop
@@ -328,53 +329,3 @@ def get_plant(wind_speed: float, dt: float, params: Mapping[str, float] | None =
 def clear_plant_cache() -> None:
     """Forget every cached plant."""
     _cache.clear()
-
-
-# ---------------------------------------------------------------------- parameter randomisation
-#: margins of the stability test of a randomised draw (1/s): the rate loop's slowest
-#: non-rigid pole and the PI loop's slowest pole must lie left of -margin
-RATE_LOOP_MARGIN = 0.0
-PI_LOOP_MARGIN = 0.01
-_MAX_DRAWS = 200
-
-
-def draw_stable_params(rng: np.random.Generator, gain_set: str = "kp1") -> dict[str, float]:
-    """Draw the uncertain hydraulic parameters over the report's ranges, stable part only.
-
-    Each parameter of :data:`dss14_env.model.SWEEP_PARAMS` is drawn log-uniformly over its
-    ``range`` in ``configs/model.yaml`` (the grid of :func:`dss14_env.model.stability_sweep` is
-    log-spaced too).  A draw is rejected and redrawn unless the rate loop is stable apart from
-    its two rigid-body integrators and the PI position loop of ``gain_set`` (the report's
-    kp 1, ki 0.3 by default) has every pole left of -:data:`PI_LOOP_MARGIN` 1/s.  About 10 %
-    of the box is rejected (docs/model.md section 9: low viscosity with high leakage).
-
-    :param rng: the only source of randomness
-    :param gain_set: PI gain set of the stability test
-    :return: ``{name: value}`` in SI
-    """
-    from .model import SWEEP_PARAMS, default_model, perturbed_rate_loop
-
-    model = default_model()
-    kp, ki = model.gains(gain_set)
-    for _ in range(_MAX_DRAWS):
-        vals = {}
-        for name in SWEEP_PARAMS:
-            lo, hi = model.cfg.params[name].range
-            vals[name] = float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
-        rl = perturbed_rate_loop(model, vals)
-        if rate_loop_stable(rl.A) and pi_loop_abscissa(rl, kp, ki) < -PI_LOOP_MARGIN:
-            return vals
-    raise RuntimeError(f"no stable parameter draw in {_MAX_DRAWS} tries")
-
-
-def rate_loop_stable(A: np.ndarray) -> bool:
-    """True if every pole of the rate loop but its two rigid-body integrators (at 0) is stable."""
-    re = np.sort(np.linalg.eigvals(A).real)
-    return bool(re[-3] < -RATE_LOOP_MARGIN and np.all(np.abs(re[-2:]) < 1e-9))
-
-
-def pi_loop_abscissa(rate_loop: ct.StateSpace, kp: tuple[float, float], ki: tuple[float, float]) -> float:
-    """Largest pole real part (1/s) of the continuous PI position loop around ``rate_loop``."""
-    from .loops import position_loop
-
-    return float(np.max(np.linalg.eigvals(position_loop(rate_loop, kp, ki).A).real))

@@ -1,18 +1,18 @@
 """``dss14 bench``: every controller through the one runner, on the same scenarios and seeds.
 
-The bench is a thin layer over :func:`baselines.runner.run`: it turns the command-line options
+The bench is a thin layer over :func:`dss14_env.bench.runner.run`: it turns the command-line options
 into a :class:`BenchPlan` (:func:`build_plan`, which validates every option and names the one
 that is wrong), runs the plan's controllers on its scenarios and seeds with a progress bar
 (:func:`run_plan`), then runs the error-vs-wind sweep of the hold scenarios, and writes
 ``results.json``, ``results.md`` and four PNG figures (:func:`write_results`,
 :func:`draw_figures`).  :func:`bench` does all of it::
 
-    from baselines.bench import build_plan, bench
+    from dss14_env.bench.bench import build_plan, bench
     out = bench(build_plan(controllers=["pi_kp1", "lqg"], quick=True, out="bench_out"))
     print(out["main_table"])
 
-Controllers are the runner's (:data:`baselines.runner.CONTROLLERS`) plus ``"ppo"``, a trained
-PPO policy loaded by :func:`agents.policy.load_policy` (the policy shipped with the package
+Controllers are the runner's (:data:`dss14_env.bench.runner.CONTROLLERS`) plus ``"ppo"``, a trained
+PPO policy loaded by :func:`dss14_env.agents.policy.load_policy` (the policy shipped with the package
 unless ``ppo_model`` names another); torch is imported only when ``"ppo"`` runs.
 
 ``docs/bench.md`` describes the options, the output files and how to read them.
@@ -34,12 +34,12 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from baselines import runner
-from baselines.runner import SCENARIOS, Scenario
+from dss14_env.bench import runner
+from dss14_env.bench.runner import SCENARIOS, Scenario
 
 #: controllers of a run without ``--controllers``
 DEFAULT_CONTROLLERS: tuple[str, ...] = ("pi_kp1", "pi_kp0.7", "lqg", "mpc", "ppo")
-#: scenarios of a run without ``--scenarios`` (all of :data:`baselines.runner.SCENARIOS`)
+#: scenarios of a run without ``--scenarios`` (all of :data:`dss14_env.bench.runner.SCENARIOS`)
 DEFAULT_SCENARIOS: tuple[str, ...] = ("hold_front", "hold_side", "step", "track", "slew")
 #: seeds of a run without ``--seeds``
 DEFAULT_SEEDS: tuple[int, ...] = (0, 1)
@@ -84,7 +84,7 @@ class BenchPlan:
     """Everything a bench run needs, resolved and validated (:func:`build_plan`).
 
     :param controllers: controller names (runner names or ``"ppo"``)
-    :param scenarios: scenario names of :data:`baselines.runner.SCENARIOS`
+    :param scenarios: scenario names of :data:`dss14_env.bench.runner.SCENARIOS`
     :param seeds: episode seeds, the same for every controller and scenario
     :param steps: episode length per scenario, control periods
     :param wind_speeds_kmh: speeds of the error-vs-wind sweep
@@ -142,7 +142,7 @@ class BenchPlan:
         """The PPO policy that runs: ``ppo_model`` or the shipped one."""
         if self.ppo_model is not None:
             return str(self.ppo_model)
-        from agents.policy import DEFAULT_POLICY
+        from dss14_env.agents.policy import DEFAULT_POLICY
         return str(DEFAULT_POLICY)
 
     def describe(self) -> str:
@@ -254,7 +254,7 @@ def parse_wind_speeds(values: Sequence[str | float] | None) -> list[float] | Non
 
 def _ppo_problem(path: str | Path | None) -> str | None:
     """Why the PPO policy at ``path`` (None: the shipped one) cannot be loaded, or None."""
-    from agents.policy import DEFAULT_POLICY, _model_paths
+    from dss14_env.agents.policy import DEFAULT_POLICY, _model_paths
     try:
         _model_paths(DEFAULT_POLICY if path is None else path)
     except ValueError as exc:
@@ -284,7 +284,7 @@ def build_plan(controllers: Sequence[str] | None = None, scenarios: Sequence[str
     :param quick: the short version (one seed, shorter episodes, three wind speeds); options
         given explicitly still apply
     :param ppo_model: PPO policy (run folder, ``eval/best`` folder or zip; default the shipped
-        one, :data:`agents.policy.DEFAULT_POLICY`)
+        one, :data:`dss14_env.agents.policy.DEFAULT_POLICY`)
     :param randomize: randomised plant parameters (``randomize_params=True``) every episode
     :param out: output folder
     :param figures: draw the PNG figures
@@ -348,12 +348,12 @@ def build_plan(controllers: Sequence[str] | None = None, scenarios: Sequence[str
 
 # ------------------------------------------------------------------------------ running
 def ppo_factory(path: str | Path | None = None) -> Callable[[Any], Any]:
-    """Factory of the ``"ppo"`` controller: :func:`agents.policy.load_policy` on the env.
+    """Factory of the ``"ppo"`` controller: :func:`dss14_env.agents.policy.load_policy` on the env.
 
     :param path: the policy (None: the shipped one)
     """
     def make(env: Any) -> Any:
-        from agents.policy import load_policy
+        from dss14_env.agents.policy import load_policy
         return load_policy(path, env=env)
     return make
 
@@ -409,7 +409,7 @@ def _progress(bar: Any) -> Callable[[str], None]:
 
 
 def run_plan(plan: BenchPlan, progress: bool = True) -> dict[str, Any]:
-    """Run the plan through :func:`baselines.runner.run`: the main grid (with traces) and the
+    """Run the plan through :func:`dss14_env.bench.runner.run`: the main grid (with traces) and the
     wind sweep (sweep points equal to a main scenario are taken from it, not rerun).
 
     :param plan: the plan (:func:`build_plan`)

@@ -27,16 +27,17 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.optimize
 
-from .board import board_dc_gains, board_ss
-from .config import AXES, ModelConfig
-from .drive import DriveParams, drive_ss
-from .gearbox import GearboxParams
-from .hydraulics import HydraulicParams
-from .analysis import step
-from .linsys import freqresp
-from .loops import position_loop, rate_loop
-from .reduction import reduce_modes
-from .structure import LumpedStructure, ModalModel, modal_model
+from dss14_env.core.units import AXES
+from dss14_env.model.analysis import step
+from dss14_env.model.board import board_dc_gains, board_ss
+from dss14_env.model.config import ModelConfig
+from dss14_env.model.drive import DriveParams, drive_ss
+from dss14_env.model.gearbox import GearboxParams
+from dss14_env.model.hydraulics import HydraulicParams
+from dss14_env.model.linsys import freqresp
+from dss14_env.model.loops import position_loop, rate_loop
+from dss14_env.model.reduction import reduce_modes
+from dss14_env.model.structure import LumpedStructure, ModalModel, modal_model
 
 
 class CalibrationError(RuntimeError):

@@ -1,7 +1,7 @@
 """Analysis helpers: step responses (exact ZOH), step metrics, bandwidths, peaks, margins.
 
 >>> import control as ct
->>> from dss14_env.linsys import ss
+>>> from dss14_env.model.linsys import ss
 >>> g = ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]], ["u"], ["y"])
 >>> t, y = step(g, "u", ["y"], 10.0, 1001)
 >>> round(float(y[-1, 0]), 4)
@@ -16,7 +16,7 @@ import control as ct
 import numpy as np
 import scipy.linalg
 
-from .linsys import freqresp
+from dss14_env.model.linsys import freqresp
 
 
 def step(sys: ct.StateSpace, inp: str, outputs: Sequence[str], t_end: float, n: int

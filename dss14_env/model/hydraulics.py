@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import control as ct
 
-from .linsys import ss
+from dss14_env.model.linsys import ss
 
 
 @dataclass(frozen=True)

@@ -12,10 +12,19 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from .plant import OUTPUTS
-from .render import Renderer
-from .scenarios import DEG, MDEG, NOISE_BLOCK, EnvConfig, Episode, block_rows, command, draw_episode, \
-    draw_noise_block, load_env_config
+from dss14_env.envs.render import Renderer
+from dss14_env.envs.scenarios import (
+    DEG,
+    MDEG,
+    NOISE_BLOCK,
+    EnvConfig,
+    Episode,
+    block_rows,
+    command,
+    draw_episode,
+    draw_noise_block,
+    load_env_config,
+)
 
 R2D = 180.0 / math.pi  # rad -> deg
 R2MD = 180.0e3 / math.pi  # rad -> mdeg
@@ -46,12 +55,12 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
     The plant is the calibrated linear model of JPL TDA Progress Report 42-124 (Gawronski &
     Bartos 1996): the closed rate loop of Eq. 56 (hydraulic drives, gearboxes, 2 rigid + 22
     flexible structural modes; 60 states) for azimuth and elevation, driven by Davenport wind
-    gusts through a 4-state shaping filter (:mod:`dss14_env.windload`, calibrated to the
+    gusts through a 4-state shaping filter (:mod:`dss14_env.wind.loads`, calibrated to the
     report's Table 4).  The agent plays the computer-mode position controller: every control
     period (``dt`` = 0.02 s) it sets the two axis rate commands and sees what that controller
     sees -- the encoder readings and the commanded trajectory.  The rate commands are held over
     the period (zero-order hold) and the plant is discretised exactly (matrix exponential; Van
-    Loan for the gust noise; :mod:`dss14_env.plant`), so the physics does not depend on ``dt``.
+    Loan for the gust noise; :mod:`dss14_env.envs.plant`), so the physics does not depend on ``dt``.
     Units: SI inside, degrees / millidegrees at the interface.
 
     ## Action space
@@ -107,7 +116,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
     under the wind torque at t = 0 (mean plus the initial gust), the gust filter is in its
     stationary distribution, and the previous applied rate command (observation 10, 11) is the
     one that holds that motion.  A PI that starts bumplessly from it
-    (:class:`baselines.pi.PIController`) has no start transient to discard.
+    (:class:`dss14_env.baselines.pi.PIController`) has no start transient to discard.
 
     ## Episode end
 
@@ -163,14 +172,14 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
     | ``DSS14-Slew-v0`` | slew 5 deg | 30 km/h, 8 directions | 3000 (60 s) |
 
     Vector version: ``gymnasium.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")``
-    (:class:`dss14_env.vector_env.DSS14VectorEnv`).
+    (:class:`dss14_env.envs.vector.DSS14VectorEnv`).
 
     ## Version history
 
     * v0: initial version.
 
     :param render_mode: None, ``"rgb_array"`` or ``"human"``
-    :param config: YAML path, mapping or :class:`~dss14_env.scenarios.EnvConfig`, default the
+    :param config: YAML path, mapping or :class:`~dss14_env.envs.scenarios.EnvConfig`, default the
         shipped ``configs/env.yaml``
     :param overrides: configuration keys
     """
@@ -222,7 +231,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
 
         :param seed: seed of ``self.np_random`` (the only source of randomness)
         :param options: episode keys for this episode only (``EPISODE_KEYS`` of
-            :mod:`dss14_env.scenarios`), e.g. ``{"scenario": "hold", "wind_speed_kmh": 50}``
+            :mod:`dss14_env.envs.scenarios`), e.g. ``{"scenario": "hold", "wind_speed_kmh": 50}``
         :return: observation and info
         """
         super().reset(seed=seed)
@@ -306,7 +315,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         """Per-step rows of steps ``k0 .. k0 + NOISE_BLOCK - 1``: ``(c_az, c_el, c_az_deg,
         c_el_deg, cd_az / rate_limit, cd_el / rate_limit, xi_1..xi_k, noise_az, noise_el)``: the
         command at the step's end ``t[k+1]`` (rad, deg, scaled rate), the step's standard
-        normals and the encoder noise in rad (:func:`dss14_env.scenarios.block_rows`)."""
+        normals and the encoder noise in rad (:func:`dss14_env.envs.scenarios.block_rows`)."""
         blk = draw_noise_block(self.np_random, self._rank, self._sig > 0.0)
         self._rows = block_rows(self.episode.traj, k0, self._dt, self._rl, blk, self._sig).tolist()
         self._k0 = k0

@@ -40,7 +40,7 @@ import numpy as np
 import yaml
 
 if TYPE_CHECKING:
-    from .plant import Plant
+    from dss14_env.envs.plant import Plant
 
 SCENARIOS = ("hold", "step", "track", "slew")
 AXES_CHOICES = ("az", "el", "both")
@@ -60,7 +60,7 @@ EPISODE_KEYS = frozenset({
 
 def default_env_config_path() -> Path:
     """Path of the shipped ``configs/env.yaml``."""
-    from .config import default_config_path
+    from dss14_env.core.schema import default_config_path
 
     return default_config_path("env.yaml")
 
@@ -131,7 +131,7 @@ def _params(key: str, v: Any) -> dict[str, float] | None:
         return None
     if not isinstance(v, Mapping):
         raise ValueError(f"config key {key!r} must be null or a mapping {{name: SI value}}, got {v!r}")
-    from .model import SWEEP_PARAMS  # lazy: keeps `import dss14_env` light
+    from dss14_env.model.uncertainty import SWEEP_PARAMS  # lazy: keeps `import dss14_env` light
 
     out = {}
     for name, val in v.items():
@@ -404,7 +404,7 @@ class Episode:
     """Everything drawn at a reset (SI).
 
     :param cfg: the episode's configuration (options applied)
-    :param plant: the discretised plant (:class:`dss14_env.plant.Plant`)
+    :param plant: the discretised plant (:class:`dss14_env.envs.plant.Plant`)
     :param wind_speed: mean wind speed, m/s
     :param wind_direction: wind direction relative to the dish, rad (0 front, pi/2 side)
     :param kappa: direction factors of the plant's two gust-filter copies
@@ -438,7 +438,8 @@ def draw_episode(cfg: EnvConfig, rng: np.random.Generator) -> Episode:
     and the previous rate command is the one that holds this motion (``r0``).  With a PI
     controller that starts bumplessly from ``r0`` there is no start transient to discard.
     """
-    from .plant import draw_stable_params, get_plant
+    from dss14_env.envs.plant import get_plant
+    from dss14_env.model.uncertainty import draw_stable_params
 
     if cfg.params is not None:
         params = dict(cfg.params)

@@ -32,7 +32,7 @@ Metrics per episode (:func:`episode_metrics`), all JSON-ready, angles in mdeg:
 
 :func:`run` aggregates them over seeds (median, mean, min, max) per controller and scenario
 and, for windy scenarios with a fixed wind, divides each controller's 3-sigma by the
-yardstick's expected value (:func:`baselines.yardstick.expected_performance`).
+yardstick's expected value (:func:`dss14_env.baselines.yardstick.expected_performance`).
 """
 
 from __future__ import annotations
@@ -44,7 +44,8 @@ from typing import Any, Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
-from baselines.base import Controller
+from dss14_env.baselines.base import Controller
+from dss14_env.envs.presets import PRESETS
 
 DEG = math.pi / 180.0
 
@@ -53,7 +54,7 @@ DEG = math.pi / 180.0
 class Scenario:
     """One benchmark scenario: environment keys, episode length and metric window.
 
-    :param env: keyword arguments of :class:`dss14_env.env.DSS14Env`
+    :param env: keyword arguments of :class:`dss14_env.envs.env.DSS14Env`
     :param steps: control periods per episode
     :param warmup_s: seconds at the start left out of the error statistics
     """
@@ -64,24 +65,20 @@ class Scenario:
     description: str = ""
 
 
-#: the benchmark scenarios (docs/controllers.md)
+#: episode lengths of the benchmark scenarios where they differ from the preset's registered
+#: ``max_episode_steps`` (control periods)
+_SCENARIO_STEPS = {"step": 1000, "slew": 2500}
+#: the benchmark scenarios: the environment presets (:data:`dss14_env.envs.presets.PRESETS`)
+#: with one fixed wind direction or none
 SCENARIOS: dict[str, Scenario] = {
-    "hold_front": Scenario({"scenario": "hold", "wind_speed_kmh": 50.0, "wind_direction": "front"},
-                           3000, 5.0, "hold, 50 km/h front wind (Table 4)"),
-    "hold_side": Scenario({"scenario": "hold", "wind_speed_kmh": 50.0, "wind_direction": "side"},
-                          3000, 5.0, "hold, 50 km/h side wind (Table 4)"),
-    "step": Scenario({"scenario": "step", "wind_speed_kmh": 0.0}, 1000, 0.0,
-                     "0.1 deg step on both axes at 1 s, no wind (Fig. 21)"),
-    "track": Scenario({"scenario": "track", "wind_speed_kmh": "random", "wind_direction": "random"},
-                      3000, 5.0, "slow track, random 30-70 km/h wind and direction"),
-    "slew": Scenario({"scenario": "slew", "wind_speed_kmh": 30.0, "wind_direction": "random"},
-                     2500, 0.0, "5 deg slew on both axes, 30 km/h wind"),
-}
+    name: Scenario(dict(PRESETS[name].kwargs), _SCENARIO_STEPS.get(name, PRESETS[name].max_episode_steps),
+                   PRESETS[name].warmup_s, PRESETS[name].description)
+    for name in ("hold_front", "hold_side", "step", "track", "slew")}
 
 
 def _pi(gains: str) -> Callable[[Any], Controller]:
     def make(env: Any) -> Controller:
-        from baselines.pi import PIController
+        from dss14_env.baselines.pi import PIController
         return PIController(env, gains)
     return make
 
@@ -97,9 +94,9 @@ def _lazy(module: str, cls: str) -> Callable[[Any], Controller]:
 CONTROLLERS: dict[str, Callable[[Any], Controller]] = {
     "pi_kp1": _pi("kp1"),
     "pi_kp0.7": _pi("kp0.7"),
-    "lqg": _lazy("baselines.lqg", "LQGController"),
-    "mpc": _lazy("baselines.mpc", "MPCController"),
-    "yardstick": _lazy("baselines.yardstick", "YardstickController"),
+    "lqg": _lazy("dss14_env.baselines.lqg", "LQGController"),
+    "mpc": _lazy("dss14_env.baselines.mpc", "MPCController"),
+    "yardstick": _lazy("dss14_env.baselines.yardstick", "YardstickController"),
 }
 
 
@@ -178,7 +175,7 @@ def episode_metrics(rec: Mapping[str, np.ndarray], dt: float, warmup_s: float,
 
 # ------------------------------------------------------------------------- running
 def _make_env(env_kwargs: Mapping[str, Any]) -> Any:
-    from dss14_env.env import DSS14Env
+    from dss14_env.envs.env import DSS14Env
     return DSS14Env(**dict(env_kwargs))
 
 
@@ -309,8 +306,8 @@ def yardstick_reference(scenario: Scenario, env: Any) -> dict[str, Any] | None:
     speed, direction = kw.get("wind_speed_kmh"), kw.get("wind_direction")
     if not isinstance(speed, (int, float)) or speed <= 0 or direction in (None, "random"):
         return None
-    from baselines.lqg import EnvSpec
-    from baselines.yardstick import expected_performance
+    from dss14_env.baselines.lqg import EnvSpec
+    from dss14_env.baselines.yardstick import expected_performance
     return expected_performance(EnvSpec.from_env(env), speed / 3.6, direction)
 
 

@@ -8,7 +8,7 @@ Rate command ``r`` (axis rad/s) and tachometer rate (rad/s) in, valve current ``
 
 Both paths share the lag compensator, so the minimal realisation of Eq. (10) has one state.
 
->>> from dss14_env.config import load_model_config
+>>> from dss14_env.model.config import load_model_config
 >>> cfg = load_model_config()
 >>> round(board_dc_gains(cfg, "az")[0], 4), round(board_dc_gains(cfg, "az")[1] * 1e4, 3)
 (0.3323, -0.776)
@@ -18,8 +18,8 @@ from __future__ import annotations
 
 import control as ct
 
-from .config import ModelConfig
-from .linsys import ss
+from dss14_env.model.config import ModelConfig
+from dss14_env.model.linsys import ss
 
 
 def board_dc_gains(cfg: ModelConfig, axis: str) -> tuple[float, float]:

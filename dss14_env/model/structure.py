@@ -41,8 +41,8 @@ import control as ct
 import numpy as np
 import scipy.linalg
 
-from .config import StructureConfig
-from .linsys import ss
+from dss14_env.model.config import StructureConfig
+from dss14_env.model.linsys import ss
 
 STRUCT_INPUTS = ["T_a", "T_e", "Tw_az", "Tw_el"]
 STRUCT_OUTPUTS = ["pinion_rate_az", "pinion_rate_el", "enc_az", "enc_el", "enc_rate_az",

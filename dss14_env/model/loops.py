@@ -15,7 +15,7 @@ from __future__ import annotations
 import control as ct
 import numpy as np
 
-from .linsys import ss
+from dss14_env.model.linsys import ss
 
 WIND_INPUTS = ["Tw_az", "Tw_el"]
 

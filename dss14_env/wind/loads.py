@@ -9,7 +9,7 @@ torques (the structure's ``Tw_az``, ``Tw_el`` inputs, N*m)::
     T_gust   = rho U A D C(theta) u                              (linearised about U)
     C(theta) = C_front cos(theta) + C_side sin(theta)            (per axis: [C_az, C_el])
 
-``u`` is the Davenport gust (:mod:`dss14_env.wind`), fully coherent over the dish (the
+``u`` is the Davenport gust (:mod:`dss14_env.wind.gusts`), fully coherent over the dish (the
 report's assumption; literature.md Q3).  The moment coefficients ``C_front``, ``C_side`` come
 from wind-tunnel pressure data that are not public, so :func:`calibrate_wind_loads` fixes
 them in code: the four numbers are solved so that the PI loop (gain set ``kp1``) gives the
@@ -20,7 +20,7 @@ then predicts other speeds and directions.
 Servo errors.  :func:`wind_error_covariance` computes the stationary covariance of closed-loop
 outputs in wind exactly (a Lyapunov equation of the loop augmented with the shaping filter);
 :func:`simulate_wind_response` draws a time history with the exact discretisation of the same
-augmented system (:func:`dss14_env.linsys.discretize`), starting in the stationary state, and
+augmented system (:func:`dss14_env.model.linsys.discretize`), starting in the stationary state, and
 :func:`three_sigma_estimate` gives the 3-sigma value with its statistical error (batch means).
 
 >>> loads = default_wind_loads()
@@ -42,12 +42,12 @@ import control as ct
 import numpy as np
 from scipy import linalg, optimize, signal
 
-from .config import ConfigError, Param, _block, _read_yaml, _spec, default_config_path
-from .linsys import balance, discretize, noise_factor
-from .loops import WIND_INPUTS
-from .model import DSS14Model, default_model
-from .units import rad_to_mdeg
-from .wind import davenport_filter
+from dss14_env.core.schema import ConfigError, Param, default_config_path, load_block, read_yaml, spec
+from dss14_env.core.units import rad_to_mdeg
+from dss14_env.model.assembly import DSS14Model, default_model
+from dss14_env.model.linsys import balance, discretize, noise_factor
+from dss14_env.model.loops import WIND_INPUTS
+from dss14_env.wind.gusts import davenport_filter
 
 DIRECTIONS = {"front": 0.0, "side": 0.5 * math.pi}
 ERROR_OUTPUTS = ("e_a", "e_e")  # servo errors at the encoders, az and el (position loop)
@@ -58,22 +58,22 @@ ERROR_OUTPUTS = ("e_a", "e_e")  # servo errors at the encoders, az and el (posit
 class LoadConfig:
     """Physical constants of the wind loads (``configs/wind.yaml`` section ``loads``)."""
 
-    air_density: float = _spec("kg/m^3")
-    dish_diameter: float = _spec("m")
-    davenport_kappa: float = _spec("1")
-    davenport_length: float = _spec("m")
-    filter_order: int = _spec("1", integer=True)
+    air_density: float = spec("kg/m^3")
+    dish_diameter: float = spec("m")
+    davenport_kappa: float = spec("1")
+    davenport_length: float = spec("m")
+    filter_order: int = spec("1", integer=True)
 
 
 @dataclass(frozen=True)
 class Table4:
     """[R] Table 4 targets: 3-sigma encoder servo errors (rad) at ``speed`` (m/s)."""
 
-    speed: float = _spec("m/s")
-    el_front: float = _spec("rad")
-    el_side: float = _spec("rad")
-    az_front: float = _spec("rad")
-    az_side: float = _spec("rad")
+    speed: float = spec("m/s")
+    el_front: float = spec("rad")
+    el_side: float = spec("rad")
+    az_front: float = spec("rad")
+    az_side: float = spec("rad")
 
 
 @dataclass(frozen=True)
@@ -93,10 +93,10 @@ def load_wind_config(path: str | Path | None = None) -> WindConfig:
     :raises ConfigError: naming the field and the file
     """
     path = Path(path) if path is not None else default_config_path("wind.yaml")
-    data = _read_yaml(path)
+    data = read_yaml(path)
     registry: dict[str, Param] = {}
-    loads = _block(LoadConfig, data.get("loads"), "loads", path, registry)
-    t4 = _block(Table4, data.get("table4"), "table4", path, registry)
+    loads = load_block(LoadConfig, data.get("loads"), "loads", path, registry)
+    t4 = load_block(Table4, data.get("table4"), "table4", path, registry)
     if not 1 <= loads.filter_order <= 5:
         raise ConfigError(f"{path}: field 'loads.filter_order' must be 1..5")
     return WindConfig(loads, t4, registry, str(path))
@@ -202,7 +202,7 @@ def augment_with_wind(sys: ct.StateSpace, loads: WindLoads, mean_speed: float,
     A = np.block([[sys.A, Bw @ C_w], [np.zeros((nw, n)), A_w]])
     G = np.vstack([np.zeros((n, 1)), G_w])
     C = np.hstack([sys.C[oi], Dw[oi] @ C_w])
-    A, G, C, _ = balance(A, G, C)  # state scaling: see dss14_env.linsys.balance
+    A, G, C, _ = balance(A, G, C)  # state scaling: see dss14_env.model.linsys.balance
     return A, G, C
 
 
@@ -233,7 +233,7 @@ def simulate_wind_response(sys: ct.StateSpace, loads: WindLoads, mean_speed: flo
                            n_records: int = 1) -> np.ndarray:
     """Time histories of ``outputs`` in gusty wind, exact discretisation, stationary start.
 
-    The augmented system is discretised exactly (:func:`dss14_env.linsys.discretize`,
+    The augmented system is discretised exactly (:func:`dss14_env.model.linsys.discretize`,
     Van Loan for the white noise), so the statistics do not depend on ``dt``; the initial
     state is drawn from the stationary covariance, so there is no transient to discard.
 

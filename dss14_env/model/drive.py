@@ -16,9 +16,9 @@ from dataclasses import dataclass
 import control as ct
 import numpy as np
 
-from .gearbox import GearboxParams, gearbox_ss
-from .hydraulics import HydraulicParams, hydraulics_ss
-from .linsys import ss
+from dss14_env.model.gearbox import GearboxParams, gearbox_ss
+from dss14_env.model.hydraulics import HydraulicParams, hydraulics_ss
+from dss14_env.model.linsys import ss
 
 
 @dataclass(frozen=True)

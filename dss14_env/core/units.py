@@ -15,6 +15,17 @@ from __future__ import annotations
 
 import math
 
+#: the two axes, in the order of every (az, el) array
+AXES = ("az", "el")
+#: angle and speed factors at the edges: value_SI = value * factor
+DEG = math.pi / 180.0  # deg -> rad
+MDEG = math.pi / 180.0e3  # mdeg -> rad
+R2D = 180.0 / math.pi  # rad -> deg
+R2MD = 180.0e3 / math.pi  # rad -> mdeg
+KMH = 1.0 / 3.6  # km/h -> m/s
+#: named wind directions relative to the dish, rad (0: into the aperture along the boresight)
+WIND_DIRECTIONS = {"front": 0.0, "side": 0.5 * math.pi}
+
 #: unit string -> (SI unit string, factor such that value_SI = factor * value)
 UNITS: dict[str, tuple[str, float]] = {
     "1": ("1", 1.0),

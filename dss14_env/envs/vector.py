@@ -1,9 +1,9 @@
-"""numpy-batched vector version of :class:`dss14_env.env.DSS14Env`.
+"""numpy-batched vector version of :class:`dss14_env.envs.env.DSS14Env`.
 
 ``gymnasium.make_vec("DSS14-v0", num_envs=N, vectorization_mode="vector_entry_point")`` builds
 :class:`DSS14VectorEnv`.  All N sub-environments advance together: the sub-environments that
 share a plant (same mean wind speed, parameters and ``dt``; the wind direction is a
-per-sub-environment factor, see :mod:`dss14_env.plant`) are stepped by ONE matrix product::
+per-sub-environment factor, see :mod:`dss14_env.envs.plant`) are stepped by ONE matrix product::
 
     [X+, Y+] = [X, R, T_mean, kappa_az Xi, kappa_el Xi] @ M^T
 
@@ -13,7 +13,7 @@ numpy over the batch.
 Seeding rule (the one of ``gymnasium.vector.SyncVectorEnv``): sub-environment ``i`` owns its
 own ``numpy.random.Generator``, seeded with ``seed + i`` by ``reset(seed=seed)`` (or ``seed[i]``
 for a list; fresh entropy for None on the first reset, continued otherwise).  Every draw of
-sub-environment ``i`` -- its episodes (:func:`dss14_env.scenarios.draw_episode`) and its noise
+sub-environment ``i`` -- its episodes (:func:`dss14_env.envs.scenarios.draw_episode`) and its noise
 blocks -- comes from that generator in the same order as in a single environment, so the
 results equal those of N single environments reset with seeds ``seed + i`` and stepped with
 the same actions (up to floating-point rounding, about 1e-10 relative: the single environment
@@ -41,10 +41,19 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from .env import OBS_ERROR_BOUND, OBS_ERROR_RATE_BOUND, OBS_HIGH, R2D, R2MD
-from .plant import Plant, get_plant
-from .scenarios import DEG, MDEG, NOISE_BLOCK, EnvConfig, block_rows, command, draw_episode, \
-    draw_noise_block, load_env_config
+from dss14_env.envs.env import OBS_ERROR_BOUND, OBS_ERROR_RATE_BOUND, OBS_HIGH, R2D, R2MD
+from dss14_env.envs.plant import Plant, get_plant
+from dss14_env.envs.scenarios import (
+    DEG,
+    MDEG,
+    NOISE_BLOCK,
+    EnvConfig,
+    block_rows,
+    command,
+    draw_episode,
+    draw_noise_block,
+    load_env_config,
+)
 
 _TRAJ_KEYS = ("v", "amp", "omega", "phase", "sin_phase", "step", "t_step", "slew_acc", "slew_t0",
               "slew_ta", "slew_T")
@@ -56,7 +65,7 @@ class DSS14VectorEnv(VectorEnv):
     :param num_envs: number of sub-environments N (>= 1)
     :param max_episode_steps: truncate episodes after this many steps (None: never)
     :param render_mode: must be None
-    :param config: as for :class:`dss14_env.env.DSS14Env`
+    :param config: as for :class:`dss14_env.envs.env.DSS14Env`
     :param overrides: configuration keys
     """
 

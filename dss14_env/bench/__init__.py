@@ -1,0 +1,1 @@
+"""``dss14 bench``: the runner that scores every controller the same way, and the benchmark."""

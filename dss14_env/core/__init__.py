@@ -1,0 +1,1 @@
+"""Foundations shared by every layer: units and labels, the configuration schema."""
