@@ -11,8 +11,6 @@ import pytest
 from scipy import linalg
 
 from dss14_env.baselines.design import (
-    CommandShaper,
-    ReferenceGenerator,
     balanced_reduction,
     build_design_model,
     default_controllers_config,
@@ -26,12 +24,12 @@ from dss14_env.baselines.design import (
     smallest_order,
     split_rate_loop,
 )
+from dss14_env.baselines.shaping import CommandShaper, ReferenceGenerator
 from dss14_env.core.schema import ConfigError
+from dss14_env.core.units import DEG, MDEG
 from dss14_env.model.assembly import default_model
 from dss14_env.model.linsys import freqresp
 
-DEG = math.pi / 180
-MDEG = DEG / 1e3
 DT = 0.02
 
 
@@ -52,7 +50,8 @@ def test_config_loads_in_si() -> None:
     ("order: {value: 18,", "order: {value: -3,", "design.order"),
     ("horizon: {value: 20,", "horizon: {value: 1,", "mpc.horizon"),
     ("wind_model: {value: inferred,", "wind_model: {value: sideways,", "lqg.wind_model"),
-    ('error_soft_limit: {value: 10.0, unit: "mdeg"', 'error_soft_limit: {value: 10.0, unit: "m"', "error_soft_limit"),
+    ('error_soft_limit: {value: 10.0, unit: "mdeg"', 'error_soft_limit: {value: 10.0, unit: "m"',
+     "error_soft_limit"),
 ])
 def test_config_errors_name_the_field(tmp_path: Path, old: str, new: str, message: str) -> None:
     text = Path(load_controllers_config().path).read_text()
@@ -169,8 +168,10 @@ def test_dc_gains_rate_command_is_074() -> None:
 
 # ------------------------------------------------------------------ shaper
 def _shape(shaper: CommandShaper, c: np.ndarray, v: np.ndarray):
-    out = [shaper(ci, vi) for ci, vi in zip(c, v)]
-    return tuple(np.array(z) for z in zip(*out))
+    """Shape one episode's commands (steps x 2) as one row."""
+    shaper.reset(1)
+    out = [shaper(ci[None], vi[None]) for ci, vi in zip(c, v, strict=True)]
+    return tuple(np.array([o[j][0] for o in out]) for j in range(3))
 
 
 def test_shaper_passes_a_feasible_command() -> None:
@@ -195,14 +196,16 @@ def test_shaper_respects_its_limits_and_arrives(size_deg: float) -> None:
 def test_reference_generator_feedforward_within_limits(dm) -> None:
     K = np.zeros((2, dm.n + 2))
     K[:, :2] = 0.3 * np.eye(2)
-    gen = ReferenceGenerator(dm, CommandShaper(0.16 * DEG, 0.03 * DEG, DT), K, 0.25 * DEG,
-                             0.2 * DEG * DT, accel_ff=1.0)
+    gen = ReferenceGenerator(dm, K, 0.25 * DEG, 0.2 * DEG * DT, accel_ff=1.0)
+    shaper = CommandShaper(0.16 * DEG, 0.03 * DEG, DT)
     rs, th = [], []
+    x = r = None
     for k in range(2000):
-        c = np.array([0.1, 1.0]) * DEG * (k >= 50)
-        x, r = gen(c, np.zeros(2))
-        rs.append(r)
-        th.append(x[:2])
+        c = np.array([[0.1, 1.0]]) * DEG * (k >= 50)
+        shaped = shaper(c, np.zeros((1, 2)))
+        x, r = gen.start(*shaped) if x is None else gen.advance(x, r, *shaped)
+        rs.append(r[0])
+        th.append(x[0, :2])
     rs, th = np.array(rs), np.array(th)
     assert np.abs(rs).max() <= 0.9 * 0.25 * DEG * (1 + 1e-12)
     assert np.abs(np.diff(rs, axis=0)).max() <= 0.9 * 0.2 * DEG * DT * (1 + 1e-12)
