@@ -354,6 +354,11 @@ class EstimatorController(Controller):
         """The design of the (first row's) episode."""
         return self._designs[0]
 
+    @property
+    def designs(self) -> list[LQGDesign]:
+        """The designs of the rows' episodes (chosen at their first step)."""
+        return list(self._designs)
+
     def _start_rows(self, rows: np.ndarray, c: np.ndarray, cd: np.ndarray, r_prev: np.ndarray) -> None:
         """Choose the designs of the rows starting an episode and initialise them bumplessly:
         the environment starts on the command in steady motion (docs/env.md), so the estimate

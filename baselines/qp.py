@@ -48,7 +48,7 @@ class AdapterError(RuntimeError):
     """cvxpy's canonical OSQP data does not have the structure :class:`CanonicalQP` reads."""
 
 
-def _osqp_data(problem: cp.Problem, variable: cp.Variable) -> tuple[Any, np.ndarray, Any, np.ndarray, int]:
+def osqp_data(problem: cp.Problem, variable: cp.Variable) -> tuple[Any, np.ndarray, Any, np.ndarray, int]:
     """``(P, q, F, G, column of variable)`` of cvxpy's OSQP data at the current parameter values.
 
     :raises AdapterError: if the data is not laid out as documented in the module docstring
@@ -71,7 +71,7 @@ def _osqp_data(problem: cp.Problem, variable: cp.Variable) -> tuple[Any, np.ndar
     return P, np.array(q, float), F, np.array(G, float), int(col)
 
 
-def _status_map() -> dict[int, str]:
+def osqp_status_map() -> dict[int, str]:
     """cvxpy's map from OSQP status values to cvxpy status strings."""
     try:
         from cvxpy.reductions.solvers.qp_solvers.osqp_qpif import OSQP as CvxpyOSQP
@@ -105,7 +105,7 @@ class CanonicalQP:
     def __init__(self, problem: cp.Problem, params: list[cp.Parameter], variable: cp.Variable,
                  settings: dict[str, Any]) -> None:
         self.params = list(params)
-        self.status_map = _status_map()
+        self.status_map = osqp_status_map()
         saved = [None if p.value is None else np.array(p.value, copy=True) for p in self.params]
         sizes = [int(p.size) for p in self.params]
         n_p = sum(sizes)
@@ -115,7 +115,7 @@ class CanonicalQP:
             for p, n in zip(self.params, sizes, strict=True):
                 p.value = vec[k:k + n].reshape(p.shape)
                 k += n
-            return _osqp_data(problem, variable)
+            return osqp_data(problem, variable)
 
         try:
             P, q0, F, u0, col = data_at(np.zeros(n_p))
