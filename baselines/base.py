@@ -27,7 +27,8 @@ Keys of ``info`` (a controller sets those that apply):
   law and used a backup action (the MPC: the LQG action after a failed solve);
 * ``fallbacks``: the same steps as a list of ``{"step": k, "status": s}``, ``k`` the step
   index in the episode (0 = the first :meth:`Controller.act` after :meth:`Controller.reset`),
-  ``s`` the solver status that caused it -- what the runner writes to ``results.json``.
+  ``s`` the solver status that caused it -- the record the runner keeps per episode
+  (``results.json``).
 
 In ``info_batch`` every value is an array whose first axis is the row (``solve_time_s``: the
 wall time of the whole :meth:`Controller.act_batch` call divided by the number of rows).

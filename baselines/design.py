@@ -56,7 +56,7 @@ from scipy import linalg
 from dss14_env.core.schema import ConfigError, Param, load_section, read_config, spec
 from dss14_env.core.units import MDEG, WIND_DIRECTIONS
 from dss14_env.model.assembly import DSS14Model, default_model
-from dss14_env.model.linsys import balance, discretize, noise_factor, ss
+from dss14_env.model.linsys import balance, discretize, noise_factor
 from dss14_env.wind.loads import WindLoads, default_wind_loads, direction_angle
 
 ENCODER_OUTPUTS = ("enc_az", "enc_el")
@@ -293,17 +293,6 @@ class ReducedRateLoop:
             out.append((self.C @ np.linalg.solve(s * eye - self.A, self.B) + self.D) / s)
         return np.array(out)
 
-    def to_ss(self) -> Any:
-        """Named python-control system with the rate loop's labels (inputs ``r_a, r_e,
-        Tw_az, Tw_el``; outputs ``enc_az, enc_el``), usable with
-        :func:`dss14_env.model.loops.position_loop`."""
-        n = self.A.shape[0]
-        A = np.block([[np.zeros((2, 2)), self.C], [np.zeros((n, 2)), self.A]])
-        B = np.vstack([self.D, self.B])
-        C = np.hstack([np.eye(2), np.zeros((2, n))])
-        return ss(A, B, C, np.zeros((2, 4)), list(COMMAND_INPUTS + WIND_INPUTS),
-                  list(ENCODER_OUTPUTS), name=f"rate_loop_reduced_{self.order}")
-
 
 _CACHE: dict[tuple, Any] = {}
 
@@ -416,7 +405,6 @@ class DesignModel:
     order: int
     wind: Any
     hsv: np.ndarray = field(repr=False)
-    Tw_matrix: np.ndarray = field(repr=False)  # gust torques = Tw_matrix @ x
 
     @property
     def n(self) -> int:
@@ -532,12 +520,10 @@ def _build(dt, order, wind, encoder_noise, bits, model, loads) -> DesignModel:
     G[w] = G_w
     C = np.zeros((2, n))
     C[:, :2] = np.eye(2)
-    Tw = np.zeros((2, n))
-    Tw[:, w] = C_w
     Ad, Bd, Qd = discretize(A, B, dt, G)
     q2 = encoder_step(bits) ** 2 / 12.0 if bits is not None else 0.0
     R = max(q2 + encoder_noise ** 2, MIN_MEASUREMENT_NOISE ** 2) * np.eye(2)
-    return DesignModel(dt, A, B, G, C, Ad, Bd, Qd, R, 2, nv, nw, nv, wind, red.hsv, Tw)
+    return DesignModel(dt, A, B, G, C, Ad, Bd, Qd, R, 2, nv, nw, nv, wind, red.hsv)
 
 
 def smallest_order(budget_rel: float) -> int:

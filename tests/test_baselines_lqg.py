@@ -19,7 +19,7 @@ from dss14_env.baselines.lqg import EstimatorController, LQGController, lqg_desi
 from dss14_env.baselines.pi import PIController
 from dss14_env.baselines.yardstick import YardstickController, expected_performance, yardstick_design
 from dss14_env.bench.runner import run
-from dss14_env.core.units import KMH, WIND_DIRECTIONS
+from dss14_env.core.units import AXES, KMH, WIND_DIRECTIONS
 from dss14_env.envs.env import DSS14Env
 from dss14_env.envs.plant import get_plant
 
@@ -124,7 +124,7 @@ def hold_results() -> dict:
 
 
 def _three_sigma(summary: dict, ctrl: str, direction: str) -> float:
-    ax = ("az", "el")[DOMINANT[direction]]
+    ax = AXES[DOMINANT[direction]]
     return summary[ctrl][f"hold_{direction}"]["servo_error_mdeg"][ax]["three_sigma"]["median"]
 
 
@@ -154,7 +154,7 @@ def step_results() -> dict:
 
 
 @pytest.mark.parametrize("ctrl", ["lqg", "mpc"])
-@pytest.mark.parametrize("axis", ["az", "el"])
+@pytest.mark.parametrize("axis", AXES)
 def test_step_overshoot_and_settling(step_results, ctrl: str, axis: str) -> None:
     s = step_results[ctrl]["step"]["step"][axis]
     pi = step_results["pi_kp1"]["step"]["step"][axis]

@@ -11,7 +11,7 @@ from dss14_env.baselines.interface import ControlInterface
 from dss14_env.baselines.lqg import lqg_design_from_config
 from dss14_env.baselines.mpc import CondensedMPC, MPCController, MPCSettings, MPCStep
 from dss14_env.bench.runner import run_episode
-from dss14_env.core.units import DEG, KMH, MDEG
+from dss14_env.core.units import AXES, DEG, KMH, MDEG
 from dss14_env.envs.env import DSS14Env
 
 
@@ -91,7 +91,7 @@ def test_mpc_slew_needs_no_limiter(slew_episode) -> None:
     assert m["limit_hits"] == {"rate": 0, "accel": 0}
 
 
-@pytest.mark.parametrize("axis", ["az", "el"])
+@pytest.mark.parametrize("axis", AXES)
 def test_mpc_slew_within_rate_and_acceleration(slew_episode, axis: str) -> None:
     m, _ = slew_episode
     r = m["rate_command_deg_s"][axis]
