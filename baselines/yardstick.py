@@ -44,6 +44,7 @@ from dss14_env.baselines.analysis import closed_loop, lqg_as_linear, riccati_cos
 from dss14_env.baselines.design import build_design_model
 from dss14_env.baselines.interface import ControlInterface, as_interface
 from dss14_env.baselines.lqg import EstimatorController, LQGDesign, design_lqg
+from dss14_env.core.units import KMH
 from dss14_env.wind.loads import direction_angle
 
 #: tiny random walk of the command-level disturbance in the runnable yardstick (fraction of
@@ -119,7 +120,7 @@ class YardstickController(EstimatorController):
     :param name: label, default ``"yardstick"``
     """
 
-    def __init__(self, env: Any = None, wind_speed: float = 50 / 3.6,
+    def __init__(self, env: Any = None, wind_speed: float = 50 * KMH,
                  direction: str | float = "front", name: str = "yardstick") -> None:
         interface = as_interface(env)
         self.interface = interface

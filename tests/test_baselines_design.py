@@ -26,7 +26,8 @@ from dss14_env.baselines.design import (
 )
 from dss14_env.baselines.shaping import CommandShaper, ReferenceGenerator
 from dss14_env.core.schema import ConfigError
-from dss14_env.core.units import DEG, MDEG
+from dss14_env.core.units import DEG, KMH, MDEG
+from dss14_env.envs.plant import get_plant
 from dss14_env.model.assembly import default_model
 from dss14_env.model.linsys import freqresp
 
@@ -138,7 +139,7 @@ def test_reference_state_follows_the_motion(dm, c_acc) -> None:
         assert np.abs(xdot[2:]).max() < 1e-9 * np.abs(x[2:]).max()
 
 
-@pytest.mark.parametrize("wind", [("design", 50 / 3.6), (50 / 3.6, "front"), (50 / 3.6, "side")])
+@pytest.mark.parametrize("wind", [("design", 50 * KMH), (50 * KMH, "front"), (50 * KMH, "side")])
 def test_design_model_is_stable_but_for_the_encoder_integrators(wind) -> None:
     m = build_design_model(DT, wind=wind)
     mags = np.sort(np.abs(np.linalg.eigvals(m.Ad)))
@@ -150,12 +151,11 @@ def test_design_model_is_stable_but_for_the_encoder_integrators(wind) -> None:
 @pytest.mark.parametrize("deg", [0.0, 45.0, 90.0, 135.0, 180.0, 270.0])
 @pytest.mark.parametrize("rate", [0.0, 0.01])
 def test_infer_wind_recovers_direction_and_speed_on_the_nominal_plant(deg: float, rate: float) -> None:
-    from dss14_env.envs.plant import get_plant
-    p = get_plant(50 / 3.6, DT)
+    p = get_plant(50 * KMH, DT)
     th = math.radians(deg)
     _, r0 = p.steady_start(np.zeros(8), p.mean_torque(th), np.full(2, rate * DEG))
     speed, theta = infer_wind(r0, np.full(2, rate * DEG))
-    assert speed == pytest.approx(50 / 3.6, rel=1e-6)
+    assert speed == pytest.approx(50 * KMH, rel=1e-6)
     assert 0.0 <= theta < math.pi
     # modulo pi, compared on the circle: 180 deg may come back as pi - 1e-13 (the same gust model)
     gap = (theta - th) % math.pi
