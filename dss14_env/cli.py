@@ -9,12 +9,15 @@ import time
 
 def _reproduce(args: argparse.Namespace) -> int:
     """Write everything, then exit 1 when a row with an accepted range is outside it."""
+    from dss14_env.core.outdir import prepare_output_dir
     from dss14_env.model.assembly import build_model, default_model
     from dss14_env.model.config import load_model_config
-    from dss14_env.reproduce import reproduce
+    from dss14_env.reproduce import OWNED_FILES, reproduce
 
     t0 = time.perf_counter()
-    model = build_model(load_model_config(args.config)) if args.config else default_model()
+    cfg = load_model_config(args.config) if args.config else None  # bad config: before any work
+    prepare_output_dir(args.out, OWNED_FILES, overwrite=args.overwrite)
+    model = build_model(cfg) if cfg is not None else default_model()
     res = reproduce(args.out, model, figures=not args.no_figures)
     print(res["markdown"])
     print(f"{len(res['figures'])} figures, metrics.json and metrics.md written to {args.out} "
@@ -87,8 +90,11 @@ def main(argv: list[str] | None = None) -> int:
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("reproduce", help="redraw the report's figures and check its numbers")
     p.add_argument("--out", default="reproduce_out", help="output folder (default: reproduce_out)")
-    p.add_argument("--config", default=None, help="model YAML (default: the shipped configs/model.yaml)")
+    p.add_argument("--config", default=None,
+                   help="model YAML, a path or a shipped name (default: the shipped configs/model.yaml)")
     p.add_argument("--no-figures", action="store_true", help="metrics only")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace the results of an earlier run in --out (metrics, figures)")
     p.set_defaults(func=_reproduce)
     p = sub.add_parser("train", help="train a learned controller (PPO)")
     p.add_argument("algo", choices=["ppo"], help="algorithm")
