@@ -17,8 +17,9 @@ from __future__ import annotations
 
 import pickle
 import time
+from collections.abc import Iterable, Mapping
 from pathlib import Path
-from typing import Any, Iterable, Mapping
+from typing import Any
 
 import numpy as np
 import yaml

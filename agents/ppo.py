@@ -36,11 +36,12 @@ import json
 import math
 import re
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from datetime import datetime
 from importlib import resources
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -155,7 +156,7 @@ class PPOConfig:
 
     # -- construction --------------------------------------------------------------------------
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any], source: str = "<dict>") -> "PPOConfig":
+    def from_dict(cls, data: Mapping[str, Any], source: str = "<dict>") -> PPOConfig:
         """Build a validated config from a mapping; missing keys take their defaults.
 
         :param data: key -> value, as in ``configs/ppo.yaml``
@@ -174,7 +175,7 @@ class PPOConfig:
                 raise ValueError(f"{source}: unknown key {key!r}{hint}")
         return cls(**dict(data), source=source)
 
-    def replace(self, **changes: Any) -> "PPOConfig":
+    def replace(self, **changes: Any) -> PPOConfig:
         """Copy with some values changed (validated again), e.g. ``cfg.replace(seed=3)``."""
         return dataclasses.replace(self, **changes)
 
@@ -328,7 +329,7 @@ def load_config(path: str | Path | None = None) -> PPOConfig:
     return PPOConfig.from_dict(data if data is not None else {}, source=str(p))
 
 
-def as_config(config: "PPOConfig | Mapping[str, Any] | str | Path") -> PPOConfig:
+def as_config(config: PPOConfig | Mapping[str, Any] | str | Path) -> PPOConfig:
     """A :class:`PPOConfig` from a config, a mapping or a YAML path."""
     if isinstance(config, PPOConfig):
         return config
@@ -555,7 +556,7 @@ def _callbacks(cfg: PPOConfig, run: Path, resume_steps: int) -> tuple[list[Any],
 # --------------------------------------------------------------------------------------------
 # training
 # --------------------------------------------------------------------------------------------
-def train(config: "PPOConfig | Mapping[str, Any] | str | Path", run_dir: str | Path | None = None,
+def train(config: PPOConfig | Mapping[str, Any] | str | Path, run_dir: str | Path | None = None,
           resume: str | Path | None = None) -> Path:
     """Train PPO (stable-baselines3, CPU, one torch thread) and write the run folder.
 
