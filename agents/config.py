@@ -77,7 +77,7 @@ COMMON_FIELDS: dict[str, Field] = {
     "n_envs": Field("int", 8, lo=1),
     "vec_env": Field("choice", "auto", choices=VEC_ENVS),
     "total_timesteps": Field("int", 2_000_000, lo=1),
-    "seed": Field("int", 0, lo=0),
+    "seed": Field("int", 10_000, lo=0),
     "normalize_obs": Field("bool", True),
     "normalize_reward": Field("bool", True),
     "learning_rate": Field("float", 3e-4, lo=0.0, lo_open=True),

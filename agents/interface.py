@@ -22,9 +22,10 @@ a batched vector env) and for scoring (:class:`dss14_env.agents.policy.PolicyCon
   and its Kalman state estimate about the reference, ``dx = x^ - x_ref``, seen through the
   encoder outputs (``C dx``, 2, error-scale units) and through the three terms of the LQR law
   ``r = r_ss - Kx dx - Ki xi - Ku (r_prev - r_ss)`` (2 each; action units) -- features whose
-  meaning does not depend on the design the LQG picks per episode -- then, with ``history`` H > 0, the H previous values of the
-  ``history_entries`` of the observation, newest first (frame stacking; at an episode's
-  first step the first observation repeated, the steady state the episode starts in).
+  meaning does not depend on the design the LQG picks per episode -- then, with ``history``
+  H > 0, the H previous values of the ``history_entries`` of the observation, newest first
+  (frame stacking; at an episode's first step the first observation repeated, the steady
+  state the episode starts in).
 
 Rows restart independently (:meth:`PolicyInterface.restart`), so a vector environment's
 auto-reset sub-environments start fresh while the others go on.

@@ -25,8 +25,9 @@ can run code: it loads only with ``trust_pickle=True``.
 from __future__ import annotations
 
 import time
+from collections.abc import Iterable, Mapping
 from pathlib import Path
-from typing import Any, Iterable, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -94,11 +95,9 @@ class PolicyController(Controller):
                 base = make_env(plan.base_id, plan.base_kwargs)
                 self.train_env_config = _env_config(base)
                 base.close()
-                target = _env_config(env) if env is not None else None
-                if target is not None:
-                    self.to_env = (self.train_env_config.action_scale_deg_s
-                                   / target.action_scale_deg_s)
         self.input_dim = 12 if self.spec is not None else self.obs_dim
+        if env is not None:
+            self.target_env(env)
         if self.spec is not None:
             probe = PolicyInterface(self.spec, self.train_env_config, 1)
             if probe.obs_dim != self.obs_dim:
@@ -107,6 +106,13 @@ class PolicyController(Controller):
                                       f"weights expect {self.obs_dim}")
         self.info_batch: dict[str, np.ndarray] = {}
         self.reset_batch(1)
+
+    def target_env(self, env: Any) -> None:
+        """Act on ``env`` from now on: actions are converted from the training environment's
+        action scale to ``env``'s (a DSS14 environment; others are left alone)."""
+        target = _env_config(env)
+        if self.train_env_config is not None and target is not None:
+            self.to_env = self.train_env_config.action_scale_deg_s / target.action_scale_deg_s
 
     # ------------------------------------------------------------------ single
     def reset(self, seed: int | None = None) -> None:
