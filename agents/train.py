@@ -274,9 +274,10 @@ class _Evaluator:
         h["timesteps"].append(int(model.num_timesteps))
         h["results"].append(np.concatenate([r["returns"] for r in res.values()]))
         h["ep_lengths"].append(np.concatenate([r["lengths"] for r in res.values()]))
-        for name, r in res.items():
-            h.setdefault(f"returns_{name}", []).append(r["returns"])
-            h.setdefault(f"three_sigma_mdeg_{name}", []).append(r["three_sigma_mdeg"])
+        for t in self.tasks:
+            h.setdefault(f"returns_{t.name}", []).append(res[t.name]["returns"])
+            if t.axis is not None:
+                h.setdefault(f"three_sigma_mdeg_{t.name}", []).append(res[t.name]["three_sigma_mdeg"])
         _save_history(self.run / "eval" / "evaluations.npz", h)
         mean = float(np.mean(h["results"][-1]))
         logger.record("eval/mean_return", mean)
@@ -410,6 +411,11 @@ def train(config: TrainConfig | Mapping[str, Any] | str | Path, run_dir: str | P
     plan, obs_space, act_space, env_config = check_env(cfg)
     if plan.dss14:
         check_seed_protocol(cfg.seed, cfg.n_envs, cfg.eval_seeds, cfg.source)
+        warm = max(t.warmup_steps for t in _eval_tasks(cfg, plan))
+        if cfg.eval_freq and cfg.eval_episode_steps <= warm + 1:
+            raise ValueError(f"{cfg.source}: key 'eval_episode_steps': the validation episodes "
+                             f"must be longer than the {warm}-step warm-up the 3-sigma leaves "
+                             f"out, got {cfg.eval_episode_steps}")
     if src is not None and not src.foreign and src.steps >= cfg.total_timesteps:
         raise ValueError(f"checkpoint {src.path} is at {src.steps} steps, total_timesteps is "
                          f"{cfg.total_timesteps}: raise total_timesteps (--timesteps)")
