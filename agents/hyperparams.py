@@ -24,7 +24,8 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from dss14_env.agents.config import TrainConfig, read_yaml_mapping
+from dss14_env.agents.config import TrainConfig
+from dss14_env.core.schema import read_config
 
 _ACT = {"nn.Tanh": "tanh", "nn.ReLU": "relu", "nn.ELU": "elu", "nn.LeakyReLU": "leaky_relu",
         "th.nn.Tanh": "tanh", "th.nn.ReLU": "relu", "th.nn.ELU": "elu", "th.nn.LeakyReLU": "leaky_relu"}
@@ -125,7 +126,7 @@ def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> 
     :raises ValueError: missing file or entry (naming the ids it has), bad values
     """
     p = Path(path) if path is not None else hyperparams_path(algo)
-    data = read_yaml_mapping(p, "hyperparameter")
+    data, _ = read_config(p)
     if env_id not in data:
         raise ValueError(f"{p}: no hyperparameters for {env_id!r}; entries: {', '.join(data)}")
     entry = data[env_id]

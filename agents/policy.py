@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from dss14_env.agents.algos import algo_class, build_policy, is_recurrent
-from dss14_env.agents.config import TrainConfig, read_yaml_mapping
+from dss14_env.agents.config import TrainConfig, load_config
 from dss14_env.agents.envs import make_env, resolve_env
 from dss14_env.agents.interface import InterfaceSpec, PolicyInterface
 from dss14_env.agents.storage import (
@@ -230,8 +230,7 @@ def load_policy(path: str | Path | None = None, env: Any = None, name: str | Non
     files = find_policy_files(DEFAULT_POLICY if path is None else path)
     cfg = None
     if files.config is not None:
-        cfg = TrainConfig.from_dict(read_yaml_mapping(files.config, "run config"),
-                                    source=str(files.config))
+        cfg = load_config(files.config)
     if files.foreign:
         model, vn = load_sb3_model(files, algo_class(cfg.algo if cfg else "ppo"), trust_pickle)
         stats = NormStats.from_vec_normalize(vn) if vn is not None and vn.norm_obs else None

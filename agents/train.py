@@ -36,7 +36,7 @@ import numpy as np
 import yaml
 
 from dss14_env.agents.algos import algo_class, algo_kwargs, is_recurrent, policy_kwargs
-from dss14_env.agents.config import TrainConfig, as_config, read_yaml_mapping
+from dss14_env.agents.config import TrainConfig, as_config, load_config
 from dss14_env.agents.envs import EnvPlan, check_env, make_train_vec_env
 from dss14_env.agents.evaluation import DSS14_TASKS, EvalTask, check_seed_protocol, dss14_tasks, run_task
 from dss14_env.agents.policy import PolicyController
@@ -506,7 +506,7 @@ def config_for_command(algo: str, config: str | Path | None = None, env_id: str 
 
     :raises ValueError: both ``--config`` and ``--env``, or a config of another algorithm
     """
-    from dss14_env.agents.config import load_config, shipped_config_path
+    from dss14_env.agents.config import shipped_config_path
     from dss14_env.agents.hyperparams import load_hyperparams
 
     if config is not None and env_id is not None:
@@ -531,8 +531,7 @@ def config_for_command(algo: str, config: str | Path | None = None, env_id: str 
 
 def load_run_config(run: str | Path) -> TrainConfig:
     """The configuration of a run folder (or policy folder)."""
-    p = Path(run) / CONFIG
-    return TrainConfig.from_dict(read_yaml_mapping(p, "run config"), source=str(p))
+    return load_config(Path(run) / CONFIG)
 
 
 __all__ = ["RUN_FILES", "TrainingInterrupted", "config_for_command", "load_run_config", "prepare_run",
