@@ -37,7 +37,7 @@ import yaml
 
 from dss14_env.agents.algos import algo_class, algo_kwargs, is_recurrent, policy_kwargs
 from dss14_env.agents.config import TrainConfig, as_config, load_config
-from dss14_env.agents.envs import EnvPlan, check_env, make_train_vec_env
+from dss14_env.agents.envs import EnvPlan, check_env, make_train_vec_env, vec_env_kind
 from dss14_env.agents.evaluation import DSS14_TASKS, EvalTask, check_seed_protocol, dss14_tasks, run_task
 from dss14_env.agents.policy import PolicyController
 from dss14_env.agents.storage import (
@@ -455,7 +455,7 @@ def train(config: TrainConfig | Mapping[str, Any] | str | Path, run_dir: str | P
             model.num_timesteps = start
             say(f"resuming {src.path} at {start} steps")
         callbacks = _callbacks(cfg, plan, run, run_id, config_text, venv, start, ckpts)
-        say(f"{cfg.algo} on {cfg.env_id}: {cfg.n_envs} envs ({venv.venv.__class__.__name__}), "
+        say(f"{cfg.algo} on {cfg.env_id}: {cfg.n_envs} envs ({vec_env_kind(cfg, plan)}), "
             f"obs {obs_space.shape}, action {act_space.shape}, {cfg.total_timesteps - start} "
             f"steps -> {run}")
         t0 = time.perf_counter()
@@ -477,7 +477,7 @@ def train(config: TrainConfig | Mapping[str, Any] | str | Path, run_dir: str | P
         "num_timesteps": int(model.num_timesteps), "start_timesteps": start,
         "wall_s": round(wall, 3), "steps_per_s": round((model.num_timesteps - start) / wall, 1),
         "resumed_from": None if src is None else str(src.path), "seed": cfg.seed,
-        "n_envs": cfg.n_envs, "vec_env": venv.venv.__class__.__name__,
+        "n_envs": cfg.n_envs, "vec_env": vec_env_kind(cfg, plan),
         "torch_threads": cfg.torch_threads,
         "versions": {"stable_baselines3": stable_baselines3.__version__,
                      "torch": torch.__version__, "numpy": np.__version__},

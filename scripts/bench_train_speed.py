@@ -13,9 +13,11 @@ For each: environment steps per second of the whole training (rollouts + updates
 share of that wall time spent stepping the environment (the innermost VecEnv's
 ``step_wait``: the plant, limiter, observation, reward; for ``dummy`` the 8 Python
 environments with their wrappers) and in the rollout's environment side (adds the policy
-interface and VecNormalize).  Ratios are to ``dummy``, measured in this one run.
+interface and VecNormalize).  The variants alternate over ``--repeats`` rounds (a shared
+machine's load then hits all of them alike); medians and per-round ratios to ``dummy`` are
+printed, measured in this one run.
 
-    python scripts/bench_train_speed.py [--config ppo] [--updates 3] [--json out.json]
+    python scripts/bench_train_speed.py [--config ppo] [--updates 3] [--repeats 3] [--json out.json]
 """
 
 from __future__ import annotations
@@ -86,39 +88,60 @@ def measure(cfg: Any, updates: int) -> dict[str, Any]:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--config", default="ppo", help="shipped config name or YAML (default ppo)")
+    ap.add_argument("--env", default=None, metavar="ID",
+                    help="instead of --config: the shipped PPO hyperparameters of this id "
+                    "(configs/hyperparams/ppo.yml)")
     ap.add_argument("--updates", type=int, default=3, help="PPO updates per variant (default 3)")
+    ap.add_argument("--repeats", type=int, default=3,
+                    help="rounds; the variants alternate within a round, medians are reported "
+                    "(default 3)")
     ap.add_argument("--json", default=None, help="also write the figures to this JSON file")
     args = ap.parse_args()
 
     from dss14_env.agents.config import load_config
+    from dss14_env.agents.hyperparams import load_hyperparams
 
-    base = load_config(args.config).replace(eval_freq=0, checkpoint_freq=0, progress_bar=False,
+    cfg0 = load_hyperparams("ppo", args.env) if args.env else load_config(args.config)
+    base = cfg0.replace(eval_freq=0, checkpoint_freq=0, progress_bar=False,
                                             verbose=0)
     samples = base.n_steps * base.n_envs
     variants = [("dummy", base.replace(vec_env="dummy")),
                 ("batched", base.replace(vec_env="batched")),
                 ("batched-64", base.replace(vec_env="batched", n_envs=64,
                                             n_steps=max(samples // 64, 1)))]
+    runs: list[dict[str, Any]] = []
+    for rep in range(args.repeats):  # alternate the variants: a shared machine's load hits all
+        for name, cfg in variants:
+            r = measure(cfg, args.updates)
+            r.update(variant=name, repeat=rep)
+            runs.append(r)
+            print(f"[{rep}] {name:11s} {r['n_envs']:3d} envs x {r['n_steps']:5d} steps: "
+                  f"{r['steps_per_s']:8.0f} steps/s, env {100 * r['env_share']:5.1f} % "
+                  f"({r['env_us_per_step']:.1f} us/step), env side incl. interface and "
+                  f"normalisation {100 * r['env_side_share']:5.1f} %", flush=True)
     rows = []
-    for name, cfg in variants:
-        r = measure(cfg, args.updates)
-        r["variant"] = name
-        rows.append(r)
-        print(f"{name:11s} {r['n_envs']:3d} envs x {r['n_steps']:5d} steps: "
-              f"{r['steps_per_s']:8.0f} steps/s, env {100 * r['env_share']:5.1f} % "
-              f"({r['env_us_per_step']:.1f} us/step), env side incl. interface and "
-              f"normalisation {100 * r['env_side_share']:5.1f} %", flush=True)
+    for name, _ in variants:
+        mine = [r for r in runs if r["variant"] == name]
+        rows.append({"variant": name, "n_envs": mine[0]["n_envs"], "n_steps": mine[0]["n_steps"],
+                     **{k: float(np.median([r[k] for r in mine]))
+                        for k in ("steps_per_s", "env_share", "env_side_share", "env_us_per_step")},
+                     "steps_per_s_all": [r["steps_per_s"] for r in mine]})
     ref = rows[0]["steps_per_s"]
     for r in rows:
         r["speedup_vs_dummy"] = r["steps_per_s"] / ref
-    print("speed-up vs dummy: " + ", ".join(f"{r['variant']} {r['speedup_vs_dummy']:.2f}x"
-                                           for r in rows))
+        # per round, each variant against that round's dummy run
+        r["speedup_per_round"] = [a / b for a, b in zip(r["steps_per_s_all"],
+                                                       rows[0]["steps_per_s_all"], strict=True)]
+    print("medians: " + "; ".join(
+        f"{r['variant']} {r['steps_per_s']:.0f} steps/s ({r['speedup_vs_dummy']:.2f}x dummy, "
+        f"per round {min(r['speedup_per_round']):.2f}-{max(r['speedup_per_round']):.2f}x), env "
+        f"{100 * r['env_share']:.1f} %, env side {100 * r['env_side_share']:.1f} %" for r in rows))
     if args.json:
-        meta = {"config": args.config, "updates": args.updates, "cpu_count": os.cpu_count(),
+        meta = {"config": args.env or args.config, "updates": args.updates, "cpu_count": os.cpu_count(),
                 "machine": platform.processor() or platform.machine(),
                 "load_avg": list(os.getloadavg()), "numpy": np.__version__}
         with open(args.json, "w") as fh:
-            json.dump({"meta": meta, "rows": rows}, fh, indent=2)
+            json.dump({"meta": meta, "rows": rows, "runs": runs}, fh, indent=2)
     return 0
 
 
