@@ -7,7 +7,9 @@ hyperparameters of a shipped config (default ``ppo``: the residual policy, 8 env
 * ``dummy``   -- ``vec_env: dummy``: 8 single environments in SB3's DummyVecEnv (as before);
 * ``batched`` -- ``vec_env: batched``: one numpy vector env + the batched interface, same
   hyperparameters;
-* ``batched-64`` -- batched with 64 envs x 128 steps (the same 8192 samples per update).
+* ``batched-64`` -- batched with 64 envs x 128 steps (the same 8192 samples per update);
+* with ``--light``, also ``dummy-light`` and ``batched-64-light``: the same, with a light
+  learner (1 epoch, one minibatch per update), where the environment side can show its speed.
 
 For each: environment steps per second of the whole training (rollouts + updates), and the
 share of that wall time spent stepping the environment (the innermost VecEnv's
@@ -95,6 +97,8 @@ def main() -> int:
     ap.add_argument("--repeats", type=int, default=3,
                     help="rounds; the variants alternate within a round, medians are reported "
                     "(default 3)")
+    ap.add_argument("--light", action="store_true",
+                    help="add the light-learner variants (1 epoch, one minibatch per update)")
     ap.add_argument("--json", default=None, help="also write the figures to this JSON file")
     args = ap.parse_args()
 
@@ -109,6 +113,9 @@ def main() -> int:
                 ("batched", base.replace(vec_env="batched")),
                 ("batched-64", base.replace(vec_env="batched", n_envs=64,
                                             n_steps=max(samples // 64, 1)))]
+    if args.light:
+        variants += [(f"{name}-light", cfg.replace(n_epochs=1, batch_size=cfg.n_steps * cfg.n_envs))
+                     for name, cfg in (variants[0], variants[2])]
     runs: list[dict[str, Any]] = []
     for rep in range(args.repeats):  # alternate the variants: a shared machine's load hits all
         for name, cfg in variants:
