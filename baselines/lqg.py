@@ -254,12 +254,12 @@ class EstimatorController(Controller):
     Per step and row: predict with the previously APPLIED command (observation 10, 11, so the
     command limiter is accounted for), correct with the encoder reading, build the reference --
     the raw command as a ramp, or (with a shaper) the reference model driven along the shaped
-    command -- compute the command (:meth:`law`), then advance the integrator with the measured
-    servo error clipped to ``integral_clip``.  A row's first step chooses its episode's design
-    (:meth:`select_designs`) and initialises bumplessly: the estimate sits on the reference and
-    the input disturbance ``d`` takes the observed start command, so the first command equals
-    it.  Rows with the same design are computed together (batchable: every row is an
-    independent controller, see :class:`dss14_env.baselines.base.Controller`).
+    command -- compute the command (:meth:`law_rows`, :meth:`law`), then advance the integrator
+    with the measured servo error clipped to ``integral_clip``.  A row's first step chooses its
+    episode's design (:meth:`select_designs`) and initialises bumplessly: the estimate sits on
+    the reference and the input disturbance ``d`` takes the observed start command, so the first
+    command equals it.  Rows with the same design are computed together (batchable: every row is
+    an independent controller, see :class:`dss14_env.baselines.base.Controller`).
 
     Anti-windup by conditioning (R. Hanus, M. Kinnaert, J.-L. Henrotte, "Conditioning technique,
     a general anti-windup and bumpless transfer method", Automatica 23(6), 1987): if the LQR
@@ -295,6 +295,7 @@ class EstimatorController(Controller):
         self.shaper = shaper
         self.reference_pull = float(reference_pull)
         self.default_design = design
+        self._law_design = design           # the design :meth:`law` applies (set per group)
         self._maps: dict[int, DesignMaps] = {}
         self.maps(design)
         self.reset()
@@ -396,10 +397,43 @@ class EstimatorController(Controller):
         """The LQR law ``r = r_ss - K z`` (rad/s) for rows ``z`` ``(k, n_z)``."""
         return r_ss - z @ design.K.T
 
-    def law(self, design: LQGDesign, rows: np.ndarray, z: np.ndarray, r_ss: np.ndarray,
-            r_prev: np.ndarray) -> np.ndarray:
-        """The rate commands (rad/s) of ``rows``; the LQR here, overridden by the MPC."""
-        return self.lqr_command(design, z, r_ss)
+    def law_rows(self, design: LQGDesign, rows: np.ndarray, z: np.ndarray, r_ss: np.ndarray,
+                 r_prev: np.ndarray) -> np.ndarray:
+        """The rate commands (rad/s) of the rows ``rows`` of one design (``z`` ``(k, n_z)``,
+        ``r_ss`` and ``r_prev`` ``(k, 2)``): the LQR for all of them at once, or :meth:`law`
+        row by row where a subclass overrides that (the MPC overrides this method)."""
+        if type(self).law is EstimatorController.law:
+            return self.lqr_command(design, z, r_ss)
+        self._law_design = design
+        return np.array([self.law(z[j], r_ss[j], r_prev[j]) for j in range(len(rows))])
+
+    def law(self, z: np.ndarray, r_ss: np.ndarray, r_prev: np.ndarray) -> np.ndarray:
+        """The rate command (rad/s) of one row (``z`` ``(n_z,)``, ``r_ss``, ``r_prev`` ``(2,)``):
+        the LQR of the row's design; the hook a subclass overrides to see or change the law one
+        row at a time."""
+        return r_ss - self._law_design.K @ z
+
+    @property
+    def Kx(self) -> np.ndarray:
+        """The LQR gain's block on the model state, of :attr:`design`."""
+        return self.design.split_gain()[0]
+
+    @property
+    def Ki(self) -> np.ndarray:
+        """The LQR gain's block on the error integral (no columns without one), of :attr:`design`."""
+        return self.design.split_gain()[1]
+
+    @property
+    def Ku(self) -> np.ndarray:
+        """The LQR gain's block on the previous command, of :attr:`design`."""
+        return self.design.split_gain()[2]
+
+    def disturbance(self, row: int = 0) -> np.ndarray:
+        """The input-disturbance estimate ``d`` of a row (rad/s, command units): the mean wind
+        torque's effect."""
+        D = self._designs[row]
+        n, nd = D.dm.n, D.n_d
+        return self._xe[row, n:n + nd].copy() if nd else self._d_fixed[row].copy()
 
     @staticmethod
     def _deviation(design: LQGDesign, xe: np.ndarray, x_ref: np.ndarray, r_ff: np.ndarray,
@@ -463,7 +497,7 @@ class EstimatorController(Controller):
         else:
             z, r_ss = self._deviation(D, xe, c @ M.Xc.T + cd @ M.Xv.T, cd @ M.Rv.T, dist, xi, r_prev)
             c_int = c
-        r = self.law(D, idx, z, r_ss, r_prev)
+        r = self.law_rows(D, idx, z, r_ss, r_prev)
         if D.integral:
             self._xi[idx] = xi + self.interface.dt * np.clip(c_int - y, -self.integral_clip,
                                                              self.integral_clip)

@@ -315,8 +315,9 @@ class MPCController(LQGController):
         return np.clip(np.clip(r, r_prev - st.rate_step, r_prev + st.rate_step),
                        -st.rate_limit, st.rate_limit)
 
-    def law(self, design: LQGDesign, rows: np.ndarray, z: np.ndarray, r_ss: np.ndarray,
-            r_prev: np.ndarray) -> np.ndarray:
+    def law_rows(self, design: LQGDesign, rows: np.ndarray, z: np.ndarray, r_ss: np.ndarray,
+                 r_prev: np.ndarray) -> np.ndarray:
+        """The MPC's first move for the episode's row (one row: the MPC is not batchable)."""
         mpc = self.problem_for(design)
         step = int(self._k[rows[0]])
         res = self._last = mpc.solve(z[0], r_ss[0], r_prev[0])

@@ -122,20 +122,28 @@ class PIController(Controller):
         self._single = False
         self.info_batch = {}
 
+    def _implicit_batch(self, n: int) -> None:
+        """A controller that has not stepped since its reset takes its number of rows from the
+        first batched call (:meth:`act` with ``(N, 12)``, :meth:`restart` with ``(N,)``)."""
+        if n != self.n and self._fresh.all():
+            self.reset_batch(n)
+
     def restart(self, mask: np.ndarray) -> None:
         """Re-initialise the rows ``mask`` (sub-environments just reset) at the next
         :meth:`act_batch`."""
+        self._implicit_batch(int(np.size(mask)))
         self._fresh |= check_mask(mask, self.n)
 
     @property
     def _I(self) -> np.ndarray:
-        """The integrator state ``I`` (rad s): ``(2,)`` after :meth:`reset`, ``(n, 2)`` after
-        :meth:`reset_batch` (``tests/test_agents_residual.py`` reads it under this name)."""
+        """The integrator state ``I`` (rad s), shaped as :meth:`integral_action`
+        (``tests/test_agents_residual.py`` reads it under this name)."""
         return self._integral[0] if self._single else self._integral
 
     def integral_action(self) -> np.ndarray:
         """The integral part ``ki * I`` of the last command, in action units: ``(2,)`` after
-        :meth:`reset`, ``(n, 2)`` after :meth:`reset_batch` (zeros before the first step)."""
+        :meth:`act` with one observation (or :meth:`reset`), ``(n, 2)`` after a batch (or
+        :meth:`reset_batch`); zeros before the first step."""
         out = self.ki * self._integral / self.action_scale
         return out[0] if self._single else out
 
@@ -159,20 +167,19 @@ class PIController(Controller):
         """Action ``(2,)`` for one observation ``(12,)``.
 
         An ``(N, 12)`` array is passed to :meth:`act_batch`, starting ``N`` episodes first if
-        the controller has not stepped since its last reset.
+        the controller has not stepped since its last reset (an implicit :meth:`reset_batch`).
 
         :raises ValueError: on a wrong-shape or non-finite observation
         """
         if np.ndim(observation) == 2:
-            n = np.shape(observation)[0]
-            if n != self.n and self._fresh.all():
-                self.reset_batch(n)
+            self._implicit_batch(np.shape(observation)[0])
             return self.act_batch(observation)
         obs = check_observation(observation)
         if self.n != 1:
             raise ValueError(f"act() runs one episode, but the controller runs a batch of {self.n}; "
                              "use act_batch or reset()")
         a = self._step(obs[None])[0]
+        self._single = True
         self.info = {"rate_command_rad_s": self.info_batch["rate_command_rad_s"][0]}
         return a
 
@@ -181,4 +188,6 @@ class PIController(Controller):
 
         :raises ValueError: on a wrong shape or a non-finite entry
         """
-        return self._step(check_observations(observations, self.n))
+        a = self._step(check_observations(observations, self.n))
+        self._single = False
+        return a
