@@ -2,12 +2,13 @@
 behind the controller interface, residual and model-informed policy interfaces.
 
 Importing this package registers the agents' environment ids (nothing is built):
-``DSS14-Residual-v0``, ``DSS14-ResidualLQG-v0``, ``DSS14-KalmanObs-v0``
+``DSS14-Plain-v0``, ``DSS14-Residual-v0``, ``DSS14-ResidualLQG-v0``, ``DSS14-KalmanObs-v0``
 (:mod:`dss14_env.agents.envs`).
 """
 
 #: the agents' registered ids and their entry points
 AGENT_ENV_IDS = {
+    "DSS14-Plain-v0": "dss14_env.agents.envs:make_plain_env",
     "DSS14-Residual-v0": "dss14_env.agents.residual:make_residual_env",
     "DSS14-ResidualLQG-v0": "dss14_env.agents.envs:make_residual_lqg_env",
     "DSS14-KalmanObs-v0": "dss14_env.agents.envs:make_kalman_obs_env",

@@ -41,6 +41,9 @@ from dss14_env.core.schema import ConfigError, Spec, load_section, read_config, 
 #: the algorithms ``dss14 train`` knows
 ALGOS = ("ppo", "recurrent_ppo", "sac")
 ACTIVATIONS = ("tanh", "relu", "elu", "leaky_relu")
+#: what picks ``eval/best``: the highest mean validation return, or (DSS14) the lowest
+#: geometric mean over the hold tasks of their mean validation 3σ
+SELECT_BY = ("return", "three_sigma")
 #: ``auto``: ``batched`` for DSS14 ids (:mod:`dss14_env.agents.vec_env`), ``dummy`` otherwise
 VEC_ENVS = ("auto", "batched", "dummy", "subproc")
 
@@ -86,6 +89,7 @@ class CommonSettings:
                              default=(1000, 1001, 1002, 1003, 1004))
     eval_env_kwargs: dict = spec(None, kind="mapping", default_factory=dict)
     eval_episode_steps: int = _int(1, 1000)
+    select_by: str = spec(None, kind="str", choices=SELECT_BY, default="return")
     checkpoint_freq: int = _int(0, 200_000)
     torch_threads: int = _int(1, 1)
     progress_bar: bool = _flag(True)
@@ -307,7 +311,7 @@ def as_config(config: TrainConfig | Mapping[str, Any] | str | Path) -> TrainConf
                      f"{type(config).__name__}")
 
 
-__all__ = ["ACTIVATIONS", "ALGOS", "CommonSettings", "PPOConfig", "PPOSettings",
+__all__ = ["ACTIVATIONS", "ALGOS", "SELECT_BY", "CommonSettings", "PPOConfig", "PPOSettings",
            "RecurrentPPOSettings", "SACSettings", "SETTINGS", "TrainConfig", "VEC_ENVS",
            "as_config", "default_config_path", "keys_of", "load_config", "shipped_config_path",
            "shipped_training_configs"]

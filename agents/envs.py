@@ -4,6 +4,8 @@ Registered here (and by ``import dss14_env``), each a DSS14 environment seen thr
 :class:`dss14_env.agents.interface.PolicyInterface`:
 
 =========================  ==========================================================================
+``DSS14-Plain-v0``         the policy sets the rate command; observation without the absolute angles
+                           (entries 4, 5, 8, 9) + an 8-step history of errors and applied rates
 ``DSS14-Residual-v0``      residual on the report's PI: ``a = a_PI + 0.05 u``; observation + PI
                            integral term (+ history)
 ``DSS14-ResidualLQG-v0``   residual on the LQG: ``a = a_LQG + 0.02 u``; observation + the LQG's
@@ -14,7 +16,8 @@ Registered here (and by ``import dss14_env``), each a DSS14 environment seen thr
 
 Their keyword arguments: ``base_id`` (the DSS14 environment underneath, default
 ``DSS14-Hold-v0``), the interface keys (``gains``, ``residual_scale``, ``history``,
-``history_entries``) and any keyword of ``gymnasium.make(base_id, ...)`` (environment keys
+``history_entries``, ``obs_entries``, ``estimate``, ``lqg_features``) and any keyword of
+``gymnasium.make(base_id, ...)`` (environment keys
 such as ``action_scale_deg_s`` or ``wind_speed_kmh``, and ``max_episode_steps``).
 
 :func:`resolve_env` turns a training configuration into the base environment and the
@@ -36,7 +39,7 @@ from typing import Any
 import gymnasium as gym
 
 from dss14_env.agents.config import TrainConfig
-from dss14_env.agents.interface import InterfaceSpec, InterfaceWrapper, spec_from_kwargs
+from dss14_env.agents.interface import NO_ABSOLUTE_ANGLES, InterfaceSpec, InterfaceWrapper, spec_from_kwargs
 from dss14_env.agents.vec_env import is_dss14_id, make_sb3_vec_env
 
 #: modules imported (when present) before ``gymnasium.make`` if ``env_id`` is not registered and
@@ -46,6 +49,7 @@ DEFAULT_BASE_ID = "DSS14-Hold-v0"
 
 #: the wrapper ids and the defaults of their interfaces
 WRAPPER_IDS: dict[str, InterfaceSpec] = {
+    "DSS14-Plain-v0": InterfaceSpec(obs_entries=NO_ABSOLUTE_ANGLES, history=8),
     "DSS14-Residual-v0": InterfaceSpec(base="pi", action="residual", residual_scale=0.05),
     "DSS14-ResidualLQG-v0": InterfaceSpec(base="lqg", action="residual", residual_scale=0.02),
     "DSS14-KalmanObs-v0": InterfaceSpec(base="lqg", action="absolute"),
@@ -63,6 +67,11 @@ def make_wrapped_env(env_id: str, base_id: str = DEFAULT_BASE_ID, **kwargs: Any)
 
     spec, env_kwargs = spec_from_kwargs(kwargs, WRAPPER_IDS[env_id])
     return InterfaceWrapper(gym.make(base_id, **env_kwargs), spec)
+
+
+def make_plain_env(base_id: str = DEFAULT_BASE_ID, **kwargs: Any) -> InterfaceWrapper:
+    """The entry point of ``DSS14-Plain-v0`` (see :func:`make_wrapped_env`)."""
+    return make_wrapped_env("DSS14-Plain-v0", base_id, **kwargs)
 
 
 def make_residual_lqg_env(base_id: str = DEFAULT_BASE_ID, **kwargs: Any) -> InterfaceWrapper:
@@ -226,4 +235,5 @@ def make_train_vec_env(cfg: TrainConfig, plan: EnvPlan, env_config: Any,
 
 __all__ = ["DEFAULT_BASE_ID", "DEFAULT_ENV_MODULES", "EnvPlan", "WRAPPER_IDS", "check_env",
            "import_env_module", "make_env", "make_plan_env", "make_train_vec_env",
-           "make_kalman_obs_env", "make_residual_lqg_env", "make_wrapped_env", "resolve_env", "vec_env_kind"]
+           "make_kalman_obs_env", "make_plain_env", "make_residual_lqg_env", "make_wrapped_env",
+           "resolve_env", "vec_env_kind"]

@@ -16,16 +16,19 @@ a batched vector env) and for scoring (:class:`dss14_env.agents.policy.PolicyCon
   al., *Residual Reinforcement Learning for Robot Control*, ICRA 2019; Silver et al.,
   *Residual Policy Learning*, arXiv:1812.06298, 2018); at ``u = 0`` the loop is the base
   controller's exactly.
-* observation: the environment's 12 entries, then the base controller's features -- PI: its
-  integral term ``ki I`` in action units (2; controller state a memoryless network cannot
-  rebuild); LQG (``estimate=True``, 12): its command (2), its input-disturbance estimate (2),
-  and its Kalman state estimate about the reference, ``dx = x^ - x_ref``, seen through the
-  encoder outputs (``C dx``, 2, error-scale units) and through the three terms of the LQR law
-  ``r = r_ss - Kx dx - Ki xi - Ku (r_prev - r_ss)`` (2 each; action units) -- features whose
-  meaning does not depend on the design the LQG picks per episode -- then, with ``history``
-  H > 0, the H previous values of the ``history_entries`` of the observation, newest first
-  (frame stacking; at an episode's first step the first observation repeated, the steady
-  state the episode starts in).
+* observation: the environment's entries ``obs_entries`` (default all 12; e.g.
+  :data:`NO_ABSOLUTE_ANGLES` leaves out the absolute command and encoder angles 4, 5, 8, 9,
+  which in a hold are constants that only tell the random start position), then the base
+  controller's features -- PI: its integral term ``ki I`` in action units (2; controller state
+  a memoryless network cannot rebuild); LQG (``estimate=True``; which ones: ``lqg_features``,
+  default all, 12): ``"command"`` its command (2), ``"disturbance"`` its input-disturbance
+  estimate (2), and its Kalman state estimate about the reference, ``dx = x^ - x_ref``, seen
+  through the encoder outputs (``"output"``: ``C dx``, 2, error-scale units) and through the
+  three terms of the LQR law ``r = r_ss - Kx dx - Ki xi - Ku (r_prev - r_ss)`` (``"law"``: 2
+  each, 6; action units) -- features whose meaning does not depend on the design the LQG picks
+  per episode -- then, with ``history`` H > 0, the H previous values of the
+  ``history_entries`` of the observation, newest first (frame stacking; at an episode's first
+  step the first observation repeated, the steady state the episode starts in).
 
 Rows restart independently (:meth:`PolicyInterface.restart`), so a vector environment's
 auto-reset sub-environments start fresh while the others go on.
@@ -50,6 +53,19 @@ from dss14_env.core.units import DEG, MDEG
 FEATURE_BOUND = 1.0e3
 #: observation entries kept in the history by default: servo errors, previous applied rates
 HISTORY_ENTRIES = (0, 1, 10, 11)
+#: the observation without the absolute command and encoder angles (entries 4, 5, 8, 9)
+NO_ABSOLUTE_ANGLES = (0, 1, 2, 3, 6, 7, 10, 11)
+#: the LQG features and their widths, in the order they appear (module doc)
+LQG_FEATURE_WIDTHS = {"command": 2, "disturbance": 2, "output": 2, "law": 6}
+
+
+def _entries(value: Any, name: str) -> tuple[int, ...]:
+    """Distinct observation indices 0-11 (a clear error naming ``name`` otherwise)."""
+    ok = isinstance(value, (list, tuple)) and len(value) > 0 and all(
+        isinstance(i, (int, np.integer)) and not isinstance(i, bool) and 0 <= i < 12 for i in value)
+    if not ok or len(set(int(i) for i in value)) != len(value):
+        raise ValueError(f"{name} must be distinct observation indices 0-11, got {value!r}")
+    return tuple(int(i) for i in value)
 
 
 @dataclass(frozen=True)
@@ -62,7 +78,10 @@ class InterfaceSpec:
     :param residual_scale: action units per unit of policy output, default 0.05
     :param history: previous steps in the observation, default 0
     :param history_entries: observation entries kept in the history, default (0, 1, 10, 11)
-    :param estimate: LQG base: add its command, disturbance and LQR-state estimate, default True
+    :param estimate: LQG base: add its features to the observation, default True
+    :param lqg_features: which LQG features (:data:`LQG_FEATURE_WIDTHS`), default all four
+    :param obs_entries: the environment's observation entries the policy sees, default None:
+        all 12
     """
 
     base: str | None = None
@@ -72,6 +91,8 @@ class InterfaceSpec:
     history: int = 0
     history_entries: tuple[int, ...] = HISTORY_ENTRIES
     estimate: bool = True
+    lqg_features: tuple[str, ...] = tuple(LQG_FEATURE_WIDTHS)
+    obs_entries: tuple[int, ...] | None = None
 
     def __post_init__(self) -> None:
         if self.base not in (None, "pi", "lqg"):
@@ -87,11 +108,17 @@ class InterfaceSpec:
         h = self.history
         if isinstance(h, bool) or not isinstance(h, (int, np.integer)) or h < 0:
             raise ValueError(f"history must be an integer >= 0, got {h!r}")
-        entries = tuple(int(i) for i in self.history_entries)
-        if not entries or not all(0 <= i < 12 for i in entries) or len(set(entries)) != len(entries):
-            raise ValueError(f"history_entries must be distinct observation indices 0-11, got "
-                             f"{list(self.history_entries)!r}")
-        object.__setattr__(self, "history_entries", entries)
+        object.__setattr__(self, "history_entries", _entries(self.history_entries, "history_entries"))
+        if self.obs_entries is not None:
+            object.__setattr__(self, "obs_entries", _entries(self.obs_entries, "obs_entries"))
+        feats = self.lqg_features
+        if isinstance(feats, str) or not isinstance(feats, (list, tuple)) or not feats or \
+                any(f not in LQG_FEATURE_WIDTHS for f in feats) or len(set(feats)) != len(feats):
+            raise ValueError(f"lqg_features must be distinct names of {list(LQG_FEATURE_WIDTHS)}, "
+                             f"got {feats!r}")
+        object.__setattr__(self, "lqg_features", tuple(feats))
+        if not isinstance(self.estimate, bool):
+            raise ValueError(f"estimate must be true or false, got {self.estimate!r}")
         object.__setattr__(self, "residual_scale", float(scale))
         object.__setattr__(self, "history", int(h))
         if isinstance(self.gains, list):
@@ -100,6 +127,9 @@ class InterfaceSpec:
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
         d["history_entries"] = list(self.history_entries)
+        d["lqg_features"] = list(self.lqg_features)
+        if self.obs_entries is not None:
+            d["obs_entries"] = list(self.obs_entries)
         if isinstance(d["gains"], tuple):
             d["gains"] = list(d["gains"])
         return d
@@ -113,8 +143,8 @@ class _RecordingLQG(LQGController):
         return super().law(z, r_ss, r_prev)
 
 
-#: number of LQG estimate features (:meth:`PolicyInterface.observe`)
-LQG_FEATURES = 12
+#: number of LQG estimate features with every one of them (:meth:`PolicyInterface.observe`)
+LQG_FEATURES = sum(LQG_FEATURE_WIDTHS.values())
 
 
 class PolicyInterface:
@@ -138,9 +168,10 @@ class PolicyInterface:
             n_feat = 2
         elif spec.base == "lqg":
             self.lqg = [_RecordingLQG(env_config) for _ in range(self.n)]
-            n_feat = LQG_FEATURES if spec.estimate else 0
+            n_feat = sum(LQG_FEATURE_WIDTHS[f] for f in spec.lqg_features) if spec.estimate else 0
         self.n_features = n_feat
-        self.obs_dim = 12 + n_feat + spec.history * len(spec.history_entries)
+        self.entries = list(range(12)) if spec.obs_entries is None else list(spec.obs_entries)
+        self.obs_dim = len(self.entries) + n_feat + spec.history * len(spec.history_entries)
         self.base_action = np.zeros((self.n, 2))
         self._past = np.zeros((self.n, spec.history, len(spec.history_entries)), np.float32)
         self._fresh = np.ones(self.n, bool)
@@ -174,7 +205,7 @@ class PolicyInterface:
         o = np.asarray(obs, np.float32)
         if o.shape != (self.n, 12):
             raise ValueError(f"observation must have shape ({self.n}, 12), got {o.shape}")
-        parts = [o]
+        parts = [o[:, self.entries]]
         if self.pi is not None:
             self.base_action = self.pi.act(o).astype(np.float64)
             parts.append(self._pi_features(self.pi))
@@ -201,7 +232,7 @@ class PolicyInterface:
         observations): what :meth:`observe` would return for them."""
         rows = np.asarray(rows)
         o = np.asarray(obs, np.float32).reshape(rows.size, 12)
-        parts = [o]
+        parts = [o[:, self.entries]]
         if self.pi is not None:
             pi = copy.deepcopy(self.pi)
             full = np.zeros((self.n, 12), np.float32)
@@ -232,16 +263,24 @@ class PolicyInterface:
         return np.clip(pi.integral_action(), -FEATURE_BOUND, FEATURE_BOUND).astype(np.float32)
 
     def _lqg_features(self, c: _RecordingLQG, action: np.ndarray) -> np.ndarray:
-        """12 features of the LQG's estimate whose meaning does not depend on its design (the
-        design, and with it the order of the Kalman filter, may change per episode)."""
+        """The chosen features of the LQG's estimate (``spec.lqg_features``, at most 12), whose
+        meaning does not depend on its design (the design, and with it the order of the Kalman
+        filter, may change per episode)."""
         n = c.design.dm.n
         z = c.last_z
         dx = z[:n]
-        terms = [c.Kx @ dx]
-        terms.append(c.Ki @ z[n:n + 2] if c.design.integral else np.zeros(2))
-        terms.append(c.Ku @ z[-2:])
-        parts = [action, c.disturbance() * self._inv_scale, (c.design.dm.C @ dx) / self._err]
-        parts += [t * self._inv_scale for t in terms]
+        parts = []
+        for name in self.spec.lqg_features:
+            if name == "command":
+                parts.append(action)
+            elif name == "disturbance":
+                parts.append(c.disturbance() * self._inv_scale)
+            elif name == "output":
+                parts.append((c.design.dm.C @ dx) / self._err)
+            else:  # "law": the three terms of the LQR law
+                terms = [c.Kx @ dx, c.Ki @ z[n:n + 2] if c.design.integral else np.zeros(2),
+                         c.Ku @ z[-2:]]
+                parts += [t * self._inv_scale for t in terms]
         return np.concatenate(parts)
 
     # ------------------------------------------------------------------ action
@@ -297,7 +336,8 @@ def interface_observation_space(interface: PolicyInterface) -> spaces.Box:
     from dss14_env.envs.env import OBS_HIGH
 
     s = interface.spec
-    high = np.concatenate([OBS_HIGH, np.full(interface.n_features, FEATURE_BOUND, np.float32),
+    high = np.concatenate([OBS_HIGH[interface.entries],
+                           np.full(interface.n_features, FEATURE_BOUND, np.float32),
                            np.tile(OBS_HIGH[list(s.history_entries)], s.history)]).astype(np.float32)
     return spaces.Box(-high, high, dtype=np.float32)
 
@@ -351,7 +391,7 @@ def spec_from_kwargs(kwargs: dict[str, Any], defaults: InterfaceSpec) -> tuple[I
     """``(spec, remaining env kwargs)``: interface keys taken out of wrapper-id kwargs."""
     kw = dict(kwargs)
     fields = {"base", "action", "gains", "residual_scale", "history", "history_entries",
-              "estimate"}
+              "estimate", "lqg_features", "obs_entries"}
     given = {k: kw.pop(k) for k in list(kw) if k in fields}
     d = defaults.to_dict()
     d.update(given)
@@ -359,6 +399,6 @@ def spec_from_kwargs(kwargs: dict[str, Any], defaults: InterfaceSpec) -> tuple[I
 
 
 __all__ = ["FEATURE_BOUND", "HISTORY_ENTRIES", "InterfaceSpec", "InterfaceVecEnv",
-           "InterfaceWrapper", "PolicyInterface", "interface_observation_space",
-           "LQG_FEATURES", "spec_from_kwargs"]
+           "InterfaceWrapper", "LQG_FEATURES", "LQG_FEATURE_WIDTHS", "NO_ABSOLUTE_ANGLES",
+           "PolicyInterface", "interface_observation_space", "spec_from_kwargs"]
 

@@ -249,17 +249,48 @@ def _checkpoint_callback(cfg: TrainConfig, run: Path, run_id: str, config_text: 
     return Checkpoints()
 
 
+def selection_score(cfg: TrainConfig, returns: np.ndarray,
+                    three_sigma: Mapping[str, np.ndarray] | None = None,
+                    terminated: bool = False) -> float:
+    """The validation score that picks ``eval/best`` (higher is better).
+
+    ``select_by: return``: the mean validation return.  ``select_by: three_sigma``: minus the
+    geometric mean over the hold tasks of each task's mean 3σ over the validation seeds (the
+    test metric; the geometric mean weighs the front and side holds alike though their 3σ
+    differ in size); ``-inf`` when a validation episode terminated or a 3σ is not finite.
+
+    :param returns: every validation episode's return
+    :param three_sigma: task name -> the validation episodes' 3σ (mdeg)
+    :param terminated: a validation episode terminated
+    """
+    if cfg.select_by == "return":
+        return float(np.mean(returns))
+    means = [float(np.mean(v)) for v in (three_sigma or {}).values()]
+    if terminated or not means or not all(np.isfinite(m) and m > 0 for m in means):
+        return -np.inf
+    return -float(np.exp(np.mean(np.log(means))))
+
+
 class _Evaluator:
     """The periodic evaluation: the deterministic policy on the validation seeds; keeps
-    ``eval/best`` (highest mean return) and ``eval/evaluations.npz``."""
+    ``eval/best`` (best :func:`selection_score`) and ``eval/evaluations.npz``."""
 
     def __init__(self, cfg: TrainConfig, plan: EnvPlan, run: Path, run_id: str, config_text: str,
                  venv: Any, start: int) -> None:
         self.cfg, self.plan, self.run, self.run_id = cfg, plan, run, run_id
         self.config_text, self.venv = config_text, venv
         self.tasks = _eval_tasks(cfg, plan)
-        self.history: dict[str, list] = _load_history(run / "eval" / "evaluations.npz", start)
-        self.best = max((float(np.mean(r)) for r in self.history["results"]), default=-np.inf)
+        if cfg.select_by == "three_sigma" and not any(t.axis for t in self.tasks):
+            raise ValueError(f"{cfg.source}: key 'select_by': three_sigma needs DSS14 hold "
+                             f"tasks, {cfg.env_id!r} has none (use return)")
+        h = self.history = _load_history(run / "eval" / "evaluations.npz", start)
+        if "selection_score" not in h:  # a history written before the score was recorded
+            h["selection_score"] = [
+                selection_score(cfg, r, {t.name: h[f"three_sigma_mdeg_{t.name}"][i]
+                                         for t in self.tasks
+                                         if f"three_sigma_mdeg_{t.name}" in h})
+                for i, r in enumerate(h["results"])]
+        self.best = max((float(v) for v in h["selection_score"]), default=-np.inf)
         self.ctrl: PolicyController | None = None
 
     def __call__(self, model: Any, logger: Any) -> None:
@@ -278,15 +309,20 @@ class _Evaluator:
             h.setdefault(f"returns_{t.name}", []).append(res[t.name]["returns"])
             if t.axis is not None:
                 h.setdefault(f"three_sigma_mdeg_{t.name}", []).append(res[t.name]["three_sigma_mdeg"])
-        _save_history(self.run / "eval" / "evaluations.npz", h)
         mean = float(np.mean(h["results"][-1]))
+        score = selection_score(cfg, h["results"][-1],
+                                {t.name: res[t.name]["three_sigma_mdeg"] for t in self.tasks
+                                 if t.axis is not None},
+                                any(bool(r["terminated"].any()) for r in res.values()))
+        h["selection_score"].append(score)
+        _save_history(self.run / "eval" / "evaluations.npz", h)
         logger.record("eval/mean_return", mean)
         sig = {n: float(np.nanmean(r["three_sigma_mdeg"])) for n, r in res.items()
                if np.isfinite(r["three_sigma_mdeg"]).any()}
         for n, v in sig.items():
             logger.record(f"eval/three_sigma_mdeg_{n}", v)
-        if mean > self.best:
-            self.best = mean
+        if score > self.best:
+            self.best = score
             write_policy_folder(self.run / "eval" / "best", model.policy, _stats(cfg, self.venv),
                                 _fingerprint(cfg, self.run_id, model), self.config_text)
         if cfg.verbose:
@@ -535,4 +571,4 @@ def load_run_config(run: str | Path) -> TrainConfig:
 
 
 __all__ = ["RUN_FILES", "TrainingInterrupted", "config_for_command", "load_run_config", "prepare_run",
-           "resume_config_path", "save_checkpoint", "train"]
+           "resume_config_path", "save_checkpoint", "selection_score", "train"]
