@@ -62,7 +62,7 @@ def pendulum_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def test_shipped_configs_load_and_round_trip() -> None:
     cfg = load_config()
     assert cfg.algo == "ppo" and cfg.env_id == "DSS14-Residual-v0"
-    assert load_config("ppo_plain").env_id == "DSS14-Hold-v0"  # shipped configs by name
+    assert load_config("ppo_plain").env_id == "DSS14-Plain-v0"  # shipped configs by name
     assert cfg.source == str(default_config_path())
     assert cfg.batch_size <= cfg.n_steps * cfg.n_envs
     assert load_config("ppo_smoke").env_id == "Pendulum-v1"

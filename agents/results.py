@@ -1,0 +1,253 @@
+"""The learned agents' results table: training campaigns beside the reference controllers.
+
+Inputs are a training campaign's ``summary.json`` per agent (:mod:`dss14_env.agents.campaign`:
+per training seed, the 3σ of every test episode of the final and the validation-selected
+policy) and the reference controllers' 3σ on the same test seeds.  :func:`build_results`
+turns them into one JSON-ready mapping, :func:`rl_tables` renders its Markdown tables.
+
+Statistics (all from seeded generators, :data:`BOOTSTRAP_SEED`):
+
+* an agent's score in a hold is, per training seed, the mean 3σ over the test seeds; over the
+  training seeds the interquartile mean with its 95 % percentile-bootstrap interval
+  (:func:`dss14_env.core.stats.iqm_ci`, resampling training seeds);
+* a reference controller's score is its mean 3σ over the test seeds, with its 95 %
+  percentile-bootstrap interval over the test seeds;
+* an agent's ratio to a reference, ``IQM_k(mean_j X[k, j]) / mean_j r[j]``, has a two-level
+  percentile-bootstrap interval: each resample draws the test seeds ``j`` (the same for the
+  agent and the reference: they saw the same gusts) and the training seeds ``k``, so both
+  sources of spread are in it (:func:`agent_ratio`); a reference's ratio to another resamples
+  the test seeds paired (:func:`dss14_env.core.stats.ratio_ci`).  A ratio whose interval
+  contains 1 is marked "not significant".
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from dss14_env.core.stats import N_RESAMPLES, bootstrap_ci, iqm, iqm_ci, ratio_ci
+
+#: the holds of the table and the axis each is scored on (the axis the wind loads)
+HOLDS = {"hold_front": "el", "hold_side": "az"}
+#: seed of every bootstrap resampling here
+BOOTSTRAP_SEED = 0
+#: the references every agent is divided by
+RATIO_REFERENCES = ("pi_kp1", "lqg")
+
+
+def _rng(*salt: int) -> np.random.Generator:
+    return np.random.default_rng([BOOTSTRAP_SEED, *salt])
+
+
+def agent_ratio(scores: np.ndarray, reference: np.ndarray, rng: np.random.Generator,
+                n_resamples: int = N_RESAMPLES, level: float = 0.95) -> dict[str, Any]:
+    """Ratio of an agent's IQM score to a reference's mean score, with its interval.
+
+    :param scores: ``(training seeds, test seeds)`` 3σ of the agent
+    :param reference: ``(test seeds,)`` 3σ of the reference on the same test seeds
+    :param rng: source of the resampling
+    :return: ``value``, ``ci95``, ``significant`` (the interval excludes 1), ``method``
+    """
+    x = np.asarray(scores, float)
+    r = np.asarray(reference, float)
+    if x.ndim != 2 or r.shape != (x.shape[1],) or not (np.isfinite(x).all() and np.isfinite(r).all()):
+        raise ValueError(f"agent_ratio: need finite (seeds, tests) scores and (tests,) reference, "
+                         f"got {x.shape} and {r.shape}")
+    ns, nt = x.shape
+    value = iqm(x.mean(axis=1)) / float(r.mean())
+    out = np.empty(n_resamples)
+    for b in range(n_resamples):
+        j = rng.integers(0, nt, nt)
+        k = rng.integers(0, ns, ns)
+        out[b] = iqm(x[np.ix_(k, j)].mean(axis=1)) / float(r[j].mean())
+    lo, hi = (float(v) for v in np.quantile(out, [(1 - level) / 2, (1 + level) / 2]))
+    return {"value": float(value), "ci95": [lo, hi], "significant": not (lo <= 1.0 <= hi),
+            "method": f"percentile bootstrap over training seeds and (paired) test seeds, "
+                      f"{n_resamples} resamples"}
+
+
+def _scores(summary: Mapping[str, Any], which: str, hold: str) -> np.ndarray:
+    rows = []
+    for e in summary["per_seed"]:
+        res = e.get(which)
+        if res is None or hold not in res:
+            raise ValueError(f"campaign {summary.get('config')}: seed index {e['seed_index']} has "
+                             f"no {which} score of {hold}")
+        rows.append(res[hold]["three_sigma_mdeg"])
+    return np.asarray(rows, float)
+
+
+def agent_entry(summary: Mapping[str, Any], references: Mapping[str, Mapping[str, Sequence[float]]],
+                label: str, which: str = "best", salt: int = 0,
+                extra: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """One agent's row: per-seed scores, IQM and interval, ratios to the references.
+
+    :param summary: the campaign's ``summary.json``
+    :param references: reference name -> hold -> 3σ per test seed (same seeds as the campaign)
+    :param label: the name shown in tables
+    :param which: ``"best"`` (the validation-selected policy, the protocol's) or ``"final"``
+    :param salt: makes each agent's resampling stream its own (reproducible)
+    :param extra: more keys to store (e.g. the recipe, the step of each selected policy)
+    """
+    per_seed = summary["per_seed"]
+    out: dict[str, Any] = {
+        "label": label, "kind": "agent", "algo": summary["algo"], "env_id": summary["env_id"],
+        "config": summary["config"], "scored_policy": which,
+        "training_seeds": summary["training_seeds"],
+        "test_seeds": summary["protocol"]["test_seeds"],
+        "wall_s": [float(e["wall_s"]) for e in per_seed],
+        "env_steps": [int(e["env_steps"]) for e in per_seed],
+        "steps_per_s": [round(e["env_steps"] / e["wall_s"], 1) for e in per_seed],
+        "holds": {},
+    }
+    for h, (hold, axis) in enumerate(HOLDS.items()):
+        x = _scores(summary, which, hold)
+        seeds_mean = x.mean(axis=1)
+        d: dict[str, Any] = {
+            "axis": axis,
+            "per_seed": [float(v) for v in seeds_mean],
+            "per_seed_final": [float(v) for v in _scores(summary, "final", hold).mean(axis=1)],
+            "per_test_seed": x.tolist(),
+            "iqm": iqm_ci(seeds_mean, _rng(salt, h)).as_dict(),
+            "ratios": {},
+        }
+        for i, ref in enumerate(RATIO_REFERENCES):
+            if ref in references:
+                d["ratios"][ref] = agent_ratio(x, np.asarray(references[ref][hold], float),
+                                               _rng(salt, h, i + 1))
+        out["holds"][hold] = d
+    out.update(dict(extra or {}))
+    return out
+
+
+def reference_entry(values: Mapping[str, Sequence[float]],
+                    references: Mapping[str, Mapping[str, Sequence[float]]], label: str,
+                    salt: int = 0, extra: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """A reference controller's row: mean over the test seeds with its interval, ratios.
+
+    :param values: hold -> 3σ per test seed
+    :param references: as in :func:`agent_entry`
+    """
+    out: dict[str, Any] = {"label": label, "kind": "reference", "holds": {}}
+    for h, (hold, axis) in enumerate(HOLDS.items()):
+        v = np.asarray(values[hold], float)
+        d: dict[str, Any] = {"axis": axis, "per_test_seed": v.tolist(),
+                             "mean": bootstrap_ci(v, np.mean, _rng(salt, h)).as_dict(),
+                             "ratios": {}}
+        for i, ref in enumerate(RATIO_REFERENCES):
+            if ref in references:
+                d["ratios"][ref] = ratio_ci(v, references[ref][hold], np.mean,
+                                            _rng(salt, h, i + 1), paired=True).as_dict()
+        out["holds"][hold] = d
+    out.update(dict(extra or {}))
+    return out
+
+
+def build_results(agents: Mapping[str, tuple[str, Mapping[str, Any], Mapping[str, Any]]],
+                  references: Mapping[str, tuple[str, Mapping[str, Sequence[float]]]],
+                  test_seeds: Sequence[int], meta: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """The results mapping (JSON-ready).
+
+    :param agents: key -> ``(label, campaign summary, extra keys)``
+    :param references: key -> ``(label, hold -> 3σ per test seed)``; must hold ``pi_kp1`` and
+        ``lqg`` for the ratios
+    :param test_seeds: the test seeds of the reference runs
+    :param meta: stored as is (how the results were made)
+    :raises ValueError: a campaign scored on other test seeds than the references
+    """
+    seeds = [int(s) for s in test_seeds]
+    ref_values = {k: v for k, (_, v) in references.items()}
+    rows: dict[str, Any] = {}
+    for i, (key, (label, values)) in enumerate(references.items()):
+        rows[key] = reference_entry(values, ref_values, label, salt=100 + i)
+    for i, (key, (label, summary, extra)) in enumerate(agents.items()):
+        if [int(s) for s in summary["protocol"]["test_seeds"]] != seeds:
+            raise ValueError(f"agent {key}: test seeds {summary['protocol']['test_seeds']} differ "
+                             f"from the references' {seeds}")
+        rows[key] = agent_entry(summary, ref_values, label, salt=200 + i, extra=extra)
+    return {"meta": dict(meta or {}), "test_seeds": seeds, "holds": dict(HOLDS),
+            "statistics": __doc__.split("Statistics (all from seeded generators, "
+                                        ":data:`BOOTSTRAP_SEED`):")[1].strip(),
+            "rows": rows}
+
+
+# ------------------------------------------------------------------------------ Markdown
+def _num(x: float) -> str:
+    if not math.isfinite(x):
+        return "–"
+    return f"{x:.3g}" if abs(x) < 10 else f"{x:.1f}"
+
+
+def _ci(d: Mapping[str, Any]) -> str:
+    lo, hi = d["ci95"]
+    return f"{_num(d['value'])} [{_num(lo)}, {_num(hi)}]"
+
+
+def _ratio(d: Mapping[str, Any] | None) -> str:
+    if d is None:
+        return "1"
+    s = _ci(d)
+    return s if d["significant"] else f"{s} n.s."
+
+
+def _score(row: Mapping[str, Any], hold: str) -> str:
+    d = row["holds"][hold]
+    s = _ci(d["iqm"] if row["kind"] == "agent" else d["mean"])
+    return f"**{s}**" if row["kind"] == "agent" else s
+
+
+def main_table(results: Mapping[str, Any]) -> str:
+    """Markdown: every row's score per hold with its interval and its ratios to PI and LQG."""
+    head = ["controller", "seeds"]
+    for hold, axis in results["holds"].items():
+        name = hold.replace("hold_", "")
+        head += [f"{name} wind: {axis} 3σ (mdeg)", "÷ PI", "÷ LQG"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    n_test = len(results["test_seeds"])
+    for key, row in results["rows"].items():
+        if row["kind"] == "agent":
+            seeds = f"{len(row['training_seeds'])} × {n_test}"
+        else:
+            seeds = f"{n_test}"
+        cells = [row["label"], seeds]
+        for hold in results["holds"]:
+            r = row["holds"][hold]["ratios"]
+            cells += [_score(row, hold),
+                      "1" if key == "pi_kp1" else _ratio(r.get("pi_kp1")),
+                      "1" if key == "lqg" else _ratio(r.get("lqg"))]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def seeds_table(results: Mapping[str, Any]) -> str:
+    """Markdown: the agents' per-training-seed scores, environment steps and wall time."""
+    holds = list(results["holds"].items())
+    head = ["agent", "training seed"] + [f"{h.replace('hold_', '')} {a} 3σ (final)"
+                                         for h, a in holds]
+    head += ["selected at (steps)", "env steps", "wall (s)", "steps/s"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for row in results["rows"].values():
+        if row["kind"] != "agent":
+            continue
+        for i, seed in enumerate(row["training_seeds"]):
+            cells = [row["label"], str(seed)]
+            for hold, _ in holds:
+                d = row["holds"][hold]
+                cells.append(f"{_num(d['per_seed'][i])} ({_num(d['per_seed_final'][i])})")
+            sel = row.get("selected_at_steps")
+            cells += [str(sel[i]) if sel else "–", f"{row['env_steps'][i]:,}".replace(",", " "),
+                      f"{row['wall_s'][i]:.0f}", f"{row['steps_per_s'][i]:.0f}"]
+            lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def rl_tables(results: Mapping[str, Any]) -> dict[str, str]:
+    """The generated blocks: ``rl-table`` (scores and ratios), ``rl-seeds`` (per seed)."""
+    return {"rl-table": main_table(results), "rl-seeds": seeds_table(results)}
+
+
+__all__ = ["BOOTSTRAP_SEED", "HOLDS", "RATIO_REFERENCES", "agent_entry", "agent_ratio",
+           "build_results", "main_table", "reference_entry", "rl_tables", "seeds_table"]
