@@ -152,17 +152,19 @@ def test_zoo_strings_are_parsed_not_evaluated() -> None:
 
 
 @pytest.mark.slow
-def test_rl_zoo3_trains_with_the_shipped_hyperparameters(tmp_path: Path) -> None:
-    """rl-zoo3 reads configs/hyperparams/ppo.yml and trains on DSS14-Hold-v0 (tiny budget)."""
+@pytest.mark.parametrize("env_id", ["DSS14-Hold-v0", "DSS14-Plain-v0"])
+def test_rl_zoo3_trains_with_the_shipped_hyperparameters(tmp_path: Path, env_id: str) -> None:
+    """rl-zoo3 reads configs/hyperparams/ppo.yml and trains on the bare id and on the plain
+    recipe's id (tiny budget)."""
     import subprocess
     import sys
 
     pytest.importorskip("rl_zoo3")
     res = subprocess.run(
-        [sys.executable, "-m", "rl_zoo3.train", "--algo", "ppo", "--env", "DSS14-Hold-v0",
+        [sys.executable, "-m", "rl_zoo3.train", "--algo", "ppo", "--env", env_id,
          "--gym-packages", "dss14_env", "-conf", str(hyperparams_path("ppo")), "-n", "1024",
          "--eval-freq", "-1", "--log-folder", str(tmp_path), "--seed", "10000",
          "--hyperparams", "n_envs:2", "n_steps:256", "batch_size:256", "n_epochs:1"],
         capture_output=True, text=True, timeout=600)
     assert res.returncode == 0, res.stderr[-2000:]
-    assert list(tmp_path.rglob("DSS14-Hold-v0.zip"))
+    assert list(tmp_path.rglob(f"{env_id}.zip"))
