@@ -48,8 +48,27 @@ from dss14_env.agents.storage import (
 )
 from dss14_env.baselines.base import Controller
 
-#: the policy shipped with the package (docs/rl.md: how it was trained, how to reproduce it)
-DEFAULT_POLICY = Path(__file__).resolve().parent / "policies" / "residual_pi"
+#: the folder of the policies shipped with the package (docs/rl.md: how each was trained and
+#: selected, its results, how to reproduce it)
+POLICIES_DIR = Path(__file__).resolve().parent / "policies"
+#: the policy :func:`load_policy` loads without a path
+DEFAULT_POLICY = POLICIES_DIR / "residual_pi"
+
+
+def shipped_policies() -> list[str]:
+    """Names of the shipped policies (folders of :data:`POLICIES_DIR`)."""
+    return sorted(d.name for d in POLICIES_DIR.iterdir() if (d / "policy.pt").is_file())
+
+
+def shipped_policy(name: str) -> Path:
+    """The folder of a shipped policy (``load_policy(shipped_policy("ppo_plain"))``).
+
+    :raises ValueError: an unknown name, naming the shipped ones
+    """
+    names = shipped_policies()
+    if name not in names:
+        raise ValueError(f"no shipped policy {name!r}; shipped: {', '.join(names)}")
+    return POLICIES_DIR / name
 #: labels of the algorithms in controller names
 ALGO_LABELS = {"ppo": "PPO", "recurrent_ppo": "RecurrentPPO", "sac": "SAC"}
 
@@ -338,5 +357,6 @@ def evaluate(path: str | Path, env_id: str | None = None, seeds: Iterable[int] =
             "mean_inference_time_s": float(np.mean(times))}
 
 
-__all__ = ["ALGO_LABELS", "DEFAULT_POLICY", "PPOController", "PolicyController", "PolicyFiles",
+__all__ = ["ALGO_LABELS", "DEFAULT_POLICY", "POLICIES_DIR", "PPOController", "PolicyController",
+           "PolicyFiles", "shipped_policies", "shipped_policy",
            "evaluate", "find_policy_files", "load_policy", "policy_problem"]

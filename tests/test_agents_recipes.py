@@ -148,6 +148,7 @@ RECIPES = {  # config -> (algo, policy observation size, action scale the policy
     "ppo_plain": ("ppo", 8 + 8 * 4, 0.02),
     "ppo_residual_lqg": ("ppo", 8 + 4 + 4 * 4, 0.25),
     "ppo_residual_pi": ("ppo", 12 + 2 + 8 * 4, 0.25),
+    "ppo_residual_pi_hold": ("ppo", 12 + 2 + 8 * 4, 0.25),
     "recurrent_ppo": ("recurrent_ppo", 4, 0.02),
     "sac": ("sac", 8 + 8 * 4, 0.02),
 }

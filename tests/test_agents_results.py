@@ -1,0 +1,136 @@
+"""The learned agents' results (agents/results.py, scripts/rl_results.py): the statistics, the
+committed results file against the shipped policies, and the README / docs/rl.md tables as its
+rendering (nothing typed by hand)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from dss14_env.agents.evaluation import DSS14_TASKS, run_task
+from dss14_env.agents.policy import load_policy, shipped_policies
+from dss14_env.agents.results import agent_ratio, build_results, rl_tables
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "docs" / "results" / "rl_results.json"
+
+
+def _summary(x_front: np.ndarray, x_side: np.ndarray, test_seeds: list[int]) -> dict:
+    """A campaign summary with the given (training seeds, test seeds) 3σ."""
+    per_seed = []
+    for k in range(x_front.shape[0]):
+        res = {"hold_front": {"three_sigma_mdeg": x_front[k].tolist()},
+               "hold_side": {"three_sigma_mdeg": x_side[k].tolist()}}
+        per_seed.append({"seed_index": k, "wall_s": 10.0, "env_steps": 1000,
+                         "final": res, "best": res})
+    return {"algo": "ppo", "env_id": "DSS14-Plain-v0", "config": "x.yaml",
+            "training_seeds": [10_000 + 1000 * k for k in range(x_front.shape[0])],
+            "protocol": {"test_seeds": test_seeds}, "per_seed": per_seed}
+
+
+def _iqm5(v: np.ndarray) -> float:
+    """The interquartile mean of 5 values: 25 % trimmed from each end, i.e. the middle 3."""
+    return float(np.sort(v)[1:4].mean())
+
+
+def test_agent_ratio_value_and_interval() -> None:
+    rng = np.random.default_rng(1)
+    ref = rng.uniform(1.0, 3.0, 10)
+    x = ref[None, :] * rng.uniform(0.4, 0.6, (5, 1))  # every seed about half the reference
+    r = agent_ratio(x, ref, np.random.default_rng(0))
+    assert r["value"] == pytest.approx(_iqm5(x.mean(axis=1)) / ref.mean())
+    lo, hi = r["ci95"]
+    assert lo <= r["value"] <= hi and hi < 1.0 and r["significant"]
+    same = agent_ratio(np.tile(ref, (5, 1)) * rng.uniform(0.9, 1.1, (5, 10)), ref,
+                       np.random.default_rng(0))
+    assert same["ci95"][0] < 1.0 < same["ci95"][1] and not same["significant"]
+    with pytest.raises(ValueError, match="agent_ratio"):
+        agent_ratio(x[:, :9], ref, np.random.default_rng(0))
+
+
+def test_build_results_rows_and_seed_check() -> None:
+    rng = np.random.default_rng(2)
+    seeds = list(range(10))
+    refs = {"pi_kp1": ("PI", {"hold_front": rng.uniform(2, 3, 10).tolist(),
+                              "hold_side": rng.uniform(1.5, 2.5, 10).tolist()}),
+            "lqg": ("LQG", {"hold_front": rng.uniform(0.4, 0.5, 10).tolist(),
+                            "hold_side": rng.uniform(0.2, 0.3, 10).tolist()})}
+    xf, xs = rng.uniform(1, 2, (5, 10)), rng.uniform(1, 2, (5, 10))
+    res = build_results({"a": ("agent", _summary(xf, xs, seeds), {})}, refs, seeds)
+    row = res["rows"]["a"]
+    assert row["holds"]["hold_front"]["per_seed"] == pytest.approx(xf.mean(axis=1).tolist())
+    assert row["holds"]["hold_front"]["iqm"]["value"] == pytest.approx(_iqm5(xf.mean(axis=1)))
+    pi = res["rows"]["pi_kp1"]["holds"]["hold_side"]
+    assert pi["mean"]["value"] == pytest.approx(np.mean(refs["pi_kp1"][1]["hold_side"]))
+    assert pi["ratios"]["pi_kp1"]["value"] == pytest.approx(1.0)
+    tables = rl_tables(res)
+    assert "| agent | 5 × 10 |" in tables["rl-table"]
+    assert tables["rl-seeds"].count("\n| agent | 1") == 5  # one row per training seed
+    assert json.loads(json.dumps(res)) == res  # JSON-ready
+    with pytest.raises(ValueError, match="test seeds"):
+        build_results({"a": ("agent", _summary(xf, xs, seeds), {})}, refs, list(range(1, 11)))
+
+
+# ------------------------------------------------------------------------------ committed results
+@pytest.fixture(scope="module")
+def results() -> dict:
+    return json.loads(RESULTS.read_text())
+
+
+def test_documents_show_the_committed_results() -> None:
+    r = subprocess.run([sys.executable, str(ROOT / "scripts" / "rl_results.py"), "render",
+                        "--check"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stdout + r.stderr
+
+
+def test_committed_results_follow_the_protocol(results: dict) -> None:
+    assert results["test_seeds"] == list(range(10))
+    for key, row in results["rows"].items():
+        if row["kind"] != "agent":
+            continue
+        assert len(row["training_seeds"]) >= 5, key
+        assert min(row["training_seeds"]) >= 10_000 and row["scored_policy"] == "best"
+        for hold in ("hold_front", "hold_side"):
+            h = row["holds"][hold]
+            assert len(h["per_seed"]) == len(row["training_seeds"])
+            assert np.asarray(h["per_test_seed"]).shape == (len(row["training_seeds"]), 10)
+            lo, hi = h["iqm"]["ci95"]
+            assert lo <= h["iqm"]["value"] <= hi
+            for ratio in h["ratios"].values():
+                assert ratio["significant"] == (not ratio["ci95"][0] <= 1.0 <= ratio["ci95"][1])
+
+
+def _shipped(results: dict) -> list[tuple[str, dict]]:
+    return [(k, row) for k, row in results["rows"].items() if row.get("shipped")]
+
+
+def test_every_shipped_policy_is_a_campaign_seed_chosen_on_validation(results: dict) -> None:
+    shipped = _shipped(results)
+    assert {Path(row["shipped"]["folder"]).name for _, row in shipped} <= set(shipped_policies())
+    assert {"ppo_plain", "ppo_residual_lqg"} <= {k for k, _ in shipped}
+    for key, row in shipped:
+        folder = ROOT / row["shipped"]["folder"]
+        cfg = yaml.safe_load((folder / "config.yaml").read_text())
+        assert cfg["seed"] == row["shipped"]["training_seed"], key
+        i = row["training_seeds"].index(cfg["seed"])
+        assert row["validation_score"][i] == max(row["validation_score"]), key
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("key", ["ppo_plain", "ppo_residual_lqg", "sac", "ppo_residual_pi"])
+def test_shipped_policy_reproduces_its_test_scores(results: dict, key: str) -> None:
+    """The shipped folder, scored again on the test seeds, gives the results file's numbers."""
+    row = results["rows"].get(key)
+    if row is None or not row.get("shipped"):
+        pytest.skip(f"{key} is not shipped")
+    ctrl = load_policy(ROOT / row["shipped"]["folder"])
+    i = row["training_seeds"].index(row["shipped"]["training_seed"])
+    for task in DSS14_TASKS:
+        got = run_task(ctrl, task, results["test_seeds"], 3000)["three_sigma_mdeg"]
+        np.testing.assert_allclose(got, row["holds"][task.name]["per_test_seed"][i], rtol=1e-6)
