@@ -162,13 +162,19 @@ class PolicyInterface:
         self._err = env_config.error_scale_mdeg * MDEG
         self.pi: PIController | None = None
         self.lqg: list[_RecordingLQG] = []
+        self.lqg_batch: LQGController | None = None
         n_feat = 0
         if spec.base == "pi":
             self.pi = PIController(env_config, spec.gains)
             n_feat = 2
         elif spec.base == "lqg":
-            self.lqg = [_RecordingLQG(env_config) for _ in range(self.n)]
             n_feat = sum(LQG_FEATURE_WIDTHS[f] for f in spec.lqg_features) if spec.estimate else 0
+            if spec.estimate and {"output", "law"} & set(spec.lqg_features):
+                # the LQR state z of every row: one recording controller per row
+                self.lqg = [_RecordingLQG(env_config) for _ in range(self.n)]
+            else:  # command and disturbance only: one batched LQG for all rows
+                self.lqg_batch = LQGController(env_config)
+                self.lqg_batch.reset_batch(self.n)
         self.n_features = n_feat
         self.entries = list(range(12)) if spec.obs_entries is None else list(spec.obs_entries)
         self.obs_dim = len(self.entries) + n_feat + spec.history * len(spec.history_entries)
@@ -191,6 +197,8 @@ class PolicyInterface:
         self._fresh |= mask
         if self.pi is not None:
             self.pi.restart(mask)
+        if self.lqg_batch is not None:
+            self.lqg_batch.restart(mask)
         for i in np.flatnonzero(mask).tolist():
             if self.lqg:
                 self.lqg[i].reset()
@@ -218,6 +226,11 @@ class PolicyInterface:
             if feats:
                 parts.append(np.clip(np.asarray(feats), -FEATURE_BOUND, FEATURE_BOUND)
                              .astype(np.float32))
+        elif self.lqg_batch is not None:
+            self.base_action = self.lqg_batch.act_batch(o).astype(np.float64)
+            if self.spec.estimate:
+                parts.append(self._lqg_batch_features(self.lqg_batch, self.base_action,
+                                                      np.arange(self.n)))
         if self.spec.history:
             now = o[:, list(self.spec.history_entries)]
             parts.append(self._history(self._past, self._fresh, now))
@@ -246,6 +259,12 @@ class PolicyInterface:
                 feats.append(self._lqg_features(c, c.act(o[k])))
             parts.append(np.clip(np.asarray(feats), -FEATURE_BOUND, FEATURE_BOUND)
                          .astype(np.float32))
+        elif self.lqg_batch is not None and self.spec.estimate:
+            c = copy.deepcopy(self.lqg_batch)
+            full = np.zeros((self.n, 12), np.float32)
+            full[rows] = o
+            action = c.act_batch(full).astype(np.float64)
+            parts.append(self._lqg_batch_features(c, action[rows], rows))
         if self.spec.history:
             now = o[:, list(self.spec.history_entries)]
             parts.append(self._history(self._past[rows].copy(), self._fresh[rows], now))
@@ -261,6 +280,18 @@ class PolicyInterface:
     @staticmethod
     def _pi_features(pi: PIController) -> np.ndarray:
         return np.clip(pi.integral_action(), -FEATURE_BOUND, FEATURE_BOUND).astype(np.float32)
+
+    def _lqg_batch_features(self, c: LQGController, action: np.ndarray,
+                            rows: np.ndarray) -> np.ndarray:
+        """The command and disturbance features of rows ``rows`` of the batched LQG (``action``:
+        those rows' commands)."""
+        parts = []
+        for name in self.spec.lqg_features:
+            if name == "command":
+                parts.append(action)
+            else:  # "disturbance"
+                parts.append(np.array([c.disturbance(int(i)) for i in rows]) * self._inv_scale)
+        return np.clip(np.concatenate(parts, axis=1), -FEATURE_BOUND, FEATURE_BOUND).astype(np.float32)
 
     def _lqg_features(self, c: _RecordingLQG, action: np.ndarray) -> np.ndarray:
         """The chosen features of the LQG's estimate (``spec.lqg_features``, at most 12), whose

@@ -273,3 +273,22 @@ def test_campaign_scoring_equals_the_benchmark_runner() -> None:
     ref = [e["servo_error_mdeg"]["az"]["three_sigma"] for e in bench["episodes"]]
     np.testing.assert_allclose(res["three_sigma_mdeg"], ref, rtol=1e-6)  # float32 BLAS order
     assert not res["terminated"].any()
+
+
+@pytest.mark.parametrize("features", [("command", "disturbance"), ("law", "command")])
+def test_peek_is_what_observe_would_return(features: tuple) -> None:
+    """The terminal-observation path (batched LQG, or one LQG per row for the LQR state)."""
+    import copy
+
+    cfg = gym.make("DSS14-Hold-v0").unwrapped.config
+    spec = InterfaceSpec(base="lqg", action="residual", residual_scale=0.02, lqg_features=features,
+                         history=2)
+    itf = PolicyInterface(spec, cfg, 3)
+    seqs = np.stack([_hold_observations(60, s) for s in (1, 2, 3)], 1)
+    for obs in seqs[:-1]:
+        itf.observe(obs)
+    rows = np.array([0, 2])
+    peeked = itf.peek(seqs[-1][rows], rows)
+    want = copy.deepcopy(itf).observe(seqs[-1])[rows]
+    np.testing.assert_array_equal(peeked, want)
+    np.testing.assert_array_equal(itf.observe(seqs[-1])[rows], want)  # peek changed nothing
