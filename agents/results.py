@@ -154,9 +154,40 @@ def reference_entry(values: Mapping[str, Sequence[float]],
     return out
 
 
+def analytic_entry(values: Mapping[str, float],
+                   references: Mapping[str, Mapping[str, Sequence[float]]], label: str,
+                   salt: int = 0, extra: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """A row of exact expected values (no sampling: no interval of its own); its ratio to a
+    reference has the interval of the reference's mean over the test seeds.
+
+    :param values: hold -> the expected 3σ
+    """
+    out: dict[str, Any] = {"label": label, "kind": "analytic", "holds": {}}
+    for h, (hold, axis) in enumerate(HOLDS.items()):
+        v = float(values[hold])
+        d: dict[str, Any] = {"axis": axis, "value": v, "ratios": {}}
+        for i, ref in enumerate(RATIO_REFERENCES):
+            if ref not in references:
+                continue
+            r = np.asarray(references[ref][hold], float)
+            rng = _rng(salt, h, i + 1)
+            boot = np.array([v / r[rng.integers(0, r.size, r.size)].mean()
+                             for _ in range(N_RESAMPLES)])
+            lo, hi = (float(q) for q in np.quantile(boot, [0.025, 0.975]))
+            d["ratios"][ref] = {"value": v / float(r.mean()), "ci95": [lo, hi],
+                                "significant": not (lo <= 1.0 <= hi),
+                                "method": f"the exact value over the reference's mean, percentile "
+                                          f"bootstrap over the test seeds, {N_RESAMPLES} resamples"}
+        out["holds"][hold] = d
+    out.update(dict(extra or {}))
+    return out
+
+
 def build_results(agents: Mapping[str, tuple[str, Mapping[str, Any], Mapping[str, Any]]],
                   references: Mapping[str, tuple[str, Mapping[str, Sequence[float]]]],
-                  test_seeds: Sequence[int], meta: Mapping[str, Any] | None = None) -> dict[str, Any]:
+                  test_seeds: Sequence[int], meta: Mapping[str, Any] | None = None,
+                  analytic: Mapping[str, tuple[str, Mapping[str, float]]] | None = None
+                  ) -> dict[str, Any]:
     """The results mapping (JSON-ready).
 
     :param agents: key -> ``(label, campaign summary, extra keys)``
@@ -164,6 +195,7 @@ def build_results(agents: Mapping[str, tuple[str, Mapping[str, Any], Mapping[str
         ``lqg`` for the ratios
     :param test_seeds: the test seeds of the reference runs
     :param meta: stored as is (how the results were made)
+    :param analytic: key -> ``(label, hold -> exact expected 3σ)`` (rows after the references)
     :raises ValueError: a campaign scored on other test seeds than the references
     """
     seeds = [int(s) for s in test_seeds]
@@ -171,6 +203,8 @@ def build_results(agents: Mapping[str, tuple[str, Mapping[str, Any], Mapping[str
     rows: dict[str, Any] = {}
     for i, (key, (label, values)) in enumerate(references.items()):
         rows[key] = reference_entry(values, ref_values, label, salt=100 + i)
+    for i, (key, (label, values)) in enumerate((analytic or {}).items()):
+        rows[key] = analytic_entry(values, ref_values, label, salt=150 + i)
     for i, (key, (label, summary, extra)) in enumerate(agents.items()):
         if [int(s) for s in summary["protocol"]["test_seeds"]] != seeds:
             raise ValueError(f"agent {key}: test seeds {summary['protocol']['test_seeds']} differ "
@@ -201,6 +235,8 @@ def _ratio(d: Mapping[str, Any] | None) -> str:
 
 def _score(row: Mapping[str, Any], hold: str) -> str:
     d = row["holds"][hold]
+    if row["kind"] == "analytic":
+        return f"{_num(d['value'])} (exact)"
     s = _ci(d["iqm"] if row["kind"] == "agent" else d["mean"])
     return f"**{s}**" if row["kind"] == "agent" else s
 
@@ -228,7 +264,7 @@ def main_table(results: Mapping[str, Any]) -> str:
         if row["kind"] == "agent":
             seeds = f"{len(row['training_seeds'])} × {n_test}"
         else:
-            seeds = f"{n_test}"
+            seeds = f"{n_test}" if row["kind"] == "reference" else "–"
         cells = [row["label"], seeds]
         for hold in results["holds"]:
             r = row["holds"][hold]["ratios"]
@@ -267,4 +303,4 @@ def rl_tables(results: Mapping[str, Any]) -> dict[str, str]:
 
 
 __all__ = ["BOOTSTRAP_SEED", "HOLDS", "RATIO_REFERENCES", "STATISTICS", "agent_entry", "agent_ratio",
-           "build_results", "main_table", "reference_entry", "rl_tables", "seeds_table"]
+           "analytic_entry", "build_results", "main_table", "reference_entry", "rl_tables", "seeds_table"]

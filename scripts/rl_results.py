@@ -130,7 +130,9 @@ def build(runs: Path, out: Path, refs: Path, figures: Path) -> None:
             "protocol": "training seeds 10000 + 1000 k (k = 0-4), validation seeds 1000-1005 "
                         "(2000-step holds, select_by three_sigma), test seeds 0-9 (3000-step "
                         "holds, 5-s warm-up); the validation-selected policy (eval/best) is scored"}
-    results = build_results(agents, references_, ref["test_seeds"], meta)
+    analytic = {"yardstick_analytic": ("yardstick, expected value (H2 analysis)",
+                                       ref["yardstick_analytic_three_sigma_mdeg"])}
+    results = build_results(agents, references_, ref["test_seeds"], meta, analytic)
     out.write_text(json.dumps(results, indent=1) + "\n")
     print(f"wrote {out} ({len(agents)} agents)")
 
