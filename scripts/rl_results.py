@@ -7,7 +7,9 @@ Three steps, each writing what the next reads::
     # 2. the training campaigns (dss14 train <algo> --config <cfg> --seeds 0-4 --out runs/<agent>),
     #    then the results file and the learning-curve figures
     python scripts/rl_results.py build --runs runs  # -> docs/results/rl_results.json, rl/*.png
-    # 3. the tables of README.md and docs/rl.md (rendered from the results file, never typed)
+    # 3. the shipped policies: each shipped agent's seed with the best validation score
+    python scripts/rl_results.py ship --runs runs      # -> agents/policies/<name>/
+    # 4. the tables of README.md and docs/rl.md (rendered from the results file, never typed)
     python scripts/rl_results.py render                # rewrite them
     python scripts/rl_results.py render --check        # exit 1 if a document is out of date
 
@@ -137,6 +139,27 @@ def build(runs: Path, out: Path, refs: Path, figures: Path) -> None:
     print(f"wrote {out} ({len(agents)} agents)")
 
 
+def ship(runs: Path, results_path: Path) -> None:
+    """Copy each shipped agent's chosen seed (the results file's ``shipped``: the best
+    validation score) into ``agents/policies/<name>/``: its ``eval/best`` policy folder, the
+    run's validation history and training summary."""
+    results = json.loads(results_path.read_text())
+    for key, row in results["rows"].items():
+        shipped = row.get("shipped")
+        if not shipped:
+            continue
+        run = runs / AGENTS[key][1] / f"seed_{shipped['seed_index']}"
+        dest = ROOT / shipped["folder"]
+        if dest.exists():
+            shutil.rmtree(dest)
+        dest.mkdir(parents=True)
+        for name in ("policy.pt", "normalization.npz", "config.yaml"):
+            shutil.copyfile(run / "eval" / "best" / name, dest / name)
+        shutil.copyfile(run / "eval" / "evaluations.npz", dest / "evaluations.npz")
+        shutil.copyfile(run / "train_summary.json", dest / "train_summary.json")
+        print(f"{key}: {run} -> {dest.relative_to(ROOT)}")
+
+
 def render(results_path: Path, check: bool) -> int:
     """Fill the generated blocks of the documents; with ``check`` only report stale ones."""
     from dss14_env.reproduce import fill_blocks, find_blocks
@@ -169,6 +192,9 @@ def main(argv: list[str] | None = None) -> int:
     b.add_argument("--references", type=Path, default=REFERENCES)
     b.add_argument("--out", type=Path, default=RESULTS)
     b.add_argument("--figures", type=Path, default=FIGURES)
+    s = sub.add_parser("ship", help="copy the shipped agents' chosen seeds to agents/policies")
+    s.add_argument("--runs", type=Path, default=Path("runs"))
+    s.add_argument("--results", type=Path, default=RESULTS)
     d = sub.add_parser("render", help="the tables of README.md and docs/rl.md")
     d.add_argument("--results", type=Path, default=RESULTS)
     d.add_argument("--check", action="store_true", help="only check; exit 1 if out of date")
@@ -177,6 +203,8 @@ def main(argv: list[str] | None = None) -> int:
         references(args.out)
     elif args.cmd == "build":
         build(args.runs, args.out, args.references, args.figures)
+    elif args.cmd == "ship":
+        ship(args.runs, args.results)
     else:
         return render(args.results, args.check)
     return 0
