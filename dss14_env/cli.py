@@ -54,14 +54,16 @@ def _train(args: argparse.Namespace) -> int:
 def _bench(args: argparse.Namespace) -> int:
     import shlex
 
-    from dss14_env.bench.bench import bench, build_plan
+    from dss14_env.bench.bench import bench, build_plan, prepare_out
 
     cmd = "dss14 " + shlex.join(args.argv)
     plan = build_plan(controllers=args.controllers, scenarios=args.scenarios, seeds=args.seeds,
                       wind_speeds=args.wind_speeds, steps=args.steps, quick=args.quick,
                       ppo_model=args.ppo_model, randomize=args.randomize, out=args.out,
                       figures=not args.no_figures, sweep=not args.no_sweep,
-                      sweep_seeds=args.sweep_seeds, command=cmd)
+                      sweep_seeds=args.sweep_seeds, sequential_episodes=args.sequential_episodes,
+                      threads=args.threads, overwrite=args.overwrite, command=cmd)
+    prepare_out(plan)  # before any work: a bad --out is a one-line error
     for note in plan.notes:
         print(f"dss14 bench: warning: {note}", file=sys.stderr)
     print(plan.describe(), flush=True)
@@ -92,12 +94,16 @@ def main(argv: list[str] | None = None) -> int:
     p.set_defaults(func=_train)
     p = sub.add_parser("bench", help="score PI, LQG, MPC and PPO on the same scenarios and seeds",
                        description="Run every controller through the runner on the same "
-                       "scenarios and seeds; write results.json, results.md and PNG figures "
-                       "(docs/bench.md).")
+                       "scenarios and seeds; write results.json, results.md and PNG figures, every "
+                       "figure with its 95 % confidence interval (docs/bench.md).")
     p.add_argument("--quick", action="store_true",
-                   help="short version: 1 seed, shorter episodes, wind speeds 30 50 70 (under a minute)")
+                   help="short version for CI: few, short episodes, wind speeds 30 50 70 (under 30 s)")
     p.add_argument("--seeds", nargs="+", metavar="SEED", default=None,
-                   help="one value N: seeds 0..N-1; several: those seeds (default: 0 1)")
+                   help="episodes of the batched controllers in every scenario: one value N: seeds "
+                   "0..N-1; several: those seeds (default: each scenario's count, e.g. 128 for hold)")
+    p.add_argument("--sequential-episodes", type=int, default=None, metavar="M",
+                   help="episodes of the controllers that run one at a time (MPC): the first M seeds "
+                   "of every scenario and sweep point (default: each scenario's, e.g. 10 for hold)")
     p.add_argument("--controllers", nargs="+", metavar="NAME", default=None,
                    help="pi_kp1 pi_kp0.7 lqg mpc ppo yardstick (default: all but yardstick)")
     p.add_argument("--scenarios", nargs="+", metavar="NAME", default=None,
@@ -106,7 +112,7 @@ def main(argv: list[str] | None = None) -> int:
                    help="speeds of the error-vs-wind sweep, km/h (default: 30 40 50 60 70)")
     p.add_argument("--no-sweep", action="store_true", help="skip the error-vs-wind sweep")
     p.add_argument("--sweep-seeds", type=int, default=None, metavar="N",
-                   help="run the sweep on the first N seeds (default 1)")
+                   help="episodes per sweep point of the batched controllers (default 64)")
     p.add_argument("--steps", type=int, default=None,
                    help="episode length of every scenario and sweep point, control periods "
                    "(default: the scenario's; 50 per second)")
@@ -114,7 +120,12 @@ def main(argv: list[str] | None = None) -> int:
                    help="PPO run folder, eval/best folder or zip (default: the shipped policy)")
     p.add_argument("--randomize", action="store_true",
                    help="randomised plant parameters every episode (randomize_params=True)")
+    p.add_argument("--threads", type=int, default=1, metavar="N",
+                   help="BLAS threads of numpy and scipy while running (default 1)")
     p.add_argument("--out", default="bench_out", help="output folder (default: bench_out)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace the results of an earlier bench in --out (results.json, results.md, "
+                   "its figures; nothing else)")
     p.add_argument("--no-figures", action="store_true", help="results.json and results.md only")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_bench)
