@@ -52,7 +52,7 @@ from typing import Any, Sequence
 import numpy as np
 from scipy import linalg
 
-from dss14_env.core.schema import ConfigError, Param, default_config_path, load_block, read_yaml, spec
+from dss14_env.core.schema import ConfigError, Param, load_section, read_config, spec
 from dss14_env.model.assembly import DSS14Model, default_model
 from dss14_env.model.linsys import balance, discretize, noise_factor
 from dss14_env.wind.loads import WindLoads, default_wind_loads, direction_angle
@@ -71,11 +71,11 @@ MIN_MEASUREMENT_NOISE = 1e-3 * math.pi / 180e3
 class DesignConfig:
     """Section ``design`` of ``configs/controllers.yaml`` (SI)."""
 
-    order: int = spec("1", integer=True)
-    wind_speed: float = spec("m/s")
-    encoder_bits: int = spec("1", integer=True)
-    rate_limit: float = spec("rad/s")
-    accel_limit: float = spec("rad/s^2")
+    order: int = spec("1", kind="integer", lo=2)
+    wind_speed: float = spec("m/s", lo=0.0, lo_open=True)
+    encoder_bits: int = spec("1", kind="integer", lo=1)
+    rate_limit: float = spec("rad/s", lo=0.0, lo_open=True)
+    accel_limit: float = spec("rad/s^2", lo=0.0, lo_open=True)
 
 
 @dataclass(frozen=True)
@@ -86,35 +86,35 @@ class LQGConfig:
     from the start command, :func:`infer_wind`) or ``"direction-free"``.
     """
 
-    wind_model: str = field(metadata=dict(choices=("inferred", "direction-free")))
-    error_weight: float = spec("1")
-    action_change_weight: float = spec("1")
-    integral_weight: float = spec("1")
-    integral_clip: float = spec("rad")
-    input_noise: float = spec("1", positive=True, nonzero=False)
-    disturbance_drift: float = spec("1", positive=True, nonzero=False)
-    measurement_noise: float = spec("rad", positive=True, nonzero=False)
-    min_wind_speed: float = spec("m/s")
-    shaper: int = spec("1", positive=True, nonzero=False, integer=False)
-    shaper_rate: float = spec("rad/s")
-    shaper_accel: float = spec("rad/s^2")
-    shaper_accel_max: float = spec("rad/s^2")
-    reference_pull: float = spec("1/s")
+    wind_model: str = spec(None, kind="str", choices=("inferred", "direction-free"))
+    error_weight: float = spec("1", lo=0.0, lo_open=True)
+    action_change_weight: float = spec("1", lo=0.0, lo_open=True)
+    integral_weight: float = spec("1", lo=0.0, lo_open=True)
+    integral_clip: float = spec("rad", lo=0.0, lo_open=True)
+    input_noise: float = spec("1", lo=0.0)
+    disturbance_drift: float = spec("1", lo=0.0)
+    measurement_noise: float = spec("rad", lo=0.0)
+    min_wind_speed: float = spec("m/s", lo=0.0, lo_open=True)
+    shaper: int = spec("1", kind="integer", lo=0, hi=1)
+    shaper_rate: float = spec("rad/s", lo=0.0, lo_open=True)
+    shaper_accel: float = spec("rad/s^2", lo=0.0, lo_open=True)
+    shaper_accel_max: float = spec("rad/s^2", lo=0.0, lo_open=True)
+    reference_pull: float = spec("1/s", lo=0.0, lo_open=True)
 
 
 @dataclass(frozen=True)
 class MPCConfig:
     """Section ``mpc``: horizon, soft error constraint and OSQP settings."""
 
-    horizon: int = spec("1", integer=True)
-    shaper: int = spec("1", positive=True, nonzero=False, integer=False)
-    action_change_weight: float = spec("1")
-    error_soft_limit: float = spec("rad")
-    slack_weight_linear: float = spec("1")
-    slack_weight_quadratic: float = spec("1")
-    eps_abs: float = spec("1")
-    eps_rel: float = spec("1")
-    max_iter: int = spec("1", integer=True)
+    horizon: int = spec("1", kind="integer", lo=2)
+    shaper: int = spec("1", kind="integer", lo=0, hi=1)
+    action_change_weight: float = spec("1", lo=0.0, lo_open=True)
+    error_soft_limit: float = spec("rad", lo=0.0, lo_open=True)
+    slack_weight_linear: float = spec("1", lo=0.0, lo_open=True)
+    slack_weight_quadratic: float = spec("1", lo=0.0, lo_open=True)
+    eps_abs: float = spec("1", lo=0.0, lo_open=True)
+    eps_rel: float = spec("1", lo=0.0, lo_open=True)
+    max_iter: int = spec("1", kind="integer", lo=1)
 
 
 @dataclass(frozen=True)
@@ -129,53 +129,22 @@ class ControllersConfig:
 
 
 def load_controllers_config(path: str | Path | None = None) -> ControllersConfig:
-    """Load and validate ``configs/controllers.yaml`` (or ``path``).
+    """Load and validate ``configs/controllers.yaml`` (or ``path``, or a shipped name).
 
-    :param path: YAML file, default the shipped ``configs/controllers.yaml``
+    :param path: YAML file or shipped configuration name, default ``"controllers"``
     :return: the configuration in SI units
     :raises ConfigError: naming the field and the file of the first problem found
     """
-    path = Path(path) if path is not None else default_config_path("controllers.yaml")
-    data = read_yaml(path)
+    data, source = read_config("controllers" if path is None else path)
     registry: dict[str, Param] = {}
-    design = load_block(DesignConfig, data.get("design"), "design", path, registry)
-    lqg = _section_with_choices(LQGConfig, data.get("lqg"), "lqg", path, registry)
-    mpc = load_block(MPCConfig, data.get("mpc"), "mpc", path, registry)
-    for name, v in (("lqg.shaper", lqg.shaper), ("mpc.shaper", mpc.shaper)):
-        if v not in (0, 1):
-            raise ConfigError(f"{path}: field '{name}' must be 0 (off) or 1 (on), got {v!r}")
-    if design.order < 2:
-        raise ConfigError(f"{path}: field 'design.order' must be at least 2")
-    if mpc.horizon < 2:
-        raise ConfigError(f"{path}: field 'mpc.horizon' must be at least 2")
-    return ControllersConfig(design, lqg, mpc, registry, str(path))
-
-
-def _section_with_choices(cls: type, section: Any, block: str, path: Path, registry: dict) -> Any:
-    """:func:`dss14_env.model.config._block` for dataclasses that also have plain string choices
-    (fields with ``metadata['choices']``), given as ``{value, source}`` without a unit."""
-    import dataclasses
-    if not isinstance(section, dict):
-        raise ConfigError(f"{path}: section '{block}' missing or not a mapping")
-    section = dict(section)
-    strings = {}
-    for f in dataclasses.fields(cls):
-        if "choices" not in f.metadata:
-            continue
-        raw = section.pop(f.name, None)
-        if not isinstance(raw, dict) or "value" not in raw or "source" not in raw:
-            raise ConfigError(f"{path}: field '{block}.{f.name}' needs a mapping with 'value' and 'source'")
-        if raw["value"] not in f.metadata["choices"]:
-            raise ConfigError(f"{path}: field '{block}.{f.name}' must be one of "
-                              f"{list(f.metadata['choices'])}, got {raw['value']!r}")
-        strings[f.name] = raw["value"]
-
-    numeric = dataclasses.make_dataclass(
-        cls.__name__ + "Numbers",
-        [(f.name, f.type, dataclasses.field(metadata=f.metadata)) for f in dataclasses.fields(cls)
-         if "choices" not in f.metadata])
-    nums = load_block(numeric, section, block, path, registry)
-    return cls(**strings, **{f.name: getattr(nums, f.name) for f in dataclasses.fields(numeric)})
+    kw = dict(documented=True, registry=registry, defaults=False)
+    sections = {"design": DesignConfig, "lqg": LQGConfig, "mpc": MPCConfig}
+    extra = set(data) - set(sections)
+    if extra:
+        raise ConfigError(f"{source}: unknown section(s) {sorted(extra)}; known: {sorted(sections)}")
+    blocks = {name: load_section(cls, data.get(name), source, name, **kw)
+              for name, cls in sections.items()}
+    return ControllersConfig(blocks["design"], blocks["lqg"], blocks["mpc"], registry, source)
 
 
 @lru_cache(maxsize=1)

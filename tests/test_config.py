@@ -132,17 +132,18 @@ def test_missing_section(tmp_path: Path, raw: dict) -> None:
 
 # (block, field, replacement entry, message fragment besides the field name)
 BAD_VALUES: list[tuple[str, str, dict[str, Any], str]] = [
-    ("hydraulics", "k_v", {"value": "abc", "unit": "1", "source": "t"}, "not a number"),
-    ("hydraulics", "d_motor", {"value": -25.2, "unit": "cm^3/rad", "source": "t"}, "positive"),
+    ("hydraulics", "k_v", {"value": "abc", "unit": "1", "source": "t"}, "must be a number"),
+    ("hydraulics", "d_motor", {"value": -25.2, "unit": "cm^3/rad", "source": "t"}, "> 0"),
     ("hydraulics", "d_motor", {"value": 25.2, "unit": "kg", "source": "t"}, "kg"),
-    ("hydraulics", "beta", {"value": 1.29e6, "unit": "furlong", "source": "t"}, "unknown unit"),
+    ("hydraulics", "beta", {"value": 1.29e6, "unit": "furlong", "source": "t"}, "furlong"),
     ("hydraulics", "zeta_o", {"value": 0.9, "unit": "1", "range": [0.6, 0.8], "source": "t"},
      "range"),
-    ("gearbox", "j_m", {"value": 0.0, "unit": "kg*m^2", "source": "t"}, "positive"),
-    ("hydraulics", "mu", {"value": float("nan"), "unit": "kPa*s", "source": "t"}, "finite"),
+    ("gearbox", "j_m", {"value": 0.0, "unit": "kg*m^2", "source": "t"}, "> 0"),
+    ("hydraulics", "mu", {"value": float("nan"), "unit": "kPa*s", "source": "t"}, "nan"),
     ("structure", "n_ribs", {"value": 2.5, "unit": "1", "source": "t"}, "integer"),
-    ("hydraulics", "k_v", {"value": True, "unit": "1", "source": "t"}, "not a number"),
+    ("hydraulics", "k_v", {"value": True, "unit": "1", "source": "t"}, "must be a number"),
     ("hydraulics", "k_v", {"value": 0.0438, "unit": "1"}, "source"),
+    ("structure", "modal_damping", {"value": 1.5, "unit": "1", "source": "t"}, "< 1"),
 ]
 
 

@@ -1,32 +1,73 @@
-"""The configuration layer: one schema mechanism and one loader for every YAML file.
+"""The configuration layer: one schema mechanism and one loader for every configuration.
 
-Each parameter in a documented YAML file is a mapping ``{value, unit, source[, range][, note]}``
-in the source's own units; :func:`param` converts it to SI (:mod:`dss14_env.core.units`) and
-checks it (finite, sign, range, unit family).  A wrong or missing value raises
-:class:`ConfigError` naming the file and the field.
+Every configuration of the project -- the model (``configs/model.yaml``), the wind loads
+(``wind.yaml``), the controllers (``controllers.yaml``), the environments (``env.yaml``) and the
+learning agents (``ppo*.yaml``) -- is a frozen dataclass whose fields carry a :class:`Spec`
+(made with :func:`spec`): unit, range, choices, integer, optional.  One function,
+:func:`load_section`, checks a mapping against such a dataclass and builds it; one function,
+:func:`read_config`, reads a YAML file (a path, or the name of a shipped file such as
+``"ppo_plain"``).  Every problem is a :class:`ConfigError` with one message style::
+
+    <file>: field '<name>': must be <what>, got <value>
+
+YAML syntax errors are reported the same way (``<file>: not valid YAML (line L, column C):
+...``); numbers may be written in scientific notation (``1e-3``, which YAML 1.1 reads as a
+string, is accepted wherever a number is expected).
+
+Two kinds of leaves:
+
+* *documented* leaves (model, wind, controllers): ``{value, unit, source[, range][, note]}`` in
+  the source's own units (the report's cm^3, kPa, in^3, ...); the value is converted to SI
+  (:mod:`dss14_env.core.units`; its unit must be of the spec's SI family), the optional
+  ``range`` is checked and kept, and the whole leaf is recorded as a :class:`Param` in the
+  configuration's registry;
+* *plain* leaves (environment, agents): the value itself, in the unit the spec (and the key's
+  name) states.
+
+>>> from dataclasses import dataclass
+>>> @dataclass(frozen=True)
+... class Demo:
+...     dt: float = spec("s", lo=0.0, lo_open=True, hi=0.1, default=0.02)
+...     speed: float | str = spec("km/h", lo=0.0, choices=("random",), default=50.0)
+>>> load_section(Demo, {"dt": "1e-3", "speed": "random"}, "demo.yaml")
+Demo(dt=0.001, speed='random')
+>>> load_section(Demo, {"dt": 0.5}, "demo.yaml")
+Traceback (most recent call last):
+...
+dss14_env.core.schema.ConfigError: demo.yaml: field 'dt': must be a number > 0 and <= 0.1 (s), got 0.5
 """
 
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
+import numpy as np
 import yaml
 
 from dss14_env.core.units import AXES, UNITS, si_unit, to_si
 
+#: the kinds of value a field can hold
+KINDS = ("number", "integer", "bool", "str", "list", "pair", "mapping", "any")
+
 
 class ConfigError(ValueError):
-    """A configuration value is missing, malformed or out of range."""
+    """A configuration value is missing, malformed or out of range (one line naming the file
+    and the field)."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(" ".join(str(message).split()))
 
 
 @dataclass(frozen=True)
 class Param:
-    """One parameter as read from the file, converted to SI."""
+    """One documented parameter as read from its file, converted to SI."""
 
     name: str
     value: Any  # float, or tuple of floats for vector parameters
@@ -36,108 +77,379 @@ class Param:
     note: str = ""
 
 
-def spec(unit: str, *, axis: bool = False, vector: bool = False, integer: bool = False,
-          positive: bool = True, nonzero: bool = True) -> Any:
-    return field(metadata=dict(unit=unit, axis=axis, vector=vector, integer=integer,
-                               positive=positive, nonzero=nonzero))
+@dataclass(frozen=True)
+class Spec:
+    """The schema of one configuration field.
+
+    :param unit: the field's unit (SI family for documented leaves; the unit of the key for
+        plain leaves), ``"1"`` for dimensionless numbers, None for non-quantities
+    :param kind: one of :data:`KINDS`
+    :param lo: lower bound of a number (of each element for lists and pairs)
+    :param hi: upper bound
+    :param lo_open: the lower bound is excluded
+    :param hi_open: the upper bound is excluded
+    :param choices: allowed strings (``kind="str"``), or strings allowed besides a number
+        (e.g. ``"random"``)
+    :param optional: ``null`` (None) is allowed
+    :param items: spec of the elements of a ``list`` or ``pair`` (default: numbers with the
+        bounds above)
+    :param min_length: least number of elements of a list
+    :param axis: a per-axis mapping ``{az: .., el: ..}`` of leaves (documented files)
+    """
+
+    unit: str | None = "1"
+    kind: str = "number"
+    lo: float | None = None
+    hi: float | None = None
+    lo_open: bool = False
+    hi_open: bool = False
+    choices: tuple[str, ...] = ()
+    optional: bool = False
+    items: Spec | None = None
+    min_length: int = 1
+    axis: bool = False
+
+    def __post_init__(self) -> None:
+        if self.kind not in KINDS:
+            raise ValueError(f"Spec kind must be one of {KINDS}, got {self.kind!r}")
+
+    def describe(self) -> str:
+        """What a valid value is, for messages (``a number > 0 and <= 0.1 (s)``)."""
+        if self.kind == "bool":
+            what = "true or false"
+        elif self.kind == "str":
+            what = f"one of {list(self.choices)}" if self.choices else "a string"
+        elif self.kind == "mapping":
+            what = "a mapping"
+        elif self.kind == "any":
+            what = "a value"
+        elif self.kind in ("list", "pair"):
+            inner = (self.items or dataclasses.replace(self, kind="number", choices=(),
+                                                       optional=False)).describe()
+            what = ("a pair [low, high] of " if self.kind == "pair" else "a list of ") + \
+                inner.removeprefix("a ").removeprefix("an ").replace("number", "numbers", 1)
+        else:
+            what = "an integer" if self.kind == "integer" else "a number"
+            bounds = []
+            if self.lo is not None:
+                bounds.append(f"{'>' if self.lo_open else '>='} {self.lo:g}")
+            if self.hi is not None:
+                bounds.append(f"{'<' if self.hi_open else '<='} {self.hi:g}")
+            if bounds:
+                what += " " + " and ".join(bounds)
+            if self.unit not in (None, "1"):
+                what += f" ({self.unit})"
+            if self.choices:
+                what += " or one of " + ", ".join(repr(c) for c in self.choices)
+        if self.optional:
+            what += " or null"
+        return what
 
 
-def default_config_path(name: str = "model.yaml") -> Path:
-    """Path of a configuration file shipped in the ``configs`` package."""
-    return Path(str(resources.files("dss14_env.configs").joinpath(name)))
+def spec(unit: str | None = "1", *, kind: str = "number", lo: float | None = None,
+         hi: float | None = None, lo_open: bool = False, hi_open: bool = False,
+         choices: tuple[str, ...] | list[str] = (), optional: bool = False,
+         items: Spec | None = None, min_length: int = 1, axis: bool = False,
+         default: Any = dataclasses.MISSING, default_factory: Any = dataclasses.MISSING) -> Any:
+    """A dataclass field with its :class:`Spec` (see the module docstring).
+
+    ``default`` / ``default_factory`` as for :func:`dataclasses.field`; a field without either
+    is required.
+    """
+    s = Spec(unit, kind, lo, hi, lo_open, hi_open, tuple(choices), optional, items, min_length,
+             axis)
+    kw: dict[str, Any] = {"metadata": {"spec": s}}
+    if default is not dataclasses.MISSING:
+        kw["default"] = default
+    if default_factory is not dataclasses.MISSING:
+        kw["default_factory"] = default_factory
+    return field(**kw)
 
 
-def read_yaml(path: Path) -> Mapping[str, Any]:
-    if not path.is_file():
-        raise ConfigError(f"configuration file not found: {path}")
-    try:
-        data = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"{path}: not valid YAML: {exc}") from exc
-    if not isinstance(data, Mapping):
-        raise ConfigError(f"{path}: top level must be a mapping")
-    return data
+def field_spec(f: dataclasses.Field) -> Spec | None:
+    """The :class:`Spec` of a dataclass field made with :func:`spec` (None otherwise)."""
+    return f.metadata.get("spec")
 
 
-def param(raw: Any, name: str, meta: Mapping[str, Any], path: Path) -> Param:
-    where = f"{path}: field '{name}'"
-    if not isinstance(raw, Mapping) or "value" not in raw:
-        raise ConfigError(f"{where}: expected a mapping with 'value', 'unit' and 'source'")
-    for key in ("unit", "source"):
-        if key not in raw:
-            raise ConfigError(f"{where}: missing '{key}'")
-    unit = raw["unit"]
-    if unit not in UNITS:
-        raise ConfigError(f"{where}: unknown unit {unit!r}")
-    if si_unit(unit) != meta["unit"]:
-        raise ConfigError(f"{where}: unit {unit!r} is not a {meta['unit']} quantity")
-    value = raw["value"]
+# ------------------------------------------------------------------------------ values
+def _is_number(v: Any) -> bool:
+    return (isinstance(v, (int, float, np.integer, np.floating))
+            and not isinstance(v, (bool, np.bool_)))
 
-    def check(v: Any) -> float:
-        if isinstance(v, str):  # PyYAML reads 1.29e6 (no dot-sign) as a string
-            try:
-                v = float(v)
-            except ValueError:
-                raise ConfigError(f"{where}: value {v!r} is not a number") from None
-        if isinstance(v, bool) or not isinstance(v, (int, float)):
-            raise ConfigError(f"{where}: value {v!r} is not a number")
-        if meta["integer"] and (not float(v).is_integer() or v < 1):
-            raise ConfigError(f"{where}: value {v!r} must be a positive integer")
-        if not math.isfinite(v):
-            raise ConfigError(f"{where}: value {v!r} is not finite")
-        if meta["positive"] and v < 0 or meta["nonzero"] and v == 0:
-            raise ConfigError(f"{where}: value {v!r} must be positive")
-        return int(v) if meta["integer"] else to_si(v, unit)
 
-    if meta["vector"]:
-        if not isinstance(value, list) or not value:
-            raise ConfigError(f"{where}: value must be a non-empty list")
-        si: Any = tuple(check(v) for v in value)
+def _as_number(v: Any) -> Any:
+    """Numbers as float/int; numeric strings (``"1e-3"``) as float; anything else unchanged."""
+    if isinstance(v, str):
+        try:
+            return float(v)
+        except ValueError:
+            return v
+    if isinstance(v, (np.integer,)):
+        return int(v)
+    if isinstance(v, np.floating):
+        return float(v)
+    return v
+
+
+def check_value(s: Spec, value: Any, where: str) -> Any:
+    """``value`` checked against ``s`` (plain leaf); the normalised value.
+
+    :param where: ``"<file>: field '<name>'"`` for the message
+    :raises ConfigError: ``"<where>: must be <what>, got <value>"``
+    """
+    if value is None:
+        if s.optional:
+            return None
+        raise _bad(s, value, where)
+    return _CHECKS[s.kind](s, value, where)
+
+
+def _bad(s: Spec, value: Any, where: str) -> ConfigError:
+    return ConfigError(f"{where}: must be {s.describe()}, got {value!r}")
+
+
+def _check_any(s: Spec, value: Any, where: str) -> Any:
+    return value
+
+
+def _check_bool(s: Spec, value: Any, where: str) -> bool:
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    raise _bad(s, value, where)
+
+
+def _check_str(s: Spec, value: Any, where: str) -> str:
+    if isinstance(value, str) and (not s.choices or value in s.choices):
+        return value
+    raise _bad(s, value, where)
+
+
+def _check_mapping(s: Spec, value: Any, where: str) -> dict:
+    if isinstance(value, Mapping) and all(isinstance(key, str) for key in value):
+        return dict(value)
+    raise _bad(s, value, where)
+
+
+def _check_sequence(s: Spec, value: Any, where: str) -> tuple:
+    if isinstance(value, (str, bytes, Mapping)) or not isinstance(value, (list, tuple, np.ndarray)):
+        raise _bad(s, value, where)
+    if (s.kind == "pair" and len(value) != 2) or (s.kind == "list" and len(value) < s.min_length):
+        raise _bad(s, value, where)
+    inner = s.items or dataclasses.replace(s, kind="number", choices=(), optional=False)
+    out = tuple(check_value(inner, v, where) for v in value)
+    if s.kind == "pair" and _is_number(out[0]) and out[0] > out[1]:
+        raise ConfigError(f"{where}: must be a pair with low <= high, got {value!r}")
+    return out
+
+
+def _check_number(s: Spec, value: Any, where: str) -> float | int | str:
+    if isinstance(value, str) and value in s.choices:
+        return value
+    v = _as_number(value)
+    if not _is_number(v) or not math.isfinite(float(v)):
+        raise _bad(s, value, where)
+    if s.kind == "integer":
+        if not float(v).is_integer():
+            raise _bad(s, value, where)
+        v = int(v)
     else:
-        si = check(value)
+        v = float(v)
+    if s.lo is not None and (v <= s.lo if s.lo_open else v < s.lo):
+        raise _bad(s, value, where)
+    if s.hi is not None and (v >= s.hi if s.hi_open else v > s.hi):
+        raise _bad(s, value, where)
+    return v
+
+
+_CHECKS = {"any": _check_any, "bool": _check_bool, "str": _check_str, "mapping": _check_mapping,
+           "list": _check_sequence, "pair": _check_sequence, "number": _check_number,
+           "integer": _check_number}
+
+
+def documented_param(s: Spec, raw: Any, name: str, source: str) -> Param:
+    """A documented leaf ``{value, unit, source[, range][, note]}`` checked against ``s`` and
+    converted to SI.
+
+    The leaf's unit must convert to the spec's SI unit (:data:`dss14_env.core.units.UNITS`);
+    the bounds of the spec apply to the value in the file's units when the spec is
+    dimensionless, otherwise to the SI value; a given ``range`` must hold the value.
+    Non-numeric specs (strings, booleans) take ``{value, source}``.
+    """
+    where = f"{source}: field '{name}'"
+    if not isinstance(raw, Mapping) or "value" not in raw or "source" not in raw:
+        need = "'value', 'unit' and 'source'" if s.unit is not None else "'value' and 'source'"
+        raise ConfigError(f"{where}: must be a mapping with {need}, got {raw!r}")
+    extra = set(raw) - {"value", "unit", "source", "range", "note"}
+    if extra:
+        raise ConfigError(f"{where}: unknown key(s) {sorted(extra)} (allowed: value, unit, source, "
+                          f"range, note)")
+    if s.kind in ("str", "bool", "mapping", "any"):
+        return Param(name, check_value(s, raw["value"], where), s.unit or "", str(raw["source"]),
+                     None, str(raw.get("note", "")))
+    unit = raw.get("unit")
+    if unit not in UNITS:
+        raise ConfigError(f"{where}: unit must be one of the known units, got {unit!r}")
+    if s.unit is not None and si_unit(unit) != s.unit:
+        raise ConfigError(f"{where}: unit must be a {s.unit} quantity, got {unit!r}")
+
+    def convert(v: Any) -> Any:
+        if isinstance(v, tuple):
+            return tuple(convert(x) for x in v)
+        return v if s.kind == "integer" else to_si(v, unit)
+
+    si_spec = dataclasses.replace(s, unit=si_unit(unit))
+    value = convert(check_value(dataclasses.replace(s, lo=None, hi=None), raw["value"], where))
+    check_value(si_spec, value if not isinstance(value, tuple) else list(value), where)
     rng = raw.get("range")
     rng_si = None
     if rng is not None:
-        if not (isinstance(rng, list) and len(rng) == 2):
-            raise ConfigError(f"{where}: range must be [low, high]")
-        lo, hi = (check(v) for v in rng)
-        if lo > hi:
-            raise ConfigError(f"{where}: range low {rng[0]} > high {rng[1]}")
-        rel = 1e-9 * max(abs(lo), abs(hi))
-        if not all(lo - rel <= v <= hi + rel for v in (si if meta["vector"] else (si,))):
-            raise ConfigError(f"{where}: value {value} outside its range {rng}")
-        rng_si = (lo, hi)
-    return Param(name, si, meta["unit"], str(raw["source"]), rng_si, str(raw.get("note", "")))
+        lo, hi = check_value(Spec(unit, "pair"), rng, f"{where} (range)")
+        rng_si = (convert(lo), convert(hi))
+        rel = 1e-9 * max(abs(rng_si[0]), abs(rng_si[1]))
+        values = value if isinstance(value, tuple) else (value,)
+        if not all(rng_si[0] - rel <= v <= rng_si[1] + rel for v in values):
+            raise ConfigError(f"{where}: must lie in its range {list(rng)}, got {raw['value']!r}")
+    return Param(name, value, si_unit(unit), str(raw["source"]), rng_si, str(raw.get("note", "")))
 
 
-def load_block(cls: type, section: Any, block: str, path: Path, registry: dict) -> Any:
+# ------------------------------------------------------------------------------ sections
+def _unknown(keys: set[str], known: list[str], where: str) -> ConfigError:
+    key = sorted(keys)[0]
+    near = difflib.get_close_matches(key, known, n=1)
+    hint = f" (did you mean {near[0]!r}?)" if near else ""
+    return ConfigError(f"{where}: unknown field '{key}'{hint}; known: {', '.join(sorted(known))}")
+
+
+def load_section(cls: type, section: Any, source: str, prefix: str = "", *,
+                 documented: bool = False, registry: dict[str, Param] | None = None,
+                 defaults: bool = True) -> Any:
+    """Check a mapping against a dataclass of :func:`spec` fields and build the dataclass.
+
+    :param cls: the dataclass
+    :param section: the mapping (e.g. one section of a YAML file)
+    :param source: the file (or ``"<dict>"``) for messages
+    :param prefix: the section's name, prefixed to field names in messages and the registry
+    :param documented: leaves are documented (``{value, unit, source, ...}``, converted to SI,
+        recorded in ``registry``) instead of plain values
+    :param registry: where documented parameters are recorded (``"block.field[.axis]"``)
+    :param defaults: fields missing from ``section`` take their dataclass defaults (False:
+        every field must be given)
+    :raises ConfigError: unknown or missing fields, bad values
+    """
+    where = f"{source}: " + (f"section '{prefix}'" if prefix else "top level")
     if not isinstance(section, Mapping):
-        raise ConfigError(f"{path}: section '{block}' missing or not a mapping")
-    known = {f.name for f in dataclasses.fields(cls)}
-    extra = set(section) - known
+        raise ConfigError(f"{where}: must be a mapping, got {section!r}")
+    fields = [f for f in dataclasses.fields(cls) if field_spec(f) is not None]
+    known = [f.name for f in fields]
+    extra = set(map(str, section)) - set(known)
     if extra:
-        raise ConfigError(f"{path}: unknown field(s) in '{block}': {sorted(extra)}")
+        raise _unknown(extra, known, where)
     kwargs: dict[str, Any] = {}
-    for f in dataclasses.fields(cls):
-        name = f"{block}.{f.name}"
+    for f in fields:
+        s = field_spec(f)
+        name = f"{prefix}.{f.name}" if prefix else f.name
+        has_default = (f.default is not dataclasses.MISSING
+                       or f.default_factory is not dataclasses.MISSING)  # type: ignore[misc]
         if f.name not in section:
-            raise ConfigError(f"{path}: field '{name}' is missing")
+            if defaults and has_default:
+                continue
+            raise ConfigError(f"{source}: field '{name}': is missing")
         raw = section[f.name]
-        if f.metadata["axis"]:
+        if documented and s.axis:
             if not isinstance(raw, Mapping) or set(raw) != set(AXES):
-                raise ConfigError(f"{path}: field '{name}' needs exactly the keys az and el")
+                raise ConfigError(f"{source}: field '{name}': must be a mapping with exactly the "
+                                  f"keys az and el, got {raw!r}")
             vals = {}
             for ax in AXES:
-                p = param(raw[ax], f"{name}.{ax}", f.metadata, path)
-                registry[p.name] = p
+                p = documented_param(s, raw[ax], f"{name}.{ax}", source)
+                if registry is not None:
+                    registry[p.name] = p
                 vals[ax] = p.value
             kwargs[f.name] = vals
-        else:
-            p = param(raw, name, f.metadata, path)
-            registry[p.name] = p
+        elif documented:
+            p = documented_param(s, raw, name, source)
+            if registry is not None:
+                registry[p.name] = p
             kwargs[f.name] = p.value
+        else:
+            kwargs[f.name] = check_value(s, raw, f"{source}: field '{name}'")
     return cls(**kwargs)
 
 
-def number_meta(unit: str) -> dict:
-    return dict(unit=unit, axis=False, vector=False, integer=False, positive=True, nonzero=True)
+def check_fields(obj: Any, source: str = "<config>", prefix: str = "") -> None:
+    """Check every :func:`spec` field of a dataclass instance against its spec (plain values),
+    e.g. after ``dataclasses.replace``.
+
+    :raises ConfigError: the first bad field
+    """
+    for f in dataclasses.fields(obj):
+        s = field_spec(f)
+        if s is None:
+            continue
+        name = f"{prefix}.{f.name}" if prefix else f.name
+        check_value(s, getattr(obj, f.name), f"{source}: field '{name}'")
+
+
+# ------------------------------------------------------------------------------ files
+def shipped_configs() -> list[str]:
+    """Names of the configuration files shipped with the package (without ``.yaml``)."""
+    root = resources.files("dss14_env.configs")
+    return sorted(p.name[:-5] for p in root.iterdir() if p.name.endswith(".yaml"))
+
+
+def config_path(name_or_path: str | Path) -> Path:
+    """The file of a configuration: an existing path, or the name of a shipped file.
+
+    ``"ppo_plain"``, ``"ppo_plain.yaml"`` and ``"configs/ppo_plain.yaml"`` (from the source
+    tree) all name the shipped file when no such path exists relative to the working folder.
+
+    :raises ConfigError: neither a file nor a shipped name (the shipped names are listed)
+    """
+    p = Path(name_or_path)
+    if p.is_file():
+        return p
+    stem = p.name[:-5] if p.name.endswith(".yaml") else p.name
+    if len(p.parts) <= 1 or (len(p.parts) == 2 and p.parts[0] == "configs"):
+        shipped = Path(str(resources.files("dss14_env.configs").joinpath(f"{stem}.yaml")))
+        if shipped.is_file():
+            return shipped
+    if p.exists():
+        raise ConfigError(f"{p}: is not a file")
+    raise ConfigError(f"{p}: configuration file not found (neither a file nor a shipped "
+                      f"configuration: {', '.join(shipped_configs())})")
+
+
+def default_config_path(name: str = "model.yaml") -> Path:
+    """Path of a configuration file shipped in :mod:`dss14_env.configs`."""
+    return Path(str(resources.files("dss14_env.configs").joinpath(name)))
+
+
+def read_config(name_or_path: str | Path) -> tuple[dict[str, Any], str]:
+    """Read a YAML configuration (a path or a shipped name, :func:`config_path`).
+
+    Parsed with ``yaml.safe_load`` (no Python objects are ever built from a file).
+
+    :return: ``(mapping, source)``: the top-level mapping (empty for an empty file) and the
+        file's path as a string, for messages
+    :raises ConfigError: missing file, YAML syntax error (with line and column), a top level
+        that is not a mapping
+    """
+    path = config_path(name_or_path)
+    source = str(path)
+    try:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{source}: cannot be read ({exc})") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        at = f" (line {mark.line + 1}, column {mark.column + 1})" if mark is not None else ""
+        problem = getattr(exc, "problem", None) or str(exc)
+        raise ConfigError(f"{source}: not valid YAML{at}: {problem}") from None
+    if data is None:
+        data = {}
+    if not isinstance(data, Mapping):
+        raise ConfigError(f"{source}: top level must be a mapping of fields, got "
+                          f"{type(data).__name__}")
+    return dict(data), source

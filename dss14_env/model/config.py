@@ -20,105 +20,96 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping
 
-from dss14_env.core.schema import (
-    ConfigError,
-    Param,
-    default_config_path,
-    load_block,
-    number_meta,
-    param,
-    read_yaml,
-    spec,
-)
+from dss14_env.core.schema import ConfigError, Param, load_section, read_config, spec
 
 
 @dataclass(frozen=True)
 class BoardConfig:
     """Electronics board, [R] Eqs. (1)-(10)."""
 
-    k_r: float = spec("V/(rad/s)")
-    k_t: float = spec("V/(rad/s)")
-    g_r1: float = spec("1")
-    g_r2: float = spec("1", positive=False)
-    g_s: float = spec("A/V")
-    tau_zero: float = spec("s")
-    tau_pole: float = spec("s")
-    g_to: dict = spec("1", axis=True)
-    n_o: dict = spec("1", axis=True)
+    k_r: float = spec("V/(rad/s)", lo=0.0, lo_open=True)
+    k_t: float = spec("V/(rad/s)", lo=0.0, lo_open=True)
+    g_r1: float = spec("1", lo=0.0, lo_open=True)
+    g_r2: float = spec("1")
+    g_s: float = spec("A/V", lo=0.0, lo_open=True)
+    tau_zero: float = spec("s", lo=0.0, lo_open=True)
+    tau_pole: float = spec("s", lo=0.0, lo_open=True)
+    g_to: dict = spec("1", lo=0.0, lo_open=True, axis=True)
+    n_o: dict = spec("1", lo=0.0, lo_open=True, axis=True)
 
 
 @dataclass(frozen=True)
 class HydraulicsConfig:
     """Hydraulic system, [R] Eqs. (11)-(34), Tables 1-3."""
 
-    zeta_o: float = spec("1")
-    omega_o: float = spec("rad/s")
-    k_a_report: float = spec("m^3/s/A")
-    k_s: float = spec("m^3/s/Pa")
-    k_p: float = spec("m^3/s/Pa")
-    d_motor: float = spec("m^3/rad")
-    k_v: float = spec("1")
-    mu: float = spec("Pa*s")
-    k_a2: float = spec("m^3")
-    beta: float = spec("Pa")
-    v_o: dict = spec("m^3", axis=True)
+    zeta_o: float = spec("1", lo=0.0, lo_open=True)
+    omega_o: float = spec("rad/s", lo=0.0, lo_open=True)
+    k_a_report: float = spec("m^3/s/A", lo=0.0, lo_open=True)
+    k_s: float = spec("m^3/s/Pa", lo=0.0, lo_open=True)
+    k_p: float = spec("m^3/s/Pa", lo=0.0, lo_open=True)
+    d_motor: float = spec("m^3/rad", lo=0.0, lo_open=True)
+    k_v: float = spec("1", lo=0.0, lo_open=True)
+    mu: float = spec("Pa*s", lo=0.0, lo_open=True)
+    k_a2: float = spec("m^3", lo=0.0, lo_open=True)
+    beta: float = spec("Pa", lo=0.0, lo_open=True)
+    v_o: dict = spec("m^3", lo=0.0, lo_open=True, axis=True)
 
 
 @dataclass(frozen=True)
 class GearboxConfig:
     """Gear train, [R] Eqs. (35)-(37) and Fig. 1 (constants the report omits)."""
 
-    j_m: float = spec("kg*m^2")
-    n_t: float = spec("1")
-    n_p: float = spec("1")
+    j_m: float = spec("kg*m^2", lo=0.0, lo_open=True)
+    n_t: float = spec("1", lo=0.0, lo_open=True)
+    n_p: float = spec("1", lo=0.0, lo_open=True)
 
 
 @dataclass(frozen=True)
 class StructureConfig:
     """Lumped-parameter description of the antenna structure (docs/model.md section 5)."""
 
-    elevation_angle: float = spec("rad")
-    modal_damping: float = spec("1")
-    r_rail_az: float = spec("m")
-    alpha_az: float = spec("rad")
-    m_node_az: float = spec("kg")
-    k_mesh_az: float = spec("N/m")
-    k_radial_az: float = spec("N/m")
-    j_ring: float = spec("kg*m^2")
-    j_alidade: tuple = spec("kg*m^2", vector=True)
-    j_tip_az: float = spec("kg*m^2")
-    k_az_chain: tuple = spec("N*m/rad", vector=True)
-    r_rail_el: float = spec("m")
-    alpha_el: float = spec("rad")
-    m_node_el: float = spec("kg")
-    k_mesh_el: float = spec("N/m")
-    k_radial_el: float = spec("N/m")
-    j_wheel_el: float = spec("kg*m^2")
-    j_tip_el: float = spec("kg*m^2")
-    j_counterweight: float = spec("kg*m^2")
-    k_wheel_el: float = spec("N*m/rad")
-    k_counterweight: float = spec("N*m/rad")
-    el_drive_lever: float = spec("m", positive=False, nonzero=False)
-    n_ribs: int = spec("1", integer=True)
-    n_rib_nodes: int = spec("1", integer=True)
-    rib_r_inner: float = spec("m")
-    rib_r_outer: float = spec("m")
-    rib_node_mass: float = spec("kg")
-    k_rib: float = spec("N/m")
-    k_hoop: float = spec("N/m")
-    quad_leg_height: float = spec("m")
-    subreflector_height: float = spec("m")
-    m_quad_node: float = spec("kg")
-    m_subreflector: float = spec("kg")
-    k_quad: float = spec("N/m")
-    subreflector_pointing_factor: float = spec("1", positive=False, nonzero=False)
+    elevation_angle: float = spec("rad", lo=0.0, lo_open=True)
+    modal_damping: float = spec("1", lo=0.0, lo_open=True, hi=1.0, hi_open=True)
+    r_rail_az: float = spec("m", lo=0.0, lo_open=True)
+    alpha_az: float = spec("rad", lo=0.0, lo_open=True)
+    m_node_az: float = spec("kg", lo=0.0, lo_open=True)
+    k_mesh_az: float = spec("N/m", lo=0.0, lo_open=True)
+    k_radial_az: float = spec("N/m", lo=0.0, lo_open=True)
+    j_ring: float = spec("kg*m^2", lo=0.0, lo_open=True)
+    j_alidade: tuple = spec("kg*m^2", kind="list", lo=0.0, lo_open=True)
+    j_tip_az: float = spec("kg*m^2", lo=0.0, lo_open=True)
+    k_az_chain: tuple = spec("N*m/rad", kind="list", lo=0.0, lo_open=True)
+    r_rail_el: float = spec("m", lo=0.0, lo_open=True)
+    alpha_el: float = spec("rad", lo=0.0, lo_open=True)
+    m_node_el: float = spec("kg", lo=0.0, lo_open=True)
+    k_mesh_el: float = spec("N/m", lo=0.0, lo_open=True)
+    k_radial_el: float = spec("N/m", lo=0.0, lo_open=True)
+    j_wheel_el: float = spec("kg*m^2", lo=0.0, lo_open=True)
+    j_tip_el: float = spec("kg*m^2", lo=0.0, lo_open=True)
+    j_counterweight: float = spec("kg*m^2", lo=0.0, lo_open=True)
+    k_wheel_el: float = spec("N*m/rad", lo=0.0, lo_open=True)
+    k_counterweight: float = spec("N*m/rad", lo=0.0, lo_open=True)
+    el_drive_lever: float = spec("m")
+    n_ribs: int = spec("1", kind="integer", lo=1)
+    n_rib_nodes: int = spec("1", kind="integer", lo=1)
+    rib_r_inner: float = spec("m", lo=0.0, lo_open=True)
+    rib_r_outer: float = spec("m", lo=0.0, lo_open=True)
+    rib_node_mass: float = spec("kg", lo=0.0, lo_open=True)
+    k_rib: float = spec("N/m", lo=0.0, lo_open=True)
+    k_hoop: float = spec("N/m", lo=0.0, lo_open=True)
+    quad_leg_height: float = spec("m", lo=0.0, lo_open=True)
+    subreflector_height: float = spec("m", lo=0.0, lo_open=True)
+    m_quad_node: float = spec("kg", lo=0.0, lo_open=True)
+    m_subreflector: float = spec("kg", lo=0.0, lo_open=True)
+    k_quad: float = spec("N/m", lo=0.0, lo_open=True)
+    subreflector_pointing_factor: float = spec("1")
 
 
 @dataclass(frozen=True)
 class ReductionConfig:
     """Modal reduction, [R] Eq. (55)."""
 
-    n_flexible_modes: int = spec("1", integer=True)
+    n_flexible_modes: int = spec("1", kind="integer", lo=1)
 
 
 @dataclass(frozen=True)
@@ -133,12 +124,12 @@ class GainSet:
 class CalibrationTargets:
     """Published figures the calibration solves for (dss14_env/model/calibration.py)."""
 
-    rate_loop_dc: float = spec("1")
-    rate_loop_flat_freq: float = spec("Hz")
-    rate_loop_flat_ratio: float = spec("1")
-    gearbox_peak: dict = spec("Hz", axis=True)
-    structure_az_peaks: tuple = spec("Hz", vector=True)
-    cross_coupling_peak: float = spec("1")
+    rate_loop_dc: float = spec("1", lo=0.0, lo_open=True)
+    rate_loop_flat_freq: float = spec("Hz", lo=0.0, lo_open=True)
+    rate_loop_flat_ratio: float = spec("1", lo=0.0, lo_open=True)
+    gearbox_peak: dict = spec("Hz", lo=0.0, lo_open=True, axis=True)
+    structure_az_peaks: tuple = spec("Hz", kind="list", lo=0.0, lo_open=True)
+    cross_coupling_peak: float = spec("1", lo=0.0, lo_open=True)
 
 
 @dataclass(frozen=True)
@@ -172,40 +163,54 @@ class ModelConfig:
         return dataclasses.replace(self, **blocks)
 
 
+#: sections of ``configs/model.yaml`` and their dataclasses
+SECTIONS = {"board": BoardConfig, "hydraulics": HydraulicsConfig, "gearbox": GearboxConfig,
+            "structure": StructureConfig, "reduction": ReductionConfig,
+            "calibration": CalibrationTargets}
+
+
+@dataclass(frozen=True)
+class GainSetSpec:
+    """One gain set of ``position_loop.gain_sets`` as written in the file."""
+
+    kp: float = spec("1/s", lo=0.0, lo_open=True)
+    ki: float = spec("1/s^2", lo=0.0, lo_open=True)
+
+
 def load_model_config(path: str | Path | None = None) -> ModelConfig:
     """Load and validate the model configuration.
 
-    :param path: YAML file; default: the shipped ``configs/model.yaml``
+    :param path: YAML file or shipped configuration name; default: the shipped
+        ``configs/model.yaml``
     :return: the configuration in SI units
     :raises ConfigError: naming the field and file of the first problem found
     """
-    path = Path(path) if path is not None else default_config_path()
-    data = read_yaml(path)
+    data, source = read_config("model" if path is None else path)
     registry: dict[str, Param] = {}
-    board = load_block(BoardConfig, data.get("board"), "board", path, registry)
-    hyd = load_block(HydraulicsConfig, data.get("hydraulics"), "hydraulics", path, registry)
-    gear = load_block(GearboxConfig, data.get("gearbox"), "gearbox", path, registry)
-    struct = load_block(StructureConfig, data.get("structure"), "structure", path, registry)
-    red = load_block(ReductionConfig, data.get("reduction"), "reduction", path, registry)
-    cal = load_block(CalibrationTargets, data.get("calibration"), "calibration", path, registry)
+    extra = set(data) - set(SECTIONS) - {"position_loop"}
+    if extra:
+        raise ConfigError(f"{source}: unknown section(s) {sorted(extra)}; known: "
+                          f"{sorted(SECTIONS) + ['position_loop']}")
+    kw = dict(documented=True, registry=registry, defaults=False)
+    blocks = {name: load_section(cls, data.get(name), source, name, **kw)
+              for name, cls in SECTIONS.items()}
     pl = data.get("position_loop")
     if not isinstance(pl, Mapping) or not isinstance(pl.get("gain_sets"), Mapping) or not pl["gain_sets"]:
-        raise ConfigError(f"{path}: field 'position_loop.gain_sets' is missing or empty")
+        raise ConfigError(f"{source}: field 'position_loop.gain_sets': must be a non-empty mapping "
+                          f"of gain sets, got {pl!r}")
     gains = {}
     for gname, g in pl["gain_sets"].items():
-        if not isinstance(g, Mapping) or set(g) != {"kp", "ki"}:
-            raise ConfigError(f"{path}: field 'position_loop.gain_sets.{gname}' needs kp and ki")
-        kp = param(g["kp"], f"position_loop.gain_sets.{gname}.kp", number_meta("1/s"), path)
-        ki = param(g["ki"], f"position_loop.gain_sets.{gname}.ki", number_meta("1/s^2"), path)
-        gains[str(gname)] = GainSet(kp.value, ki.value)
+        gs = load_section(GainSetSpec, g, source, f"position_loop.gain_sets.{gname}", **kw)
+        gains[str(gname)] = GainSet(gs.kp, gs.ki)
+    struct, cal = blocks["structure"], blocks["calibration"]
     if struct.rib_r_inner >= struct.rib_r_outer:
-        raise ConfigError(f"{path}: field 'structure.rib_r_inner' must be below rib_r_outer")
+        raise ConfigError(f"{source}: field 'structure.rib_r_inner': must be below rib_r_outer "
+                          f"({struct.rib_r_outer} m), got {struct.rib_r_inner}")
     if len(struct.j_alidade) + 1 != len(struct.k_az_chain):
-        raise ConfigError(f"{path}: field 'structure.k_az_chain' needs len(j_alidade)+1 entries")
-    if not 0 < struct.modal_damping < 1:
-        raise ConfigError(f"{path}: field 'structure.modal_damping' must be in (0, 1)")
+        raise ConfigError(f"{source}: field 'structure.k_az_chain': must have len(j_alidade) + 1 = "
+                          f"{len(struct.j_alidade) + 1} entries, got {len(struct.k_az_chain)}")
     if len(cal.structure_az_peaks) != 2:
-        raise ConfigError(f"{path}: field 'calibration.structure_az_peaks' needs 2 entries")
-    return ModelConfig(board, hyd, gear, struct, red, gains, cal, registry, str(path))
-
-
+        raise ConfigError(f"{source}: field 'calibration.structure_az_peaks': must have 2 entries, "
+                          f"got {len(cal.structure_az_peaks)}")
+    return ModelConfig(blocks["board"], blocks["hydraulics"], blocks["gearbox"], struct,
+                       blocks["reduction"], gains, cal, registry, source)

@@ -10,7 +10,8 @@ torques (the structure's ``Tw_az``, ``Tw_el`` inputs, N*m)::
     C(theta) = C_front cos(theta) + C_side sin(theta)            (per axis: [C_az, C_el])
 
 ``u`` is the Davenport gust (:mod:`dss14_env.wind.gusts`), fully coherent over the dish (the
-report's assumption; literature.md Q3).  The moment coefficients ``C_front``, ``C_side`` come
+report's assumption; W. Gawronski, "Wind Gust Models Derived from Field Data", TDA PR 42-123,
+1995, notes that full coherence under-predicts the azimuth error in front wind).  The moment coefficients ``C_front``, ``C_side`` come
 from wind-tunnel pressure data that are not public, so :func:`calibrate_wind_loads` fixes
 them in code: the four numbers are solved so that the PI loop (gain set ``kp1``) gives the
 four 3-sigma encoder servo errors of Table 4 at 50 km/h.  Everything else (the U^2 and U
@@ -42,7 +43,7 @@ import control as ct
 import numpy as np
 from scipy import linalg, optimize, signal
 
-from dss14_env.core.schema import ConfigError, Param, default_config_path, load_block, read_yaml, spec
+from dss14_env.core.schema import ConfigError, Param, load_section, read_config, spec
 from dss14_env.core.units import rad_to_mdeg
 from dss14_env.model.assembly import DSS14Model, default_model
 from dss14_env.model.linsys import balance, discretize, noise_factor
@@ -58,22 +59,22 @@ ERROR_OUTPUTS = ("e_a", "e_e")  # servo errors at the encoders, az and el (posit
 class LoadConfig:
     """Physical constants of the wind loads (``configs/wind.yaml`` section ``loads``)."""
 
-    air_density: float = spec("kg/m^3")
-    dish_diameter: float = spec("m")
-    davenport_kappa: float = spec("1")
-    davenport_length: float = spec("m")
-    filter_order: int = spec("1", integer=True)
+    air_density: float = spec("kg/m^3", lo=0.0, lo_open=True)
+    dish_diameter: float = spec("m", lo=0.0, lo_open=True)
+    davenport_kappa: float = spec("1", lo=0.0, lo_open=True)
+    davenport_length: float = spec("m", lo=0.0, lo_open=True)
+    filter_order: int = spec("1", kind="integer", lo=1, hi=5)
 
 
 @dataclass(frozen=True)
 class Table4:
     """[R] Table 4 targets: 3-sigma encoder servo errors (rad) at ``speed`` (m/s)."""
 
-    speed: float = spec("m/s")
-    el_front: float = spec("rad")
-    el_side: float = spec("rad")
-    az_front: float = spec("rad")
-    az_side: float = spec("rad")
+    speed: float = spec("m/s", lo=0.0, lo_open=True)
+    el_front: float = spec("rad", lo=0.0, lo_open=True)
+    el_side: float = spec("rad", lo=0.0, lo_open=True)
+    az_front: float = spec("rad", lo=0.0, lo_open=True)
+    az_side: float = spec("rad", lo=0.0, lo_open=True)
 
 
 @dataclass(frozen=True)
@@ -87,19 +88,20 @@ class WindConfig:
 
 
 def load_wind_config(path: str | Path | None = None) -> WindConfig:
-    """Load and validate ``configs/wind.yaml`` (or ``path``).
+    """Load and validate ``configs/wind.yaml`` (or ``path``, or a shipped name).
 
-    :param path: YAML file, default the shipped ``configs/wind.yaml``
+    :param path: YAML file or shipped configuration name, default ``"wind"``
     :raises ConfigError: naming the field and the file
     """
-    path = Path(path) if path is not None else default_config_path("wind.yaml")
-    data = read_yaml(path)
+    data, source = read_config("wind" if path is None else path)
     registry: dict[str, Param] = {}
-    loads = load_block(LoadConfig, data.get("loads"), "loads", path, registry)
-    t4 = load_block(Table4, data.get("table4"), "table4", path, registry)
-    if not 1 <= loads.filter_order <= 5:
-        raise ConfigError(f"{path}: field 'loads.filter_order' must be 1..5")
-    return WindConfig(loads, t4, registry, str(path))
+    extra = set(data) - {"loads", "table4"}
+    if extra:
+        raise ConfigError(f"{source}: unknown section(s) {sorted(extra)}; known: ['loads', 'table4']")
+    kw = dict(documented=True, registry=registry, defaults=False)
+    loads = load_section(LoadConfig, data.get("loads"), source, "loads", **kw)
+    t4 = load_section(Table4, data.get("table4"), source, "table4", **kw)
+    return WindConfig(loads, t4, registry, source)
 
 
 def direction_angle(direction: str | float) -> float:
