@@ -375,6 +375,7 @@ def test_the_ppo_entry_loads_the_policy_on_the_env(monkeypatch, tmp_path) -> Non
     (165.2, [164.9, 165.5], "165.2 ± 0.3"),
     (0.5, [float("nan"), float("nan")], "0.500 (1 ep.)"),
     (9.88, [9.88, 9.88], "9.88 ± 0"),
+    (0.2000000000000002, [0.2, 0.20000000000000004], "0.20000 ± 0.00000"),
     (float("inf"), [float("inf"), float("inf")], "∞"),
 ])
 def test_values_are_shown_with_their_half_width(value, ci, text) -> None:

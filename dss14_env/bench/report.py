@@ -8,8 +8,9 @@ confidence interval as ``value ± half-width`` (:func:`fmt_ci`), ratios as ``val
 high]`` with ``n.s.`` where the interval contains 1.
 
 results.json keeps every episode's metrics (``episodes[controller][scenario][metric] = [one
-value per episode]``, :func:`episode_columns`; 7 significant digits), so every interval can be
-recomputed (:func:`episode_rows` turns them back into the runner's episode dicts).
+value per episode]``, or ``{"same": value}`` when every episode has the same value;
+:func:`episode_columns`; 6 significant digits), so every interval can be recomputed
+(:func:`episode_rows` turns them back into the runner's episode dicts).
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from dss14_env.bench.plan import LOADED_AXES, STEPS_PER_S, SWEEP_DIRECTIONS, SWEEP_WARMUP_S, BenchPlan
+from dss14_env.bench.runner import flatten
 from dss14_env.core.outdir import atomic_write_text
 from dss14_env.core.units import AXES
 
@@ -34,7 +36,7 @@ VERSIONED = ("numpy", "scipy", "gymnasium", "stable-baselines3", "torch", "cvxpy
 #: the files of a run besides the figures
 RESULT_FILES = ("results.json", "results.md")
 #: significant digits of the per-episode values in results.json
-EPISODE_DIGITS = 7
+EPISODE_DIGITS = 6
 
 
 # ------------------------------------------------------------------------------ results.json
@@ -59,14 +61,19 @@ def load_average() -> list[float] | None:
         return None
 
 
-def _flat(d: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+#: per-episode entries stored as one column per leaf (``servo_error_mdeg.az.three_sigma``);
+#: any other entry is one column of its own (e.g. ``fallback_log``, a list per episode)
+_NESTED = ("servo_error_mdeg", "pointing_error_mdeg", "rate_command_deg_s", "limit_hits",
+           "controller_time_ms", "step")
+
+
+def _flat(ep: Mapping[str, Any]) -> dict[str, Any]:
     out: dict[str, Any] = {}
-    for k, v in d.items():
-        path = f"{prefix}{k}"
-        if isinstance(v, Mapping):
-            out.update(_flat(v, path + "."))
+    for k, v in ep.items():
+        if k in _NESTED and isinstance(v, Mapping):
+            out.update(flatten(v, f"{k}."))
         else:
-            out[path] = v
+            out[k] = v
     return out
 
 
@@ -92,7 +99,12 @@ def episode_columns(episodes: Sequence[Mapping[str, Any]]) -> dict[str, dict[str
         keys: list[str] = []
         for f in flats:
             keys += [k for k in f if k not in keys]
-        out.setdefault(c, {})[s] = {k: [_round(f.get(k)) for f in flats] for k in keys}
+        cols: dict[str, Any] = {}
+        for k in keys:
+            vals = [_round(f.get(k)) for f in flats]
+            same = k != "seed" and len(vals) > 1 and all(json.dumps(v) == json.dumps(vals[0]) for v in vals)
+            cols[k] = {"same": vals[0]} if same else vals
+        out.setdefault(c, {})[s] = cols
     return out
 
 
@@ -106,13 +118,14 @@ def episode_rows(columns: Mapping[str, Mapping[str, Mapping[str, list]]]) -> lis
             for i in range(n):
                 ep: dict[str, Any] = {"controller": c, "scenario": s}
                 for path, vals in cols.items():
-                    if vals[i] is None and path.startswith("step."):
+                    v = vals["same"] if isinstance(vals, dict) else vals[i]
+                    if v is None and path.startswith("step."):
                         continue
                     d = ep
                     *head, last = path.split(".")
                     for h in head:
                         d = d.setdefault(h, {})
-                    d[last] = vals[i]
+                    d[last] = v
                 rows.append(ep)
     return rows
 
@@ -255,6 +268,8 @@ def fmt_ci(cell: Mapping[str, Any] | None, digits: int = 3) -> str:
     if hw <= 0:
         return f"{fmt(v, digits)} ± 0"
     d = _decimals(hw)
+    if v != 0:  # at most 5 significant digits of the value
+        d = min(d, max(0, 4 - math.floor(math.log10(abs(v)))))
     return f"{v:.{d}f} ± {hw:.{d}f}"
 
 
@@ -454,11 +469,14 @@ def fallback_lines(results: Mapping[str, Any]) -> list[str]:
     out = []
     for c, scens in results.get("episodes", {}).items():
         for s, cols in scens.items():
-            for i, n in enumerate(cols.get("fallbacks", [])):
+            def col(key: str, i: int, cols: Mapping[str, Any] = cols) -> Any:
+                v = cols.get(key)
+                return v["same"] if isinstance(v, dict) else (None if v is None else v[i])
+            for i in range(len(cols["seed"])):
+                n = col("fallbacks", i)
                 if not n:
                     continue
-                log = cols.get("fallback_log", [None] * len(cols["seed"]))[i]
-                st = cols.get("fallback_statuses", [None] * len(cols["seed"]))[i]
+                log, st = col("fallback_log", i), col("fallback_statuses", i)
                 if log:
                     detail = ", ".join(f"step {f['step']}: {f['status']}" for f in log[:10])
                     detail += ", ..." if len(log) > 10 else ""

@@ -65,6 +65,9 @@ def _merge(parts: list[dict[str, Any]]) -> dict[str, Any]:
                                 for p in parts for s in p["meta"]["scenarios"]}
     meta["batched"] = {c: any(p["meta"]["batched"].get(c, False) for p in parts) for c in meta["controllers"]}
     meta["wall_time_s"] = sum(p["meta"]["wall_time_s"] for p in parts)
+    meta["controller_wall_time_s"] = {
+        c: {s: t for p in parts for s, t in p["meta"]["controller_wall_time_s"][c].items()}
+        for c in meta["controllers"]}
     summary: dict[str, dict[str, Any]] = {c: {} for c in meta["controllers"]}
     for p in parts:
         for c, cells in p["summary"].items():

@@ -44,17 +44,18 @@ an oracle of the wind) is told the episode's wind from the reset info.
 
 **Summary per controller and scenario** (:func:`summarise`): every metric pooled over the
 episodes with a 95 % confidence interval, ``{"value", "ci95": [lo, hi], "n_episodes",
-"seconds", "median"}`` (``seconds``: the data behind it, warm-ups left out; ``median``: the
-median episode).  Spreads pool as root mean squares (the pooled 3σ of n equal episodes is
-``sqrt(mean(three_sigma_i ** 2))``), peaks, means, costs and overshoots as means, times as
-medians; the interval is the percentile bootstrap over episodes
-(:func:`dss14_env.core.stats.pooled_estimates`), all metrics of a cell resampled together from
-a generator seeded by the cell's name, so a rerun reproduces it.  Ratios (``three_sigma`` per
-axis): ``vs_reference``, over the reference controller (default the report's PI,
-``pi_kp1``) on the seeds both ran, resampling the pairs together; ``vs_yardstick``, over the
-yardstick's analytic expected 3σ (:func:`dss14_env.baselines.yardstick.expected_performance`)
-for scenarios with one fixed wind; each ``{"value", "ci95", "significant", ...}``, with
-``significant`` False when the interval contains 1.
+"seconds", "median", "min", "max"}`` (``seconds``: the data behind it, warm-ups left out;
+``median``, ``min``, ``max``: over the episodes, the spread of single episodes).  Spreads pool
+as root mean squares (the pooled 3σ of n equal episodes is ``sqrt(mean(three_sigma_i ** 2))``),
+peaks, means, costs and overshoots as means, times as medians; the interval is the percentile
+bootstrap over episodes (:func:`dss14_env.core.stats.pooled_estimates`), all metrics of a cell
+resampled together from a generator seeded by the cell's name (:func:`cell_rng`), so a rerun
+reproduces it.  Ratios (``three_sigma`` per axis): ``vs_reference``, over the reference
+controller (default the report's PI, ``pi_kp1``) on the seeds both ran, resampling the pairs
+together; ``vs_yardstick``, over the yardstick's analytic expected 3σ
+(:func:`dss14_env.baselines.yardstick.expected_performance`) for scenarios with one fixed wind;
+each ``{"value", "ci95", "significant", "n_episodes"}``, with ``significant`` False when the
+interval contains 1 (None without an interval).
 """
 
 from __future__ import annotations
@@ -492,8 +493,9 @@ def _columns(episodes: Sequence[Mapping[str, Any]]) -> tuple[dict[str, list[floa
 def _cell(est: stats.Estimate, values: Sequence[float], seconds: float) -> dict[str, Any]:
     v = np.asarray(values, float)
     v = v[~np.isnan(v)]
+    spread = (float(np.median(v)), float(np.min(v)), float(np.max(v))) if v.size else (math.nan,) * 3
     return {"value": est.value, "ci95": [est.low, est.high], "n_episodes": est.n,
-            "seconds": seconds, "median": float(np.median(v)) if v.size else math.nan}
+            "seconds": seconds, "median": spread[0], "min": spread[1], "max": spread[2]}
 
 
 def _nest(flat: Mapping[str, Any]) -> dict[str, Any]:
@@ -515,7 +517,7 @@ def summarise(episodes: Sequence[Mapping[str, Any]], rng: np.random.Generator | 
     :param episodes: :func:`episode_metrics` dicts (with ``seed``)
     :param rng: bootstrap generator, default seeded with 0
     :return: ``n_episodes``, ``seeds``, ``seconds``, the metrics as ``{"value", "ci95",
-        "n_episodes", "seconds", "median"}``, ``limit_hits`` (``rate``/``accel`` totals and
+        "n_episodes", "seconds", "median", "min", "max"}``, ``limit_hits`` (``rate``/``accel`` totals and
         ``per_episode``), ``fallbacks``, ``failures``, ``terminated`` (totals)
     """
     rng = np.random.default_rng(0) if rng is None else rng
@@ -649,20 +651,22 @@ def _statistics_meta(n_resamples: int, bootstrap_seed: int) -> dict[str, Any]:
 def _run_scenario(ctrls: list[tuple[str, Callable[[Any], Controller]]], sname: str, sc: Scenario,
                   seeds: list[int], n_seq: int, kw: dict[str, Any], n_steps: int, record: bool, batch: bool,
                   progress: Callable[[str, int], None] | None, reference: str | None, bootstrap_seed: int,
-                  n_resamples: int) -> tuple[list[dict[str, Any]], dict[str, Any], Any, dict[str, bool]]:
-    """Every controller on one scenario: its episodes, summary cells, yardstick reference and
-    which controllers ran batched."""
+                  n_resamples: int) -> tuple[list[dict[str, Any]], dict[str, Any], Any, dict[str, Any]]:
+    """Every controller on one scenario: its episodes, summary cells, yardstick reference and,
+    per controller, whether it ran batched and its wall time (s, building it included)."""
     envs = _ScenarioEnvs(kw, _make_env(kw), {})
     ref = yardstick_reference(sc, envs.single)
     by_ctrl: dict[str, list[dict[str, Any]]] = {}
     cells: dict[str, Any] = {}
-    flags: dict[str, bool] = {}
+    flags: dict[str, Any] = {}
     for cname, factory in ctrls:
+        t0 = time.perf_counter()
         def tick(eps: list[dict[str, Any]], c: str = cname) -> None:
             if progress is not None:
                 progress(_progress_line(c, sname, eps), len(eps))
-        eps, flags[cname] = _controller_episodes(factory(envs.single), envs, seeds, n_seq, n_steps,
-                                                 sc.warmup_s, record, batch, tick)
+        eps, batched = _controller_episodes(factory(envs.single), envs, seeds, n_seq, n_steps,
+                                            sc.warmup_s, record, batch, tick)
+        flags[cname] = (batched, time.perf_counter() - t0)
         for ep in eps:
             ep.update({"controller": cname, "scenario": sname})
         if eps:
@@ -718,13 +722,16 @@ def run(controllers: Iterable[Any], scenarios: Iterable[Any], seeds: Iterable[in
     summary: dict[str, dict[str, Any]] = {n: {} for n in names}
     yard: dict[str, Any] = {}
     batched: dict[str, bool] = {}
+    wall: dict[str, dict[str, float]] = {n: {} for n in names}
     t_start = time.perf_counter()
     for sname, sc in scens:
         eps, cells, ref, flags = _run_scenario(ctrls, sname, sc, seeds, n_seq, {**sc.env, **env_kwargs},
                                                int(steps or sc.steps), record, batch, progress, reference,
                                                bootstrap_seed, n_resamples)
         episodes += eps
-        batched.update(flags)
+        for cname, (b, t) in flags.items():
+            batched[cname] = b
+            wall[cname][sname] = t
         for cname, cell in cells.items():
             summary[cname][sname] = cell
         if ref is not None:
@@ -735,7 +742,7 @@ def run(controllers: Iterable[Any], scenarios: Iterable[Any], seeds: Iterable[in
             "env_kwargs": env_kwargs, "steps": {n: int(steps or sc.steps) for n, sc in scens},
             "warmup_s": {n: sc.warmup_s for n, sc in scens},
             "statistics": _statistics_meta(n_resamples, bootstrap_seed),
-            "wall_time_s": time.perf_counter() - t_start}
+            "wall_time_s": time.perf_counter() - t_start, "controller_wall_time_s": wall}
     traces = [ep.pop("trace", None) for ep in episodes]
     out = jsonable({"meta": meta, "episodes": episodes, "summary": summary, "yardstick": yard})
     for ep, tr in zip(out["episodes"], traces, strict=True):
