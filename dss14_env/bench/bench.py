@@ -66,7 +66,7 @@ def bench(plan: BenchPlan, progress: bool = True) -> dict[str, Any]:
         ``ran`` (:func:`dss14_env.bench.run.run_plan`'s output, with the time histories)
     """
     prepare_out(plan)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     load0 = load_average()
     with blas_threads(plan.threads) as bt:
         ran = run_plan(plan, progress=progress)
@@ -77,6 +77,8 @@ def bench(plan: BenchPlan, progress: bool = True) -> dict[str, Any]:
     figures = draw_figures(results, ran, plan.out) if plan.figures else []
     wall = time.perf_counter() - t0
     results["bench"]["wall_time_s"].update({"figures": time.perf_counter() - t1, "total": wall})
+    # CPU time of this process (all its threads): what the run costs on a quiet machine
+    results["bench"]["cpu_time_s"] = time.process_time() - c0
     results["bench"]["figures"] = figures
     pj, pm = write_results(results, plan.out)
     return {"results": results, "main_table": main_table(results),

@@ -1,0 +1,92 @@
+"""Do two bench runs agree within their confidence intervals?
+
+Compares every pooled figure with an interval (3σ, rms, peaks of the servo and pointing
+errors, command rates, limiter hits, step responses; not the wall-clock timings) of two
+results.json files of the same plan, e.g. a default run with 1 and one with 2 BLAS threads::
+
+    dss14 bench --threads 1 --out run1 && dss14 bench --threads 2 --out run2
+    python scripts/compare_bench_runs.py run1/results.json run2/results.json
+
+A figure agrees when each run's value lies inside the other run's 95 % interval.  Prints the
+number of figures compared, the largest difference in units of the intervals' half-widths,
+and every figure that does not agree; exits 1 if any does not.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+
+def figures(summary: dict[str, Any], prefix: str = "") -> Iterator[tuple[str, dict[str, Any]]]:
+    """Every ``{"value", "ci95", ...}`` cell of a summary, by its path (timings left out)."""
+    for k, v in summary.items():
+        if not isinstance(v, dict) or k in ("controller_time_ms", "vs_reference", "vs_yardstick"):
+            continue
+        if "value" in v and "ci95" in v:
+            yield prefix + k, v
+        else:
+            yield from figures(v, f"{prefix}{k}.")
+
+
+def _finite(*x: Any) -> bool:
+    return all(isinstance(v, (int, float)) and math.isfinite(v) for v in x)
+
+
+def compare(a: dict[str, Any], b: dict[str, Any]) -> dict[str, Any]:
+    """Agreement of the main summaries and the sweep summaries of two results."""
+    cells_a = dict(figures({"main": a["summary"], "sweep": (a.get("wind_sweep") or {}).get("summary", {})}))
+    cells_b = dict(figures({"main": b["summary"], "sweep": (b.get("wind_sweep") or {}).get("summary", {})}))
+    common = sorted(set(cells_a) & set(cells_b))
+    worst, bad, n, identical = 0.0, [], 0, 0
+    for path in common:
+        x, y = cells_a[path], cells_b[path]
+        (lo_a, hi_a), (lo_b, hi_b) = x["ci95"], y["ci95"]
+        if not _finite(x["value"], y["value"], lo_a, hi_a, lo_b, hi_b):
+            continue
+        n += 1
+        identical += x["value"] == y["value"]
+        ok = lo_a <= y["value"] <= hi_a and lo_b <= x["value"] <= hi_b
+        hw = 0.5 * max(hi_a - lo_a, hi_b - lo_b)
+        r = abs(x["value"] - y["value"]) / hw if hw > 0 else (0.0 if x["value"] == y["value"] else math.inf)
+        worst = max(worst, r)
+        if not ok:
+            bad.append((path, x["value"], x["ci95"], y["value"], y["ci95"]))
+    return {"compared": n, "identical": identical, "worst_in_half_widths": worst, "disagree": bad,
+            "only_in_one": sorted(set(cells_a) ^ set(cells_b))}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("a", help="results.json of the first run")
+    ap.add_argument("b", help="results.json of the second run")
+    args = ap.parse_args(argv)
+    a, b = (json.loads(Path(p).read_text()) for p in (args.a, args.b))
+    keys = ("controllers", "runs", "sweep", "wind_speeds_kmh", "env_kwargs")
+    differ = [k for k in keys if a["bench"]["config"].get(k) != b["bench"]["config"].get(k)]
+    if differ:
+        print(f"compare_bench_runs: the two runs have different plans ({', '.join(differ)}): "
+              f"nothing to compare", file=sys.stderr)
+        return 2
+    res = compare(a, b)
+    for name, r in (("a", a), ("b", b)):
+        bt = r["bench"].get("blas_threads", {})
+        print(f"{name}: {getattr(args, name)}: BLAS threads {bt.get('threads')}, "
+              f"{r['bench']['machine']['platform']}, wall time {r['bench']['wall_time_s']['total']:.0f} s")
+    print(f"{res['compared']} figures compared ({res['identical']} identical); largest difference "
+          f"{res['worst_in_half_widths']:.3f} half-widths of the 95 % interval; "
+          f"{len(res['disagree'])} outside the other run's interval")
+    for path, va, ca, vb, cb in res["disagree"]:
+        print(f"  {path}: {va:.6g} {ca} vs {vb:.6g} {cb}")
+    if res["only_in_one"]:
+        print(f"  in one run only: {', '.join(res['only_in_one'][:10])}")
+    return 1 if res["disagree"] else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
