@@ -103,7 +103,7 @@ def main(argv: list[str] | None = None) -> int:
                    "0..N-1; several: those seeds (default: each scenario's count, e.g. 128 for hold)")
     p.add_argument("--sequential-episodes", type=int, default=None, metavar="M",
                    help="episodes of the controllers that run one at a time (MPC): the first M seeds "
-                   "of every scenario and sweep point (default: each scenario's, e.g. 10 for hold)")
+                   "of every scenario and sweep point (default: each scenario's, e.g. 16 for hold)")
     p.add_argument("--controllers", nargs="+", metavar="NAME", default=None,
                    help="pi_kp1 pi_kp0.7 lqg mpc ppo yardstick (default: all but yardstick)")
     p.add_argument("--scenarios", nargs="+", metavar="NAME", default=None,
@@ -112,7 +112,7 @@ def main(argv: list[str] | None = None) -> int:
                    help="speeds of the error-vs-wind sweep, km/h (default: 30 40 50 60 70)")
     p.add_argument("--no-sweep", action="store_true", help="skip the error-vs-wind sweep")
     p.add_argument("--sweep-seeds", type=int, default=None, metavar="N",
-                   help="episodes per sweep point of the batched controllers (default 64)")
+                   help="episodes per sweep point of the batched controllers (default 32)")
     p.add_argument("--steps", type=int, default=None,
                    help="episode length of every scenario and sweep point, control periods "
                    "(default: the scenario's; 50 per second)")

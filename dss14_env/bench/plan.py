@@ -48,15 +48,15 @@ class Budget:
 #: loaded axis' 3σ for the batched controllers (60-s episodes scatter about 15 % (1 σ) from
 #: seed to seed, so 128 of them give about 2-3 %); the MPC gets what fits the 5-minute budget
 DEFAULT_BUDGETS: dict[str, Budget] = {
-    "hold_front": Budget(60.0, 128, 10),
-    "hold_side": Budget(60.0, 128, 10),
+    "hold_front": Budget(60.0, 128, 16),
+    "hold_side": Budget(60.0, 128, 16),
     "step": Budget(20.0, 16, 2),      # no wind: episodes differ only in start and quantisation
     "track": Budget(40.0, 128, 6),    # random 30-70 km/h wind and direction: wide by design
     "slew": Budget(50.0, 32, 3),      # the commanded move dominates
 }
 #: a point of the error-vs-wind sweep (the MPC is left out: the 50 km/h points are the hold
 #: scenarios, where it runs)
-DEFAULT_SWEEP = Budget(60.0, 64, 0)
+DEFAULT_SWEEP = Budget(60.0, 32, 0)
 #: ``--quick``: the CI smoke test (well under 30 s)
 QUICK_BUDGETS: dict[str, Budget] = {
     "hold_front": Budget(15.0, 8, 1),

@@ -71,7 +71,7 @@ import numpy as np
 
 from dss14_env.baselines.base import Controller
 from dss14_env.core import stats
-from dss14_env.core.units import AXES
+from dss14_env.core.units import AXES, KMH
 from dss14_env.envs.presets import PRESETS
 
 #: pointing-error axes (elevation and cross-elevation)
@@ -582,9 +582,8 @@ def yardstick_reference(scenario: Scenario, env: Any) -> dict[str, Any] | None:
     speed, direction = kw.get("wind_speed_kmh"), kw.get("wind_direction")
     if not isinstance(speed, (int, float)) or speed <= 0 or direction in (None, "random"):
         return None
-    from dss14_env.baselines.lqg import EnvSpec
     from dss14_env.baselines.yardstick import expected_performance
-    return expected_performance(EnvSpec.from_env(env), speed / 3.6, direction)
+    return expected_performance(env, speed * KMH, direction)
 
 
 def _chunks(seeds: Sequence[int], steps: int) -> list[list[int]]:
