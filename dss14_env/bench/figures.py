@@ -109,6 +109,7 @@ def plot_error_bars(results: Mapping[str, Any], path: Path) -> bool:
                 if ref is not None:
                     axp.hlines(ref["three_sigma_mdeg"][row], j - 0.45, j + 0.45, colors="k",
                                linestyles="--", lw=1.3, label="yardstick (analytic)" if first else None)
+                    shown.append(float(ref["three_sigma_mdeg"][row]))
                     first = False
             log_axis(axp)
             if shown:

@@ -60,6 +60,7 @@ interval contains 1 (None without an interval).
 
 from __future__ import annotations
 
+import importlib
 import math
 import time
 import zlib
@@ -117,14 +118,24 @@ def _pi(gains: str) -> Callable[[Any], Controller]:
     def make(env: Any) -> Controller:
         from dss14_env.baselines.pi import PIController
         return PIController(env, gains)
+    make.controller_class = ("dss14_env.baselines.pi", "PIController")  # type: ignore[attr-defined]
     return make
 
 
 def _lazy(module: str, cls: str) -> Callable[[Any], Controller]:
     def make(env: Any) -> Controller:
-        import importlib
         return getattr(importlib.import_module(module), cls)(env)
+    make.controller_class = (module, cls)  # type: ignore[attr-defined]
     return make
+
+
+def known_unbatchable(factory: Callable[[Any], Controller]) -> bool:
+    """True when the factory's controller class is known and not batchable (then a scenario
+    that gives such controllers no episodes need not build it)."""
+    where = getattr(factory, "controller_class", None)
+    if where is None:
+        return False
+    return not getattr(getattr(importlib.import_module(where[0]), where[1]), "batchable", False)
 
 
 #: controller factories by name (each gets the environment)
@@ -660,6 +671,9 @@ def _run_scenario(ctrls: list[tuple[str, Callable[[Any], Controller]]], sname: s
     flags: dict[str, Any] = {}
     for cname, factory in ctrls:
         t0 = time.perf_counter()
+        if n_seq == 0 and known_unbatchable(factory):
+            flags[cname] = (False, 0.0)
+            continue
         def tick(eps: list[dict[str, Any]], c: str = cname) -> None:
             if progress is not None:
                 progress(_progress_line(c, sname, eps), len(eps))
