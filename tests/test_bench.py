@@ -452,7 +452,7 @@ def test_two_runs_are_compared_within_their_intervals(tiny, tmp_path) -> None:
     b = tmp_path / "b.json"
     b.write_text(json.dumps(js))
     moved = _script("compare_bench_runs.py", str(a), str(b))
-    assert moved.returncode == 1 and "pi_kp1.hold_side.servo_error_mdeg.az.three_sigma" in moved.stdout
+    assert moved.returncode == 1 and "main/pi_kp1/hold_side/servo_error_mdeg/az/three_sigma" in moved.stdout
     js["bench"]["config"]["runs"]["step"]["steps"] = 10
     b.write_text(json.dumps(js))
     assert _script("compare_bench_runs.py", str(a), str(b)).returncode == 2

@@ -567,8 +567,8 @@ def results_markdown(results: Mapping[str, Any]) -> str:
 
 
 def readme_table(results: Mapping[str, Any]) -> str:
-    """The README's bench section table: the main table and the ratios of a default run,
-    with a line on how it was run."""
+    """The README's bench section tables: the main table, the ratios and the step response of
+    a default run, with a line on how it was run."""
     b = results["bench"]
     cfg = b["config"]
     hold = cfg["runs"].get("hold_front") or next(iter(cfg["runs"].values()))
@@ -584,6 +584,9 @@ def readme_table(results: Mapping[str, Any]) -> str:
     if rt:
         parts += ["Ratios of the loaded axis' 3σ with their 95 % CI (n.s.: not significant, the "
                   "interval contains 1):", "", rt, ""]
+    st = step_table(results)
+    if st:
+        parts += ["The 0.1° step (Fig. 21 scenario), 95 % CI:", "", st, ""]
     return "\n".join(parts)
 
 
