@@ -529,19 +529,26 @@ LEGEND = """\
 """
 
 
+def _timing(b: Mapping[str, Any]) -> str:
+    """``Wall time 120 s (CPU 110 s) on 2 cores, load average 1.2 at the start``."""
+    cpu = b.get("cpu_time_s")
+    load = b["machine"].get("load_average_start")
+    return (f"Wall time {b['wall_time_s']['total']:.0f} s"
+            + (f" (CPU {cpu:.0f} s)" if cpu is not None else "")
+            + f" on {b['machine']['cpu_count']} cores"
+            + (f", load average {load[0]:.1f} at the start" if load else ""))
+
+
 def results_markdown(results: Mapping[str, Any]) -> str:
     """results.md: the main table, ratios, precision, details, the sweep and the legend."""
     b, m = results["bench"], results["meta"]
     cfg = b["config"]
     runs = "; ".join(f"{s} {r['seconds']:g} s × {len(r['seeds'])} (one at a time: "
                      f"{len(r['sequential_seeds'])})" for s, r in cfg["runs"].items())
-    load = b["machine"].get("load_average_start")
     parts = ["# DSS-14 controller benchmark", "",
              f"Controllers: {', '.join(m['controllers'])}. Episodes per scenario: {runs}. "
              f"Plant: {'randomised' if cfg['env_kwargs'] else 'nominal'}. "
-             f"{'--quick. ' if cfg['quick'] else ''}Wall time {b['wall_time_s']['total']:.0f} s "
-             f"on {b['machine']['cpu_count']} cores"
-             + (f" (load average {load[0]:.1f} at the start)" if load else "") + ".", ""]
+             f"{'--quick. ' if cfg['quick'] else ''}{_timing(b)}.", ""]
     if b["notes"]:
         parts += [f"Note: {n}" for n in b["notes"]] + [""]
     parts += ["## 3σ servo error (mdeg), az / el, 95 % confidence intervals", "", main_table(results), ""]
@@ -572,13 +579,11 @@ def readme_table(results: Mapping[str, Any]) -> str:
     b = results["bench"]
     cfg = b["config"]
     hold = cfg["runs"].get("hold_front") or next(iter(cfg["runs"].values()))
-    load = b["machine"].get("load_average_start")
     head = (f"The default run (`dss14 bench`; `docs/results/bench_default.json`): 3σ servo error in "
             f"mdeg, `az / el`, **value ± 95 % CI half-width** (bootstrap over episodes), the loaded "
             f"axis in bold; the batched controllers ran {len(hold['seeds'])} episodes of "
             f"{hold['seconds']:g} s per hold scenario, the MPC {len(hold['sequential_seeds'])}. "
-            f"Wall time {b['wall_time_s']['total']:.0f} s on {b['machine']['cpu_count']} cores"
-            + (f" (load average {load[0]:.1f})" if load else "") + ".")
+            f"{_timing(b)}.")
     parts = [head, "", main_table(results), ""]
     rt = ratio_table(results)
     if rt:
