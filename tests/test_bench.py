@@ -25,7 +25,7 @@ from dss14_env.bench.threads import blas_threads
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_RESULTS = ROOT / "docs" / "results" / "bench_default.json"
-CTRLS = ["pi_kp1", "pi_kp0.7", "lqg"]
+CTRLS = ["pi_kp1", "pi_kp0.7", "lqg", "mpc"]
 SCENS = ["hold_side", "step"]
 STEPS = 300
 SEEDS = 4
@@ -232,7 +232,9 @@ def test_every_figure_carries_its_interval(tiny) -> None:
         assert set(cell) >= {"value", "ci95", "n_episodes", "seconds"}
         lo, hi = cell["ci95"]
         assert lo < cell["value"] < hi
-        n = SEEDS if c.startswith("pi") else SEQ  # the LQG without the batch interface: first seeds
+        batched = tiny["json"]["meta"]["batched"][c]
+        assert batched == (c != "mpc")
+        n = SEEDS if batched else SEQ  # the MPC, one at a time: the first seeds
         assert cell["n_episodes"] == n and cell["seconds"] == pytest.approx(n * (STEPS / 50 - 5.0))
         assert s[c]["step"]["step"]["az"]["overshoot_pct"]["ci95"][0] <= \
             s[c]["step"]["step"]["az"]["overshoot_pct"]["value"]
@@ -244,7 +246,7 @@ def test_every_figure_carries_its_interval(tiny) -> None:
 def test_intervals_recomputed_from_the_stored_episodes(tiny) -> None:
     js = tiny["json"]
     rows = R.episode_rows(js["episodes"])
-    assert len(rows) == 2 * 2 * SEEDS + 2 * SEQ and all("trace" not in ep for ep in rows)
+    assert len(rows) == 3 * 2 * SEEDS + 2 * SEQ and all("trace" not in ep for ep in rows)
     for c in CTRLS:
         for s in SCENS:
             eps = [ep for ep in rows if ep["controller"] == c and ep["scenario"] == s]

@@ -262,10 +262,10 @@ class _Batched:
         self.ctrl = ctrl
 
     def reset(self, seeds: Sequence[int], info: Mapping[str, Any]) -> None:
-        if hasattr(self.ctrl, "set_scenario_batch"):
+        self.ctrl.reset_batch(len(seeds), seeds=[int(s) for s in seeds])
+        if hasattr(self.ctrl, "set_scenario_batch"):  # after reset_batch: one wind per row
             self.ctrl.set_scenario_batch(np.asarray(info["wind_speed_mps"], float),
                                          np.asarray(info["wind_direction_rad"], float))
-        self.ctrl.reset_batch(len(seeds), seeds=[int(s) for s in seeds])
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         return self.ctrl.act_batch(obs)
@@ -286,29 +286,10 @@ class _Batched:
         return rows
 
 
-class _ArrayPI(_Batched):
-    """The report's PI before the batch interface: its ``act`` takes ``(N, 12)`` and it has
-    ``restart(mask)``."""
-
-    def reset(self, seeds: Sequence[int], info: Mapping[str, Any]) -> None:
-        self.ctrl.reset()
-
-    def act(self, obs: np.ndarray) -> np.ndarray:
-        return self.ctrl.act(obs)
-
-    def row_info(self, n: int) -> list[dict[str, Any]]:
-        return [{} for _ in range(n)]
-
-
 def batch_driver(ctrl: Controller) -> _Batched | None:
-    """How the runner drives ``ctrl`` on the vector environment, or None: one episode at a time."""
-    if getattr(ctrl, "batchable", False):
-        return _Batched(ctrl)
-    from dss14_env.baselines.pi import PIController
-
-    if isinstance(ctrl, PIController) and hasattr(ctrl, "restart"):
-        return _ArrayPI(ctrl)
-    return None
+    """How the runner drives ``ctrl`` on the vector environment (its ``batchable`` interface),
+    or None: one episode at a time."""
+    return _Batched(ctrl) if getattr(ctrl, "batchable", False) else None
 
 
 # ------------------------------------------------------------------------- running
