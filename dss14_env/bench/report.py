@@ -193,30 +193,37 @@ def assemble_results(plan: BenchPlan, ran: Mapping[str, Any], wall_time_s: float
     }
 
 
-def results_json(results: Mapping[str, Any]) -> str:
-    """results.json's text: indented, except the per-episode columns, one line per
-    controller and scenario."""
-    def compact(eps: Mapping[str, Any], indent: str) -> str:
-        if not eps:
-            return "{}"
-        lines = []
-        for c, scens in eps.items():
-            inner = ",\n".join(f'{indent}  {json.dumps(s)}: {json.dumps(cols, separators=(",", ":"))}'
-                               for s, cols in scens.items())
-            lines.append(f"{indent} {json.dumps(c)}: {{\n{inner}\n{indent} }}")
-        return "{\n" + ",\n".join(lines) + f"\n{indent}}}"
+def _is_leafy(x: Any) -> bool:
+    """A dict or list with no dict or list inside but short lists of numbers: one line."""
+    vals = x.values() if isinstance(x, dict) else x
+    return all(not isinstance(v, (dict, list)) or (isinstance(v, list) and len(v) <= 4 and
+                                                   all(not isinstance(u, (dict, list)) for u in v))
+               for v in vals)
 
-    head = dict(results)
-    marks = {}
-    head["episodes"] = "@@EPISODES@@"
-    marks['"@@EPISODES@@"'] = compact(results.get("episodes", {}), "")
-    if results.get("wind_sweep"):
-        head["wind_sweep"] = {**results["wind_sweep"], "episodes": "@@SWEEP_EPISODES@@"}
-        marks['"@@SWEEP_EPISODES@@"'] = compact(results["wind_sweep"].get("episodes", {}), " ")
-    text = json.dumps(head, indent=1)
-    for k, v in marks.items():
-        text = text.replace(k, v, 1)
-    return text + "\n"
+
+def _dumps(x: Any, indent: str = "") -> str:
+    """JSON with one line per innermost dict (e.g. a figure with its interval) or per
+    controller x scenario of per-episode columns."""
+    if isinstance(x, dict) and x and not _is_leafy(x) and not _is_columns(x):
+        inner = indent + " "
+        items = ",\n".join(f"{inner}{json.dumps(str(k))}: {_dumps(v, inner)}" for k, v in x.items())
+        return "{\n" + items + "\n" + indent + "}"
+    if isinstance(x, list) and x and any(isinstance(v, (dict, list)) for v in x) and not _is_leafy(x):
+        inner = indent + " "
+        return "[\n" + ",\n".join(inner + _dumps(v, inner) for v in x) + "\n" + indent + "]"
+    compact = isinstance(x, dict) and _is_columns(x)
+    return json.dumps(x, separators=(",", ":") if compact else (", ", ": "))
+
+
+def _is_columns(x: dict) -> bool:
+    """Per-episode columns of one controller and scenario (they have a ``seed`` list)."""
+    return isinstance(x.get("seed"), list)
+
+
+def results_json(results: Mapping[str, Any]) -> str:
+    """results.json's text: indented down to one line per figure (value, interval, episodes)
+    and one line per controller and scenario of per-episode columns."""
+    return _dumps(dict(results)) + "\n"
 
 
 # ------------------------------------------------------------------------------ numbers
