@@ -419,11 +419,16 @@ def test_readme_table_is_generated_from_the_committed_default_results() -> None:
 def test_committed_results_are_a_default_run() -> None:
     results = json.loads(DEFAULT_RESULTS.read_text())
     cfg = results["bench"]["config"]
-    assert not cfg["quick"] and cfg["env_kwargs"] == {} and results["bench"]["command"] == "dss14 bench"
+    assert not cfg["quick"] and cfg["env_kwargs"] == {} and cfg["threads"] == 1
+    assert results["bench"]["command"].startswith("dss14 bench")
     for s, b in P.DEFAULT_BUDGETS.items():
         assert cfg["runs"][s]["seeds"] == list(range(b.episodes)), s
         assert cfg["runs"][s]["steps"] == round(50 * b.seconds), s
     assert results["meta"]["controllers"] == list(P.DEFAULT_CONTROLLERS)
+    assert cfg["sweep"]["seeds"] == list(range(P.DEFAULT_SWEEP.episodes))
+    assert cfg["wind_speeds_kmh"] == list(P.DEFAULT_WIND_SPEEDS_KMH)
+    # every controller but the MPC acted on batches
+    assert results["meta"]["batched"] == {c: c != "mpc" for c in P.DEFAULT_CONTROLLERS}
 
 
 def test_readme_script_checks_and_writes(tmp_path) -> None:
