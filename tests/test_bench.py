@@ -433,14 +433,14 @@ def test_committed_results_are_a_default_run() -> None:
 
 def test_readme_script_checks_and_writes(tmp_path) -> None:
     readme = tmp_path / "README.md"
-    readme.write_text("intro\n<!-- bench-table:start -->\nold\n<!-- bench-table:end -->\nrest\n")
+    readme.write_text("intro\n<!-- bench-table:start -->\nSTALE-TABLE\n<!-- bench-table:end -->\nrest\n")
     script = ROOT / "scripts" / "readme_tables.py"
     cmd = [sys.executable, str(script), "--readme", str(readme), "--results", str(DEFAULT_RESULTS)]
     assert subprocess.run(cmd + ["--check"], capture_output=True).returncode == 1
     assert subprocess.run(cmd, capture_output=True).returncode == 0
     assert subprocess.run(cmd + ["--check"], capture_output=True).returncode == 0
     text = readme.read_text()
-    assert text.startswith("intro\n") and text.endswith("rest\n") and "old" not in text
+    assert text.startswith("intro\n") and text.endswith("rest\n") and "STALE-TABLE" not in text
 
 
 # ------------------------------------------------------------------ the scripts
