@@ -81,7 +81,8 @@ POINTING_AXES = ("el", "xel")
 LEVEL = stats.LEVEL
 #: bootstrap resamples per summary cell
 N_RESAMPLES = stats.N_RESAMPLES
-#: the most rows of one vector environment (longer lists of seeds run in chunks)
+#: the most rows x steps one vector environment records at once (the time histories of a batch
+#: are kept until its metrics are computed); longer lists of seeds run in chunks
 MAX_ROW_STEPS = 1_000_000
 #: the controller every other is divided by in ``vs_reference``
 REFERENCE = "pi_kp1"
