@@ -148,7 +148,8 @@ def main(argv: list[str] | None = None) -> int:
                    help="episode length of every scenario and sweep point, control periods "
                    "(default: the scenario's; 50 per second)")
     p.add_argument("--ppo-model", default=None, metavar="PATH",
-                   help="PPO run folder, eval/best folder or zip (default: the shipped policy)")
+                   help="trained policy folder (run folder, eval/best or a checkpoint folder; "
+                   "default: the shipped policy)")
     p.add_argument("--randomize", action="store_true",
                    help="randomised plant parameters every episode (randomize_params=True)")
     p.add_argument("--threads", type=int, default=1, metavar="N",
