@@ -291,21 +291,12 @@ def _count(value: Any, option: str, low: int, what: str) -> int | None:
 
 
 def ppo_problem(path: str | Path | None) -> str | None:
-    """Why the PPO policy at ``path`` (None: the shipped one) cannot be loaded, or None.
+    """Why the PPO policy at ``path`` (None: the shipped one) cannot be loaded, or None
+    (:func:`dss14_env.agents.policy.policy_problem`: the folder's layout, and a foreign pickled
+    policy refused; nothing is loaded)."""
+    from dss14_env.agents.policy import DEFAULT_POLICY, policy_problem
 
-    Uses the agents' own check (``dss14_env.agents.policy.policy_problem``) where it exists;
-    otherwise only that the path exists.
-    """
-    from dss14_env.agents import policy
-
-    target = policy.DEFAULT_POLICY if path is None else Path(path)
-    check = getattr(policy, "policy_problem", None)
-    if check is not None:
-        return check(target)
-    p = Path(target)
-    if not (p.exists() or p.with_suffix(".zip").is_file()):
-        return f"no PPO policy at {p}"
-    return None
+    return policy_problem(DEFAULT_POLICY if path is None else Path(path))
 
 
 def _run_for(budget: Budget, seeds: list[int] | None, steps: int | None, sequential: int | None,
