@@ -202,11 +202,35 @@ def main(argv: list[str] | None = None) -> int:
     _add_campaign_parser(sub)
     args = parser.parse_args(argv)
     args.argv = list(argv) if argv is not None else sys.argv[1:]
+    return run_command(args)
+
+
+def run_command(args: argparse.Namespace) -> int:
+    """Run a parsed subcommand; every expected failure becomes one line on stderr.
+
+    Bad input (configuration, options, files) and operating-system errors (a folder that cannot
+    be written, a full disk) exit with status 2, an interruption (Ctrl-C) with 130; a bug still
+    shows its traceback.
+    """
     try:
         return args.func(args)
-    except (ValueError, KeyError, RuntimeError) as exc:  # config errors etc.: one clear line
-        print(f"dss14 {args.command}: error: {exc}", file=sys.stderr)
+    except (ValueError, KeyError, RuntimeError, OSError) as exc:
+        print(f"dss14 {args.command}: error: {_one_line(exc)}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f"dss14 {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+def _one_line(exc: BaseException) -> str:
+    """The exception's message on one line (an OSError names its file)."""
+    if isinstance(exc, OSError) and exc.filename is not None:
+        msg = f"{exc.filename}: {exc.strerror or exc}"
+    elif isinstance(exc, KeyError) and exc.args:
+        msg = str(exc.args[0])
+    else:
+        msg = str(exc) or type(exc).__name__
+    return " ".join(msg.split())
 
 
 if __name__ == "__main__":
