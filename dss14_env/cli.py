@@ -78,7 +78,7 @@ def _campaign(args: argparse.Namespace) -> int:
 
     from dss14_env.bench import campaign as C
     from dss14_env.bench.campaign_report import parse_requirements
-    from dss14_env.core.parallel import make_executor, require_ray
+    from dss14_env.core.parallel import check_ray_options, make_executor, require_ray
 
     given = {k: v for k, v in (("controllers", args.controllers), ("plants", args.plants),
                                ("first_plant", args.first_plant), ("steps", args.steps),
@@ -88,8 +88,9 @@ def _campaign(args: argparse.Namespace) -> int:
     spec = C.CampaignSpec(**given)
     reqs = parse_requirements(args.requirements)
     use_ray = args.ray or args.address is not None or args.num_cpus is not None
-    if use_ray:
-        require_ray()  # before any work: without Ray, say how to install it
+    if use_ray:  # before any work: bad Ray options, or no Ray (then how to install it)
+        check_ray_options(args.address, args.num_cpus)
+        require_ray()
 
     def executor():
         return make_executor(use_ray, address=args.address, num_cpus=args.num_cpus)
@@ -114,8 +115,6 @@ def _campaign(args: argparse.Namespace) -> int:
 
 
 def _add_campaign_parser(sub: Any) -> None:
-    from dss14_env.bench.campaign import KNOWN_CONTROLLERS
-
     p = sub.add_parser("campaign", help="robustness campaign: controllers over plants drawn from "
                        "the report's parameter ranges, in chunks, in-process or on Ray",
                        description="N plants drawn from the report's hydraulic parameter ranges "
@@ -126,7 +125,7 @@ def _add_campaign_parser(sub: Any) -> None:
     p.add_argument("--first-plant", type=int, default=None, metavar="K",
                    help="index of the first plant (default 0): plants K .. K+N-1")
     p.add_argument("--controllers", nargs="+", metavar="NAME", default=None,
-                   help=f"{' '.join(KNOWN_CONTROLLERS)} (default: pi_kp1 lqg mpc)")
+                   help="pi_kp1 pi_kp0.7 lqg mpc yardstick ppo (default: pi_kp1 lqg mpc)")
     p.add_argument("--ppo-model", default=None, metavar="PATH",
                    help="the ppo controller's policy (default: the shipped one)")
     p.add_argument("--wind-speeds", nargs="+", metavar="KMH", default=None,

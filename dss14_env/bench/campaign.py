@@ -70,8 +70,6 @@ DEFAULT_DIRECTIONS = ("front", "side")
 DEFAULT_STEPS = 1500
 WARMUP_S = 5.0
 DEFAULT_CHUNK_SIZE = 5
-#: the controllers a campaign knows: the runner's and the learned policy
-KNOWN_CONTROLLERS = (*runner.CONTROLLERS, "ppo")
 #: files and folders a campaign writes into its output folder
 OWNED = ("campaign.json", "chunks", "results.json", "results.md", "cdf_*.png")
 #: version of the chunk and campaign file layout
@@ -80,6 +78,11 @@ FORMAT = 1
 
 class CampaignOptionError(ValueError):
     """A bad campaign option; the message starts with the option's name."""
+
+
+def known_controllers() -> tuple[str, ...]:
+    """The controllers a campaign knows: :data:`dss14_env.bench.runner.CONTROLLERS` and ``ppo``."""
+    return (*runner.CONTROLLERS, "ppo")
 
 
 # ---------------------------------------------------------------------------- plants
@@ -132,7 +135,7 @@ class Condition:
 class CampaignSpec:
     """Everything that determines a campaign's episodes (its chunks depend on nothing else).
 
-    :param controllers: names of :data:`KNOWN_CONTROLLERS`
+    :param controllers: names of :func:`known_controllers`
     :param plants: number of plants
     :param first_plant: index of the first plant (plants ``first_plant`` ... ``+ plants - 1``)
     :param wind_speeds_kmh: mean wind speeds, km/h
@@ -212,12 +215,13 @@ def _positive_int(v: Any, option: str, lo: int = 1) -> int:
 def _check_controllers(names: Sequence[str]) -> None:
     if not names:
         raise CampaignOptionError("--controllers: give at least one controller")
+    known = known_controllers()
     for n in names:
-        if n not in KNOWN_CONTROLLERS:
-            near = difflib.get_close_matches(str(n), KNOWN_CONTROLLERS, n=1)
+        if n not in known:
+            near = difflib.get_close_matches(str(n), known, n=1)
             hint = f" (did you mean {near[0]!r}?)" if near else ""
             raise CampaignOptionError(f"--controllers: unknown controller {n!r}{hint}; known: "
-                                      f"{', '.join(KNOWN_CONTROLLERS)}")
+                                      f"{', '.join(known)}")
     dup = sorted({n for n in names if list(names).count(n) > 1})
     if dup:
         raise CampaignOptionError(f"--controllers: controller named twice: {', '.join(dup)}")
@@ -540,6 +544,6 @@ def run_campaign(spec: CampaignSpec, out: str | os.PathLike = "campaign_out",
 
 __all__ = ["DEFAULT_CONTROLLERS", "DEFAULT_DIRECTIONS", "DEFAULT_PLANTS", "DEFAULT_STEPS",
            "DEFAULT_WIND_SPEEDS_KMH", "CampaignFileError", "CampaignOptionError", "CampaignSpec",
-           "Condition", "chunk_path", "episode_seed", "finished_chunks", "load_chunk", "open_campaign",
-           "parse_directions", "parse_wind_speeds", "plant_params", "read_campaign", "run_campaign",
-           "run_chunk", "run_chunks", "spec_differences"]
+           "Condition", "chunk_path", "episode_seed", "finished_chunks", "known_controllers", "load_chunk",
+           "open_campaign", "parse_directions", "parse_wind_speeds", "plant_params", "read_campaign",
+           "run_campaign", "run_chunk", "run_chunks", "spec_differences"]

@@ -32,7 +32,6 @@ A task that raises stops the run: the executor cancels what has not started and 
 
 from __future__ import annotations
 
-import os
 import sys
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from typing import Any, Protocol
@@ -180,6 +179,23 @@ class SerialExecutor:
         self.close()
 
 
+def check_ray_options(address: str | None = None, num_cpus: int | None = None,
+                      cpus_per_task: int = 1) -> None:
+    """Check the options of a :class:`RayExecutor` without starting anything.
+
+    :raises ValueError: naming the bad option
+    """
+    if address is not None and (not isinstance(address, str) or not address.strip()):
+        raise ValueError(f"--address: must be 'auto' or a Ray cluster address, got {address!r}")
+    if num_cpus is not None:
+        if isinstance(num_cpus, bool) or not isinstance(num_cpus, int) or num_cpus < 1:
+            raise ValueError(f"--num-cpus: must be an integer >= 1, got {num_cpus!r}")
+        if address is not None:
+            raise ValueError("--num-cpus: sizes a local Ray; a cluster (--address) has its own CPUs")
+    if isinstance(cpus_per_task, bool) or not isinstance(cpus_per_task, int) or cpus_per_task < 1:
+        raise ValueError(f"cpus_per_task: must be an integer >= 1, got {cpus_per_task!r}")
+
+
 class RayExecutor:
     """Every item as a Ray task, ``cpus_per_task`` CPUs each.
 
@@ -205,15 +221,7 @@ class RayExecutor:
 
     def __init__(self, address: str | None = None, num_cpus: int | None = None, cpus_per_task: int = 1,
                  threads: int | None = None, torch: bool | None = None) -> None:
-        if address is not None and (not isinstance(address, str) or not address.strip()):
-            raise ValueError(f"--address: must be 'auto' or a Ray cluster address, got {address!r}")
-        if num_cpus is not None:
-            if isinstance(num_cpus, bool) or not isinstance(num_cpus, int) or num_cpus < 1:
-                raise ValueError(f"--num-cpus: must be an integer >= 1, got {num_cpus!r}")
-            if address is not None:
-                raise ValueError("--num-cpus: sizes a local Ray; a cluster (--address) has its own CPUs")
-        if isinstance(cpus_per_task, bool) or not isinstance(cpus_per_task, int) or cpus_per_task < 1:
-            raise ValueError(f"cpus_per_task: must be an integer >= 1, got {cpus_per_task!r}")
+        check_ray_options(address, num_cpus, cpus_per_task)
         self.threads = cpus_per_task if threads is None else threads
         pinned_threads(self.threads)  # checks the value
         self.torch = torch
@@ -294,13 +302,6 @@ def make_executor(ray: bool = False, address: str | None = None, num_cpus: int |
     return SerialExecutor(threads=threads, torch=torch)
 
 
-def cpu_count() -> int:
-    """CPUs this process may use (the affinity mask where the platform has one)."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # pragma: no cover - not on Linux
-        return os.cpu_count() or 1
-
-
 __all__ = ["RAY_INSTALL", "Executor", "RayExecutor", "RayNotInstalledError", "SerialExecutor",
-           "TaskFailedError", "call_pinned", "cpu_count", "make_executor", "pinned_threads", "require_ray"]
+           "TaskFailedError", "call_pinned", "check_ray_options", "make_executor", "pinned_threads",
+           "require_ray"]
