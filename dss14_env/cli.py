@@ -9,6 +9,7 @@ from typing import Any
 
 
 def _reproduce(args: argparse.Namespace) -> int:
+    """Write everything, then exit 1 when a row with an accepted range is outside it."""
     from dss14_env.model.assembly import build_model, default_model
     from dss14_env.model.config import load_model_config
     from dss14_env.reproduce import reproduce
@@ -17,11 +18,19 @@ def _reproduce(args: argparse.Namespace) -> int:
     model = build_model(load_model_config(args.config)) if args.config else default_model()
     res = reproduce(args.out, model, figures=not args.no_figures)
     print(res["markdown"])
-    bad = [k for k, v in res["metrics"].items() if v["ok"] is False]
     print(f"{len(res['figures'])} figures, metrics.json and metrics.md written to {args.out} "
           f"in {time.perf_counter() - t0:.1f} s")
+    bad = res["failed"]
     if bad:
-        print(f"outside the accepted range: {', '.join(bad)}")
+        rows = res["metrics"]
+        for k in bad:
+            lo, hi = rows[k]["accepted"]
+            print(f"dss14 reproduce: {k} = {rows[k]['model']:.4g} is outside the accepted range "
+                  f"[{lo:.4g}, {hi:.4g}]", file=sys.stderr)
+        print(f"dss14 reproduce: {len(bad)} row(s) outside the accepted range: {', '.join(bad)}",
+              file=sys.stderr)
+        return 1
+    print("every row with an accepted range is inside it")
     return 0
 
 
