@@ -47,6 +47,32 @@ def numbers(path: Path) -> dict:
     return {k: res[k] for k in ("summary", "plants", "episodes")}
 
 
+def publish(out: Path, dest: Path, doc: Path) -> None:
+    """Keep a measured run with the docs: ``campaign_200.json`` (the Ray run's results, per
+    episode what the statistics read), ``campaign_speed.json`` (the speed check without the
+    commands' output), the CDF figure, and the section between the manual's
+    ``campaign-speed`` markers (:func:`dss14_env.bench.campaign_report.docs_section`)."""
+    import shutil
+
+    from dss14_env.bench.campaign import results_json
+    from dss14_env.bench.campaign_report import compact_results, docs_section
+
+    speed = json.loads((out / "speed.json").read_text())
+    speed = {**speed, "runs": {k: {kk: vv for kk, vv in v.items() if kk != "stdout_tail"}
+                               for k, v in speed["runs"].items()}}
+    res = compact_results(json.loads((out / "ray" / "results.json").read_text()))
+    dest.mkdir(parents=True, exist_ok=True)
+    (dest / "campaign_200.json").write_text(results_json(res))
+    (dest / "campaign_speed.json").write_text(json.dumps(speed, indent=1) + "\n")
+    figs = res["campaign"]["figures"]
+    shutil.copyfile(out / "ray" / figs[0], dest / f"campaign_{figs[0]}")
+    rel = Path(os.path.relpath(dest / f"campaign_{figs[0]}", doc.parent)).as_posix()
+    text = doc.read_text()
+    a, b = "<!-- campaign-speed:start -->\n", "<!-- campaign-speed:end -->"
+    i, j = text.index(a) + len(a), text.index(b)
+    doc.write_text(text[:i] + docs_section(res, speed, rel) + "\n" + text[j:])
+
+
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--plants", type=int, default=200)
@@ -55,8 +81,14 @@ def main() -> int:
     p.add_argument("--num-cpus", type=int, default=2, help="CPUs of the local Ray (default 2)")
     p.add_argument("--controllers", nargs="+", default=["pi_kp1", "lqg", "mpc"])
     p.add_argument("--out", default="campaign_speed_out")
+    p.add_argument("--publish", default=None, metavar="DIR",
+                   help="only keep the run in --out with the docs: files into DIR (docs/results), "
+                   "the section of docs/scale.md")
     args = p.parse_args()
     out = Path(args.out)
+    if args.publish is not None:
+        publish(out, Path(args.publish), Path(__file__).resolve().parents[1] / "docs" / "scale.md")
+        return 0
     out.mkdir(parents=True, exist_ok=True)
     base = [sys.executable, "-m", "dss14_env.cli", "campaign", "--plants", str(args.plants),
             "--controllers", *args.controllers, "--wind-speeds", "50", "--directions", "front", "side",

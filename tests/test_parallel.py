@@ -3,11 +3,15 @@ same numbers either way, pinned threads, failures named, Ray optional with an in
 
 from __future__ import annotations
 
+import json
 import os
 import sys
+from importlib import metadata
+from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 from threadpoolctl import threadpool_info
 
 from dss14_env.core import parallel as P
@@ -152,3 +156,20 @@ def test_ray_tasks_are_pinned_and_spread(local_ray) -> None:
 def test_ray_failure_names_the_item(local_ray) -> None:
     with pytest.raises(P.TaskFailedError, match=r"^seed 3 failed: ValueError: three is bad$"):
         list(P.RayExecutor().map_unordered(fails_on_three, range(6), labels=[f"seed {i}" for i in range(6)]))
+
+
+# ------------------------------------------------------------------ the cluster recipe
+def test_cluster_recipe_is_a_valid_ray_cluster_config() -> None:
+    """docs/cluster.yaml passes Ray's own cluster-config schema and installs this version."""
+    ray = pytest.importorskip("ray")
+    jsonschema = pytest.importorskip("jsonschema")
+    root = Path(__file__).resolve().parents[1]
+    schema = json.loads((Path(ray.__file__).parent / "autoscaler" / "ray-schema.json").read_text())
+    cfg = yaml.safe_load((root / "docs" / "cluster.yaml").read_text())
+    jsonschema.validate(cfg, schema)
+    version = metadata.version("dss14-env")
+    wheel = f"dss14_env-{version}-py3-none-any.whl"
+    assert cfg["file_mounts"] == {f"/tmp/{wheel}": f"dist/{wheel}"}
+    setup = "\n".join(cfg["setup_commands"])
+    assert "torch==2.13.0" in setup and f'"/tmp/{wheel}[ray]"' in setup
+    assert cfg["provider"]["type"] == "local" and len(cfg["provider"]["worker_ips"]) == cfg["max_workers"]

@@ -21,9 +21,11 @@ The plants are cut into chunks of ``chunk_size`` consecutive plants.  A chunk is
 (:func:`run_chunk`) of an executor (:mod:`dss14_env.core.parallel`: in-process, or a Ray task on
 a local Ray or a cluster); it builds its own controllers, so its result depends on nothing but
 the campaign's options and its plants -- the same numbers in-process, on Ray, in any order,
-and after a restart.  Each finished chunk is written at once as JSON
-(``chunks/chunk-NNNNN.json``, atomically); ``resume=True`` reads the finished chunks back
-instead of recomputing them, and refuses a folder whose ``campaign.json`` holds other options.
+and after a restart, bit for bit when each process builds the cached model with the executors'
+single BLAS thread (as ``dss14 campaign`` does; ``docs/scale.md``).  Each finished chunk is
+written at once as JSON (``chunks/chunk-NNNNN.json``, atomically); ``resume=True`` reads the
+finished chunks back instead of recomputing them, and refuses a folder whose ``campaign.json``
+holds other options.
 The statistics, ``results.json``, ``results.md`` and the CDF figures come from all chunks at the
 end (:mod:`dss14_env.bench.campaign_report`).
 
@@ -478,6 +480,16 @@ def run_chunks(spec: CampaignSpec, out: Path, done: dict[int, dict[str, Any]], e
     return computed
 
 
+def results_json(results: Mapping[str, Any]) -> str:
+    """results.json's text: indented, but one line per plant and per episode (thousands)."""
+    head = {k: v for k, v in results.items() if k not in ("plants", "episodes")}
+    text = json.dumps(head, indent=1)[:-2]  # without the closing "\n}"
+    for key in ("plants", "episodes"):
+        rows = ",\n  ".join(json.dumps(r, separators=(",", ":")) for r in results[key])
+        text += f',\n "{key}": [\n  {rows}\n ]'
+    return text + "\n}\n"
+
+
 def run_campaign(spec: CampaignSpec, out: str | os.PathLike = "campaign_out",
                  executor: Executor | Callable[[], Executor] | None = None,
                  requirements: Mapping[str, float] | None = None,
@@ -536,7 +548,7 @@ def run_campaign(spec: CampaignSpec, out: str | os.PathLike = "campaign_out",
     results["campaign"]["figures"] = figs
     results["campaign"]["wall_time_s"]["total"] = time.perf_counter() - t0
     md = report.results_markdown(results)
-    atomic_write_text(out / "results.json", json.dumps(results, indent=1) + "\n")
+    atomic_write_text(out / "results.json", results_json(results))
     atomic_write_text(out / "results.md", md)
     return {"results": results, "markdown": md, "table": report.main_table(results), "figures": figs,
             "computed": sorted(computed), "resumed": resumed, "out": out}
@@ -546,4 +558,4 @@ __all__ = ["DEFAULT_CONTROLLERS", "DEFAULT_DIRECTIONS", "DEFAULT_PLANTS", "DEFAU
            "DEFAULT_WIND_SPEEDS_KMH", "CampaignFileError", "CampaignOptionError", "CampaignSpec",
            "Condition", "chunk_path", "episode_seed", "finished_chunks", "known_controllers", "load_chunk",
            "open_campaign", "parse_directions", "parse_wind_speeds", "plant_params", "read_campaign",
-           "run_campaign", "run_chunk", "run_chunks", "spec_differences"]
+           "results_json", "run_campaign", "run_chunk", "run_chunks", "spec_differences"]

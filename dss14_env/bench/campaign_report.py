@@ -152,6 +152,20 @@ def summarise(spec: Any, episodes: Sequence[Mapping[str, Any]], reqs: Mapping[st
     return out
 
 
+#: the per-episode entries the statistics read (:func:`compact_results` keeps only these)
+STAT_FIELDS = ("plant", "controller", "condition", "terminated", "failures", "fallbacks", "limit_hits")
+
+
+def compact_results(results: Mapping[str, Any]) -> dict[str, Any]:
+    """results.json less what the statistics do not read: per episode only :data:`STAT_FIELDS`
+    and the 3σ servo error per axis (a small file to keep with the docs; :func:`summarise` on
+    its episodes gives its summary again)."""
+    eps = [{**{k: ep[k] for k in STAT_FIELDS},
+            "servo_error_mdeg": {ax: {"three_sigma": ep["servo_error_mdeg"][ax]["three_sigma"]}
+                                 for ax in AXES}} for ep in results["episodes"]]
+    return {**{k: v for k, v in results.items() if k != "episodes"}, "episodes": eps}
+
+
 # ------------------------------------------------------------------------------ tables
 def _est(e: Mapping[str, Any] | None) -> str:
     if e is None:
@@ -227,6 +241,29 @@ def results_markdown(results: Mapping[str, Any]) -> str:
     return "\n".join(parts)
 
 
+def docs_section(results: Mapping[str, Any], speed: Mapping[str, Any], figure: str) -> str:
+    """The measured campaign for the manual: the speed check's line, the table, the figure.
+
+    :param results: the campaign's results (the Ray run's; :func:`compact_results` suffices)
+    :param speed: ``speed.json`` of ``scripts/bench_campaign_speed.py``
+    :param figure: the CDF figure's path relative to the manual
+    """
+    c, r = results["campaign"], speed["runs"]
+    s = c["spec"]
+    loads = [x for run in r.values() for x in (run["load_before"][0], run["load_after"][0])]
+    return "\n".join([
+        f"`scripts/bench_campaign_speed.py`: {s['plants']} plants × {', '.join(s['controllers'])} × "
+        f"50 km/h front and side ({speed['n_episodes']} episodes of {s['steps']} steps, "
+        f"{c['chunks']['total']} chunks of {s['chunk_size']}), each run as the command in a fresh "
+        f"process on a {speed['cpu_count']}-core machine shared with other jobs (1-min load average "
+        f"{min(loads):.1f}–{max(loads):.1f}): in-process {r['serial']['wall_time_s']:.0f} s, local Ray "
+        f"with {c['executor']['workers']} CPUs {r['ray']['wall_time_s']:.0f} s, **speed-up "
+        f"{speed['speedup']:.2f}×** (one run each, the whole command's wall time); the two "
+        f"results.json hold {'identical' if speed['identical_numbers'] else 'DIFFERENT'} numbers "
+        f"(every episode's metrics, the plants and the statistics).", "",
+        main_table(results), "", f"![CDF of the 3σ servo error over plants]({figure})"])
+
+
 # ------------------------------------------------------------------------------ figures
 def cdf_figure_name(speed_kmh: float) -> str:
     return f"cdf_{speed_kmh:g}kmh.png"
@@ -288,6 +325,6 @@ def draw_cdfs(results: Mapping[str, Any], out: str | Path) -> list[str]:
     return written
 
 
-__all__ = ["DEFAULT_REQUIREMENTS", "LEGEND", "cell_statistics", "check_requirements", "completed",
-           "draw_cdfs", "episode_three_sigma", "main_table", "package_versions", "parse_requirements",
-           "results_markdown", "share_ci", "summarise"]
+__all__ = ["DEFAULT_REQUIREMENTS", "LEGEND", "STAT_FIELDS", "cell_statistics", "check_requirements",
+           "compact_results", "completed", "docs_section", "draw_cdfs", "episode_three_sigma", "main_table",
+           "package_versions", "parse_requirements", "results_markdown", "share_ci", "summarise"]
