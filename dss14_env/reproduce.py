@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dss14_env.core.outdir import atomic_write_text
 from dss14_env.core.schema import default_config_path
 from dss14_env.core.units import AXES, rad_to_mdeg, to_si
 from dss14_env.model.analysis import (
@@ -63,6 +64,8 @@ from dss14_env.wind.loads import (
     three_sigma_mdeg,
 )
 
+#: the files ``dss14 reproduce`` writes into its output folder (and replaces with --overwrite)
+OWNED_FILES = ("metrics.json", "metrics.md", "*.png")
 STEP_T_END, STEP_N = 40.0, 2001
 WIND_SPEEDS_KMH = (30.0, 50.0, 70.0)
 WIND_SIM = dict(duration=1800.0, dt=0.05, n_records=4)  # 2 h per case: statistical error < 1 %
@@ -761,9 +764,9 @@ def reproduce(out_dir: str | Path, model: DSS14Model | None = None, figures: boo
                "viscosity_sensitivity": viscosity_sensitivity(m),
                "wind_loads": dict(wind_load_summary(loads), drive_sensitivity=wind_drive_sensitivity(m, loads)),
                "calibrated": m.derived(), "config": _config_label(m.cfg)}
-    (out / "metrics.json").write_text(json.dumps(results, indent=2, default=float))
+    atomic_write_text(out / "metrics.json", json.dumps(results, indent=2, default=float))
     md = results_markdown(results)
-    (out / "metrics.md").write_text(md)
+    atomic_write_text(out / "metrics.md", md)
     files = draw_figures(m, out) + draw_wind_figures(loads, records, WIND_SIM["dt"], out) if figures else []
     return {"metrics": metrics, "results": results, "markdown": md, "figures": files,
             "failed": failed_rows(metrics)}

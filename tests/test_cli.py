@@ -45,3 +45,32 @@ def test_a_bug_keeps_its_traceback() -> None:
 
     with pytest.raises(ZeroDivisionError):
         run_command(_args(bug))
+
+
+def test_reproduce_refuses_a_file_as_out_before_any_work(tmp_path, capsys) -> None:
+    from dss14_env.cli import main
+
+    target = tmp_path / "a_file"
+    target.write_text("not a folder")
+    assert main(["reproduce", "--out", str(target), "--no-figures"]) == 2
+    err = capsys.readouterr().err
+    assert "is a file, not a folder" in err and err.count("\n") == 1
+    assert target.read_text() == "not a folder"
+
+
+def test_reproduce_refuses_earlier_results_without_overwrite(tmp_path, capsys) -> None:
+    from dss14_env.cli import main
+
+    (tmp_path / "metrics.json").write_text("{}")
+    (tmp_path / "fig03_board_r_to_i.png").write_bytes(b"old")
+    assert main(["reproduce", "--out", str(tmp_path), "--no-figures"]) == 2
+    assert "--overwrite" in capsys.readouterr().err
+    assert (tmp_path / "metrics.json").read_text() == "{}"  # nothing touched
+
+
+def test_reproduce_bad_config_named_before_any_work(tmp_path, capsys) -> None:
+    from dss14_env.cli import main
+
+    assert main(["reproduce", "--out", str(tmp_path / "o"), "--config", "no_such_model"]) == 2
+    assert "no_such_model" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy import optimize, signal
 
-from dss14_env.wind.gusts import gusts as wind
+from dss14_env.wind import gusts as wind
 
 KMH = 1.0 / 3.6  # m/s per km/h
 U_50 = 50.0 * KMH  # 13.889 m/s
