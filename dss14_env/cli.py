@@ -38,18 +38,30 @@ def _reproduce(args: argparse.Namespace) -> int:
 
 
 def _train(args: argparse.Namespace) -> int:
-    from dss14_env.agents.campaign import parse_seeds, train_seeds
+    from dss14_env.agents.campaign import CAMPAIGN_FILES, parse_seeds, train_seeds
     from dss14_env.agents.train import TrainingInterrupted, config_for_command, train
+    from dss14_env.core.outdir import prepare_output_dir
+    from dss14_env.core.parallel import check_ray_options, make_executor, require_ray
 
+    use_ray = args.ray or args.address is not None or args.num_cpus is not None
     cfg = config_for_command(args.algo, args.config, args.env, args.resume, args.timesteps,
                              args.seed)
+    if use_ray:  # before Ray starts: bad options, an unusable --out, or no Ray (how to install it)
+        if args.seeds is None or args.out is None:
+            raise ValueError("--ray runs the runs of --seeds as Ray tasks: give --seeds and --out")
+        parse_seeds(args.seeds)
+        check_ray_options(args.address, args.num_cpus)
+        require_ray()
+        prepare_output_dir(args.out, CAMPAIGN_FILES, args.overwrite)
     try:
         if args.seeds is not None:
             if args.resume is not None or args.seed is not None:
                 raise ValueError("--seeds trains fresh runs: without --resume and --seed")
             if args.out is None:
                 raise ValueError("--seeds needs --out (the campaign folder)")
-            out = train_seeds(cfg, parse_seeds(args.seeds), args.out, overwrite=args.overwrite)
+            with make_executor(use_ray, address=args.address, num_cpus=args.num_cpus) as ex:
+                out = train_seeds(cfg, parse_seeds(args.seeds), args.out, overwrite=args.overwrite,
+                                  executor=ex)
             print(f"{len(parse_seeds(args.seeds))} runs, summary.json and learning curves "
                   f"written to {out}")
             return 0
@@ -200,6 +212,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seeds", nargs="+", default=None, metavar="K",
                    help="one run per seed index into --out/seed_<k>/ (0-4, or 0 3 7), then "
                    "summary.json and learning curves")
+    p.add_argument("--ray", action="store_true",
+                   help="with --seeds: the runs as Ray tasks, on a local Ray by default (docs/scale.md)")
+    p.add_argument("--address", default=None,
+                   help="with --seeds: join a running Ray cluster, 'auto' or its address (implies "
+                   "--ray; --out on a folder every node can write)")
+    p.add_argument("--num-cpus", type=int, default=None, metavar="N",
+                   help="with --seeds: CPUs of the local Ray (implies --ray; default all)")
     p.set_defaults(func=_train)
     p = sub.add_parser("bench", help="score PI, LQG, MPC and PPO on the same scenarios and seeds",
                        description="Run every controller through the runner on the same "

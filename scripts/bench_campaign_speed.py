@@ -7,8 +7,10 @@ Each time is the command's whole wall time -- Python start, Ray's start-up, ever
 model build, the chunks and the statistics -- so the ratio is what a user sees.  Then the two
 ``results.json`` are compared: the statistics, the plants and every episode's metrics must be
 identical (bit for bit: both executors run each chunk with one BLAS thread).  The machine's load
-average (``os.getloadavg``) is recorded before and after each run; other jobs on the machine
-slow both runs, the Ray run less when it can use idle cycles, so say what the load was.
+average (``os.getloadavg``) is recorded before and after each run, and the niceness the runs
+had: other jobs on the machine take CPU from both runs, more from the Ray run's two workers than
+from the in-process run's one (which cannot use more than one core anyway), so the ratio falls
+with the load; say what the load was.
 
 Default: the 200-plant campaign of PI, LQG and MPC in 50 km/h front and side wind, 2 CPUs::
 
@@ -107,7 +109,8 @@ def main() -> int:
     same = a == b
     speedup = runs["serial"]["wall_time_s"] / runs["ray"]["wall_time_s"]
     summary = {"speedup": speedup, "identical_numbers": same, "n_episodes": len(a["episodes"]),
-               "runs": runs, "cpu_count": os.cpu_count(), "platform": platform.platform()}
+               "runs": runs, "cpu_count": os.cpu_count(), "niceness": os.nice(0),
+               "platform": platform.platform()}
     (out / "speed.json").write_text(json.dumps(summary, indent=1) + "\n")
     print(f"speed-up {speedup:.2f}x (serial {runs['serial']['wall_time_s']:.1f} s, Ray "
           f"{runs['ray']['wall_time_s']:.1f} s); identical numbers: {same} "

@@ -369,3 +369,21 @@ def test_scale_manual_examples_run(index, tmp_path, monkeypatch, capsys) -> None
     printed = capsys.readouterr().out
     for expected in re.findall(r"^# prints: (.+)$", code, re.M):
         assert expected.strip() in printed
+
+
+# ------------------------------------------------------------------ the measured campaign in the manual
+def test_committed_campaign_matches_its_statistics_and_the_manual() -> None:
+    """docs/results/campaign_200.json: its statistics follow from its stored episodes, and the
+    manual's measured section is generated from it and campaign_speed.json."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    res = json.loads((root / "docs" / "results" / "campaign_200.json").read_text())
+    speed = json.loads((root / "docs" / "results" / "campaign_speed.json").read_text())
+    spec = C.CampaignSpec.from_dict(res["campaign"]["spec"])
+    assert len(res["episodes"]) == spec.n_episodes == speed["n_episodes"]
+    assert R.summarise(spec, res["episodes"], res["campaign"]["requirements_mdeg"]) == res["summary"]
+    doc = (root / "docs" / "scale.md").read_text()
+    section = doc.split("<!-- campaign-speed:start -->\n")[1].split("<!-- campaign-speed:end -->")[0]
+    assert section == R.docs_section(res, speed, "results/campaign_cdf_50kmh.png") + "\n"
+    assert (root / "docs" / "results" / "campaign_cdf_50kmh.png").is_file()

@@ -173,3 +173,59 @@ def test_cluster_recipe_is_a_valid_ray_cluster_config() -> None:
     setup = "\n".join(cfg["setup_commands"])
     assert "torch==2.13.0" in setup and f'"/tmp/{wheel}[ray]"' in setup
     assert cfg["provider"]["type"] == "local" and len(cfg["provider"]["worker_ips"]) == cfg["max_workers"]
+
+
+# ------------------------------------------------------------------ dss14 train --seeds --ray
+#: a training run of a few seconds (Pendulum: no DSS14 model to build in the workers)
+TINY_TRAINING = dict(algo="ppo", env_id="Pendulum-v1", n_envs=2, vec_env="dummy", total_timesteps=128,
+                     seed=0, n_steps=64, batch_size=64, n_epochs=1, net_arch=[8], eval_freq=64,
+                     eval_seeds=[7], checkpoint_freq=0, progress_bar=False, verbose=0)
+
+
+def _seed_results(folder: Path) -> dict:
+    s = json.loads((folder / "summary.json").read_text())
+    for e in s["per_seed"]:
+        e.pop("wall_s")
+    return {k: s[k] for k in ("per_seed", "aggregate", "training_seeds")}
+
+
+def test_train_seeds_on_ray_same_numbers_as_in_process(local_ray, tmp_path) -> None:
+    """``dss14 train ppo --seeds 0-2 --ray``: three runs as Ray tasks give the summary (every
+    seed's test returns, the IQM and its interval) of the same runs one after another."""
+    from dss14_env import cli
+    from dss14_env.agents.campaign import train_seeds
+
+    cfg = tmp_path / "tiny.yaml"
+    cfg.write_text(yaml.safe_dump(TINY_TRAINING))
+    serial = train_seeds(str(cfg), [0, 1, 2], tmp_path / "serial", figures=False)
+    assert cli.main(["train", "ppo", "--config", str(cfg), "--seeds", "0-2", "--ray",
+                     "--out", str(tmp_path / "ray")]) == 0
+    on_ray = _seed_results(tmp_path / "ray")
+    assert on_ray == _seed_results(serial)
+    assert [e["seed_index"] for e in on_ray["per_seed"]] == [0, 1, 2]
+    assert len({e["final"]["eval"]["mean_return"] for e in on_ray["per_seed"]}) == 3
+
+
+@pytest.mark.parametrize("extra,message", [
+    (["--ray"], "--ray runs the runs of --seeds as Ray tasks: give --seeds and --out"),
+    (["--seeds", "0-1", "--out", "x", "--address", "auto", "--num-cpus", "2"],
+     "--num-cpus: sizes a local Ray"),
+])
+def test_train_bad_ray_options_are_one_line(extra, message, tmp_path, capsys, monkeypatch) -> None:
+    from dss14_env import cli
+
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(["train", "ppo", "--config", "ppo_smoke"] + extra) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("dss14 train: error: ") and message in err and err.count("\n") == 1
+    assert not (tmp_path / "x").exists()
+
+
+def test_train_without_ray_says_how_to_install_it(tmp_path, capsys, monkeypatch) -> None:
+    from dss14_env import cli
+
+    monkeypatch.setitem(sys.modules, "ray", None)
+    assert cli.main(["train", "ppo", "--config", "ppo_smoke", "--seeds", "0-4", "--ray",
+                     "--out", str(tmp_path / "x")]) == 2
+    assert 'pip install -e ".[ray]"' in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
