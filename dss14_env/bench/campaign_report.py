@@ -174,9 +174,15 @@ def _est(e: Mapping[str, Any] | None) -> str:
     return f"{fmt(e['value'])} [{fmt(lo)}, {fmt(hi)}]"
 
 
+def _pct(x: float) -> str:
+    """A share in %: whole numbers, one decimal where that would round to 0 or 100 but is not."""
+    p = 100.0 * x
+    return f"{p:.0f}" if p == round(p) or 1.0 <= p <= 99.0 else f"{p:.1f}"
+
+
 def _share(m: Mapping[str, Any]) -> str:
     lo, hi = m["ci95"]
-    return f"{100 * m['share']:.0f} % [{100 * lo:.0f}, {100 * hi:.0f}]"
+    return f"{_pct(m['share'])} % [{_pct(lo)}, {_pct(hi)}]"
 
 
 def main_table(results: Mapping[str, Any]) -> str:
