@@ -3,9 +3,10 @@
 The bench's matrices are small (at most 132 states, a few hundred rows of a batch); with two
 threads on two busy cores OpenBLAS spends its time waiting (the yardstick's design took 4 s
 instead of 0.1 s when another job shared the machine), and one thread keeps the controllers'
-timings steady.  The thread count changes the last bits of BLAS sums, which the quantised
-encoder can turn into different trajectories (not different episodes): results of runs with
-different counts agree within their confidence intervals, not bit for bit.
+timings steady.  The builds (model, plants, designs) run single-threaded anyway
+(:mod:`dss14_env.core.threads`); the thread count here only changes the last bits of the
+rollouts' sums, which the quantised encoder could turn into different trajectories (never
+different episodes): runs with different counts agree within their confidence intervals.
 
 >>> with blas_threads(1) as bt:
 ...     bt.n
