@@ -386,7 +386,7 @@ class EnvSpec:
     @classmethod
     def default(cls, **overrides: Any) -> "EnvSpec":
         """From the shipped ``configs/env.yaml`` (keys of it as overrides)."""
-        from dss14_env.envs.scenarios import load_env_config
+        from dss14_env.envs.config import load_env_config
         return cls.from_config(load_env_config(**overrides))
 
     @property

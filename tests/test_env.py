@@ -11,7 +11,7 @@ import pytest
 
 import dss14_env  # noqa: F401  (registers the ids)
 from dss14_env.envs.env import OBS_NAMES, DSS14Env
-from dss14_env.envs.scenarios import EPISODE_KEYS, load_env_config
+from dss14_env.envs.config import EPISODE_KEYS, load_env_config
 from dss14_env.model.assembly import default_model
 from dss14_env.model.uncertainty import SWEEP_PARAMS, draw_stable_params, pi_loop_abscissa, rate_loop_stable
 
@@ -97,12 +97,17 @@ def test_reset_without_seed_continues_the_generator() -> None:
     (np.zeros(3, np.float32), "shape"),
     (np.zeros((2, 1), np.float32), "shape"),
     (0.5, "shape"),
-    (["a", "b"], "numeric"),
+    (["a", "b"], "real numbers"),
+    (np.array(["0.5", "1e3"]), "real numbers"),
+    (np.array([0.5 + 0j, 0.0]), "real numbers"),
+    ([10**400, 0], "real numbers"),
+    (np.array([True, False]), "real numbers"),
+    (np.array([0.1, 0.2], dtype=object), "real numbers"),
 ])
 def test_bad_action_raises_value_error(action, match: str) -> None:
     env = DSS14Env()
     env.reset(seed=0)
-    with pytest.raises(ValueError, match=match):
+    with pytest.raises(ValueError, match="^action must .*" + match):
         env.step(action)
 
 
