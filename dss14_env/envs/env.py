@@ -449,7 +449,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
 
         :raises ValueError: not such a snapshot
         """
-        shared = tuple(state.data[n] for n in self._SHARED) if isinstance(state, EnvState) else ()
+        shared = tuple(state.data.get(n) for n in self._SHARED) if isinstance(state, EnvState) else ()
         self.__setstate__(restore(self, state, shared))
 
     # ------------------------------------------------------------------ rendering
