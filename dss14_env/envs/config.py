@@ -54,6 +54,9 @@ DT_RANGE = (1.0e-3, 0.1)
 #: largest rate limit and action scale, deg/s (40 x the 70-m antenna's 0.25 deg/s: keeps every
 #: commanded motion, and so the plant state, bounded)
 RATE_MAX_DEG_S = 10.0
+#: smallest rate limit, action scale (deg/s) and acceleration limit (deg/s^2): below them the
+#: action and its cost scale out of floating-point range
+RATE_MIN_DEG_S = 1.0e-6
 #: largest acceleration limit, deg/s^2
 ACCEL_MAX_DEG_S2 = 1.0e3
 #: smallest slew rate (deg/s) and acceleration (deg/s^2): below them the profile's timing
@@ -79,9 +82,9 @@ class EnvConfig:
 
     scenario: str = spec(None, kind="str", choices=SCENARIOS)
     dt: float = spec("s", lo=DT_RANGE[0], hi=DT_RANGE[1])
-    action_scale_deg_s: float = spec("deg/s", lo=0.0, lo_open=True, hi=RATE_MAX_DEG_S)
-    rate_limit_deg_s: float = spec("deg/s", lo=0.0, lo_open=True, hi=RATE_MAX_DEG_S)
-    accel_limit_deg_s2: float = spec("deg/s^2", lo=0.0, lo_open=True, hi=ACCEL_MAX_DEG_S2)
+    action_scale_deg_s: float = spec("deg/s", lo=RATE_MIN_DEG_S, hi=RATE_MAX_DEG_S)
+    rate_limit_deg_s: float = spec("deg/s", lo=RATE_MIN_DEG_S, hi=RATE_MAX_DEG_S)
+    accel_limit_deg_s2: float = spec("deg/s^2", lo=RATE_MIN_DEG_S, hi=ACCEL_MAX_DEG_S2)
     error_scale_mdeg: float = spec("mdeg", lo=1.0e-3, hi=1.0e6)
     encoder_bits: int | None = spec("1", kind="integer", lo=8, hi=40, optional=True)
     encoder_noise_mdeg: float = spec("mdeg", lo=0.0, hi=1.0e3)
@@ -118,6 +121,16 @@ class EnvConfig:
     def __hash__(self) -> int:  # params is a dict
         return hash(tuple((f.name, repr(getattr(self, f.name))) for f in dataclasses.fields(self)))
 
+    def source_of(self, key: str) -> str:
+        """Where a key's value came from (a file, ``keyword arguments``, ``reset options``), for
+        messages about it that only the environment can check (e.g. ``params`` against the
+        model's ranges)."""
+        return self.__dict__.get("_sources", {}).get(key, "<config>")
+
+    def _with_sources(self, base: Mapping[str, str], keys: Any, source: str) -> EnvConfig:
+        object.__setattr__(self, "_sources", {**base, **{str(k): source for k in keys}})
+        return self
+
     def checked(self, source: str) -> EnvConfig:
         """The cross-field rules (each field alone was checked by its spec); ``self`` normalised.
 
@@ -130,12 +143,11 @@ class EnvConfig:
 
         c, h = self.az_wrap_centre_deg, self.az_wrap_half_range_deg
         lo, hi = c - h, c + h
+        travel = f"the azimuth travel az_wrap_centre_deg +- az_wrap_half_range_deg = [{lo:g}, {hi:g}]"
         if not (lo <= self.start_az_range_deg[0] and self.start_az_range_deg[1] <= hi):
-            raise bad("start_az_range_deg", f"lie within the azimuth travel [{lo:g}, {hi:g}] deg",
-                      list(self.start_az_range_deg))
+            raise bad("start_az_range_deg", f"lie within {travel}", list(self.start_az_range_deg))
         if self.start_az_deg != "random" and not lo <= self.start_az_deg <= hi:
-            raise bad("start_az_deg", f"lie within the azimuth travel [{lo:g}, {hi:g}] deg or be "
-                      "'random'", self.start_az_deg)
+            raise bad("start_az_deg", f"lie within {travel} or be 'random'", self.start_az_deg)
         lo, hi = self.el_limits_deg
         if not (lo <= self.start_el_range_deg[0] and self.start_el_range_deg[1] <= hi):
             raise bad("start_el_range_deg", f"lie within el_limits_deg [{lo:g}, {hi:g}]",
@@ -146,12 +158,12 @@ class EnvConfig:
         w = 2.0 * math.pi / self.track_period_range_s[0]
         if self.track_rate_max_deg_s + self.track_amp_max_deg * w > self.rate_limit_deg_s:
             raise bad("track_amp_max_deg", "keep the track's largest rate (track_rate_max_deg_s + "
-                      "amplitude x 2 pi / shortest period) within rate_limit_deg_s "
-                      f"{self.rate_limit_deg_s:g}", self.track_amp_max_deg)
+                      "amplitude x 2 pi / the shortest period of track_period_range_s) within "
+                      f"rate_limit_deg_s {self.rate_limit_deg_s:g}", self.track_amp_max_deg)
         if self.track_amp_max_deg * w * w > self.accel_limit_deg_s2:
-            raise bad("track_amp_max_deg", "keep the track's largest acceleration (amplitude x "
-                      f"(2 pi / shortest period)^2) within accel_limit_deg_s2 {self.accel_limit_deg_s2:g}",
-                      self.track_amp_max_deg)
+            raise bad("track_amp_max_deg", "keep the track's largest acceleration (amplitude x (2 pi / "
+                      "the shortest period of track_period_range_s)^2) within accel_limit_deg_s2 "
+                      f"{self.accel_limit_deg_s2:g}", self.track_amp_max_deg)
         if self.slew_rate_deg_s > self.rate_limit_deg_s:
             raise bad("slew_rate_deg_s", f"be <= rate_limit_deg_s {self.rate_limit_deg_s:g}",
                       self.slew_rate_deg_s)
@@ -173,7 +185,8 @@ class EnvConfig:
             return self
         merged = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
         merged.update(changes)
-        return load_section(EnvConfig, merged, source).checked(source)
+        new = load_section(EnvConfig, merged, source).checked(source)
+        return new._with_sources(self.__dict__.get("_sources", {}), changes, source)
 
     def replace(self, **changes: Any) -> EnvConfig:
         """Checked copy with some keys changed (``ConfigError`` on an unknown key or bad value)."""
@@ -232,7 +245,7 @@ def load_env_config(config: str | Path | Mapping[str, Any] | EnvConfig | None = 
         base = config
     else:
         data, source = read_config("env")
-        base = load_section(EnvConfig, data, source, defaults=False).checked(source)
+        base = load_section(EnvConfig, data, source, defaults=False).checked(source)._with_sources({}, data, source)
         if isinstance(config, (str, Path)):
             data, source = read_config(config)
             base = base.updated(data, source)

@@ -218,6 +218,12 @@ def limit_commands(a: np.ndarray, r_prev: np.ndarray, k: StepConstants
     return c, r, rate_hit, hit[:, 0] | hit[:, 1]
 
 
+def start_action(r0: np.ndarray, k: StepConstants) -> np.ndarray:
+    """The action ``a[-1]`` before the first step: the one that reproduces the start rate
+    command ``r0`` (rad/s), clipped to [-1, 1] as every action is."""
+    return np.clip(r0 / k.action_scale, -1.0, 1.0)
+
+
 def quantise(angle: np.ndarray, quantum: float) -> np.ndarray:
     """Round absolute angles (rad) to the nearest encoder count (``quantum`` 0: unchanged)."""
     if not quantum:

@@ -26,6 +26,7 @@ from dss14_env.envs.core import (
     pointing_errors,
     read_encoders,
     servo_errors,
+    start_action,
     step_1,
     step_constants,
 )
@@ -254,7 +255,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         self.plants: PlantFactory = resolve_factory(model_config)
         c = self.config
         if c.params is not None:
-            self.plants.check_params(c.params)
+            self.plants.check_params(c.params, c.source_of("params"))
         self.render_mode = render_mode
         self.metadata = dict(self.metadata, render_fps=1.0 / c.dt)
         self.action_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
@@ -280,7 +281,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         seed = check_seed(seed)
         cfg = self.config.with_options(options)
         if cfg.params is not None:
-            self.plants.check_params(cfg.params)
+            self.plants.check_params(cfg.params, cfg.source_of("params"))
         super().reset(seed=seed)
         k = self.constants
         ep = draw_episode(cfg, self.np_random, self.plants)
@@ -313,8 +314,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         self._extras = cfg.info_state or self._renderer is not None
         self._info_state = cfg.info_state
         (rp0, rp1), (em0, em1) = r0[0].tolist(), em[0].tolist()
-        self._st = self._views(False) + (rp0, rp1, rp0 / k.action_scale, rp1 / k.action_scale, em0, em1,
-                                         0, 0, 0)
+        self._st = self._views(False) + (rp0, rp1, *start_action(r0, k)[0].tolist(), em0, em1, 0, 0, 0)
         pe = pointing_errors(c, y0[None, 2:4], p.xel_scale)[0]
         info = {"scenario": cfg.scenario, "start_az_deg": s_az * R2D, "start_el_deg": s_el * R2D,
                 "wind_speed_mps": ep.wind_speed, "wind_direction_rad": ep.wind_direction,

@@ -437,20 +437,23 @@ class PlantFactory:
             self._plants.popitem(last=False)
         return plant
 
-    def check_params(self, params: Mapping[str, float], key: str = "params") -> dict[str, float]:
-        """``params`` checked against the model's ranges (``configs/model.yaml``).
+    def check_params(self, params: Mapping[str, float], source: str = "params") -> dict[str, float]:
+        """``params`` checked against the model's ranges (its configuration's ``range``).
 
-        :raises ValueError: naming ``key`` and the parameter outside its range
+        :param source: where ``params`` came from, for the message
+            (:meth:`dss14_env.envs.config.EnvConfig.source_of`)
+        :raises ValueError: ``<source>: field 'params.<name>': must lie in the range ...``
         """
         out = {}
         for name, value in params.items():
             if name not in SWEEP_PARAMS:
-                raise ValueError(f"{key}: must name parameters of {', '.join(SWEEP_PARAMS)}, got {name!r}")
+                raise ValueError(f"{source}: field 'params': must name parameters of {', '.join(SWEEP_PARAMS)}, "
+                                 f"got {name!r}")
             lo, hi = self.model.cfg.params[name].range
             v = float(value)
             if not lo <= v <= hi:
-                raise ValueError(f"{key}.{name}: must lie in the model's range [{lo:g}, {hi:g}] (SI), "
-                                 f"got {value!r}")
+                raise ValueError(f"{source}: field 'params.{name}': must lie in the range [{lo:g}, {hi:g}] (SI) "
+                                 f"of the model {self.source or 'configs/model.yaml'}, got {value!r}")
             out[name] = v
         return out
 

@@ -169,7 +169,7 @@ def draw_episode(cfg: EnvConfig, rng: np.random.Generator, plants: PlantFactory)
     :raises ValueError: fixed ``params`` outside the model's ranges
     """
     if cfg.params is not None:
-        params = plants.check_params(cfg.params)
+        params = plants.check_params(cfg.params, cfg.source_of("params"))
     elif cfg.randomize_params:
         params = plants.draw_params(rng)
     else:

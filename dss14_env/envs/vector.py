@@ -55,6 +55,7 @@ from dss14_env.envs.core import (
     read_encoders,
     reward,
     servo_errors,
+    start_action,
     step_info,
     terminated,
 )
@@ -94,7 +95,7 @@ class DSS14VectorEnv(VectorEnv):
         #: the model's plants (:class:`~dss14_env.envs.plant.PlantFactory`), shared by all
         self.plants: PlantFactory = resolve_factory(model_config)
         if self.config.params is not None:
-            self.plants.check_params(self.config.params)
+            self.plants.check_params(self.config.params, self.config.source_of("params"))
         self.num_envs = int(num_envs)
         self.max_episode_steps = None if max_episode_steps is None else int(max_episode_steps)
         self.render_mode = None
@@ -121,7 +122,7 @@ class DSS14VectorEnv(VectorEnv):
         seeds = check_seeds(seed, N)
         cfg = self.config.with_options(options)
         if cfg.params is not None:
-            self.plants.check_params(cfg.params)
+            self.plants.check_params(cfg.params, cfg.source_of("params"))
         if seed is not None and not isinstance(seed, (list, tuple, np.ndarray)):
             super().reset(seed=seeds[0])
         for i, s in enumerate(seeds):
@@ -198,7 +199,7 @@ class DSS14VectorEnv(VectorEnv):
             self._Zs[slot, n + 2:n + 4] = ep.t_mean
             self._Y[i] = p.C[:N_STEP_OUTPUTS] @ ep.x0
             self._rp[i] = np.clip(ep.r0, -k.rate_limit, k.rate_limit)
-            self._ap[i] = self._rp[i] / k.action_scale
+            self._ap[i] = start_action(self._rp[i], k)
             self._kappa[i] = ep.kappa
             self._start[i] = ep.start
             for key in _TRAJ_KEYS:
