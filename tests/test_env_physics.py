@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from dss14_env.baselines.pi import PIController, gain_set, sampled_three_sigma_mdeg
+from dss14_env.core.units import KMH, WIND_DIRECTIONS
 from dss14_env.envs.env import DSS14Env
 from dss14_env.envs.plant import get_plant
 from dss14_env.envs.vector import DSS14VectorEnv
@@ -19,8 +20,7 @@ from dss14_env.model.assembly import default_model
 from dss14_env.model.linsys import freqresp
 from dss14_env.wind.loads import default_wind_loads, three_sigma_estimate, three_sigma_mdeg
 
-KMH = 1.0 / 3.6
-DIRECTIONS = {"front": 0.0, "side": 0.5 * math.pi}
+DIRECTIONS = WIND_DIRECTIONS
 
 
 def _continuous_three_sigma(direction: str) -> np.ndarray:
@@ -77,6 +77,36 @@ def test_start_state_is_the_steady_motion_of_the_command(wind_kmh: float) -> Non
         obs, _, _, _, info = env.step(hold)
         errs.append(abs(info["servo_error_el_mdeg"]))
     assert max(errs) < (1e-6 if wind_kmh == 0.0 else 0.05)
+
+
+# ---------------------------------------------------------------------------- pointing error
+def _pi_run(steps: int, **kw) -> np.ndarray:
+    """``[e_az, e_el, pointing_el, pointing_xel, c_az, c_el]`` per step (mdeg) of the PI."""
+    env = DSS14Env(encoder_bits=None, **kw)
+    pi = PIController(env)
+    obs, _ = env.reset(seed=1)
+    rows = []
+    for _ in range(steps):
+        obs, _, _, _, info = env.step(pi.act(obs))
+        rows.append((info["servo_error_az_mdeg"], info["servo_error_el_mdeg"], info["pointing_error_el_mdeg"],
+                     info["pointing_error_xel_mdeg"], obs[4] * 1e3, obs[5] * 1e3))
+    return np.array(rows)
+
+
+def test_pointing_error_is_the_dishs_error_not_the_commanded_motion() -> None:
+    # calm tracking: the structure follows the drives almost rigidly, so the pointing error is the
+    # servo error (el) and cos(E) times it (xel, E = 45 deg), while the command moves 0.1-0.3 deg
+    a = _pi_run(1500, scenario="track", wind_speed_kmh=0.0)[250:]
+    assert np.ptp(a[:, 4]) > 50.0 and np.ptp(a[:, 5]) > 20.0
+    np.testing.assert_allclose(a[:, 2], a[:, 1], atol=0.01)
+    np.testing.assert_allclose(a[:, 3], math.cos(math.radians(45.0)) * a[:, 0], atol=0.01)
+
+
+def test_pointing_error_includes_the_deformation_in_wind() -> None:
+    # front wind bends the dish in elevation: a static offset and a larger scatter than at the encoders
+    a = _pi_run(1500, scenario="hold", wind_speed_kmh=50.0, wind_direction="front")[250:]
+    assert abs(a[:, 2].mean() - a[:, 1].mean()) > 0.5  # mdeg
+    assert a[:, 2].std() > 1.1 * a[:, 1].std()
 
 
 # ---------------------------------------------------------------------------- PI in wind
