@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 import dss14_env  # noqa: F401  (registers the ids)
-from dss14_env.envs.env import OBS_NAMES, DSS14Env
 from dss14_env.envs.config import EPISODE_KEYS, load_env_config
+from dss14_env.envs.env import OBS_NAMES, DSS14Env
 from dss14_env.model.assembly import default_model
 from dss14_env.model.uncertainty import SWEEP_PARAMS, draw_stable_params, pi_loop_abscissa, rate_loop_stable
 
@@ -162,7 +162,8 @@ def test_bad_reset_option_raises_naming_it(options: dict, match: str) -> None:
 
 def test_reset_options_apply_to_one_episode_only() -> None:
     env = DSS14Env(scenario="track", wind_speed_kmh=50.0)
-    _, info = env.reset(seed=0, options={"scenario": "hold", "wind_speed_kmh": 70.0, "wind_direction": "side"})
+    _, info = env.reset(seed=0, options={"scenario": "hold", "wind_speed_kmh": 70.0,
+                                         "wind_direction": "side"})
     assert info["scenario"] == "hold" and info["wind_speed_mps"] == pytest.approx(70 / 3.6)
     assert info["wind_direction_rad"] == pytest.approx(math.pi / 2)
     _, info = env.reset()
@@ -206,7 +207,7 @@ def test_command_limiter_limits_rate_change_and_counts_hits() -> None:
     cfg = env.config
     dr = cfg.accel_limit_deg_s2 * cfg.dt
     prev = obs[10] * cfg.rate_limit_deg_s
-    for k in range(3):
+    for _ in range(3):
         obs, _, _, _, info = env.step(np.array([1.0, -5.0], np.float32))
         assert info["accel_limited"] and not info["rate_limited"]
         assert info["action_unclipped"] == (1.0, -5.0)
@@ -245,10 +246,11 @@ def test_leaving_the_travel_terminates(options: dict, what: str) -> None:
     a = np.array([1.0, 0.0] if what == "azimuth" else [0.0, -1.0], np.float32)
     for k in range(2000):
         _, r, term, _, info = env.step(a)
+        steps = k + 1
         if term:
             break
     assert term and r < -env.config.termination_penalty
-    assert k * env.config.dt < 20.0
+    assert steps * env.config.dt < 20.0
 
 
 def test_error_beyond_the_bound_terminates() -> None:
@@ -256,10 +258,11 @@ def test_error_beyond_the_bound_terminates() -> None:
     env.reset(seed=0)
     for k in range(200):
         _, _, term, _, info = env.step(np.zeros(2, np.float32))
+        steps = k + 1
         if term:
             break
     assert term and abs(info["servo_error_az_mdeg"]) > 1000.0
-    assert (k + 1) * env.config.dt == pytest.approx(env.config.step_time_s)
+    assert steps * env.config.dt == pytest.approx(env.config.step_time_s)
 
 
 def test_info_state_option_adds_the_plant_state() -> None:

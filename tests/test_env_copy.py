@@ -33,8 +33,8 @@ def _run(env, actions: np.ndarray) -> list:
 
 def _same(a: list, b: list) -> None:
     assert len(a) == len(b)
-    for x, y in zip(a, b):
-        for u, v in zip(x, y):
+    for x, y in zip(a, b, strict=True):
+        for u, v in zip(x, y, strict=True):
             if isinstance(u, dict):
                 assert u.keys() == v.keys()
                 for key in u:
@@ -65,7 +65,8 @@ def test_single_env_copies_continue_bit_for_bit(env_id: str) -> None:
     env = gym.make(env_id, encoder_noise_mdeg=0.05)
     env.reset(seed=3)
     rng = np.random.default_rng(0)
-    warm, acts = rng.uniform(-0.3, 0.3, (40, 2)).astype(np.float32), rng.uniform(-1, 1, (300, 2)).astype(np.float32)
+    warm = rng.uniform(-0.3, 0.3, (40, 2)).astype(np.float32)
+    acts = rng.uniform(-1, 1, (300, 2)).astype(np.float32)
     _run(env, warm)
     state = env.unwrapped.get_state()
     copies = [copy.deepcopy(env), pickle.loads(pickle.dumps(env))]

@@ -82,17 +82,21 @@ def step_inputs(draw) -> dict:
     if draw(st.booleans()):  # elevation exactly at a travel limit
         el_lo = s_el + theta[1]
         k = StepConstants(**{**k.__dict__, "el_limits": (el_lo, el_lo + 0.5)})
-    rp = np.array([draw(st.floats(-k.rate_limit, k.rate_limit)), draw(st.floats(-k.rate_limit, k.rate_limit))])
-    a = np.array([draw(st.one_of(small, st.floats(-5.0, 5.0), st.sampled_from([-1.0, 1.0]))) for _ in range(2)])
+    rates = st.floats(-k.rate_limit, k.rate_limit)
+    rp = np.array([draw(rates), draw(rates)])
+    actions = st.one_of(small, st.floats(-5.0, 5.0), st.sampled_from([-1.0, 1.0]))
+    a = np.array([draw(actions), draw(actions)])
     if draw(st.booleans()):  # the rate command exactly at the acceleration bound
         a[0] = float(np.clip((rp[0] + k.rate_step) / k.action_scale, -1.0, 1.0))
-    noise = np.array([draw(st.floats(-1e-6, 1e-6)), draw(st.floats(-1e-6, 1e-6))]) if k.encoder_sigma else np.zeros(2)
+    tiny = st.floats(-1e-6, 1e-6)
+    noise = np.array([draw(tiny), draw(tiny)]) if k.encoder_sigma else np.zeros(2)
     point = np.array([draw(st.floats(-0.1, 0.1)), draw(st.floats(-0.1, 0.1))])
     cd = np.array([draw(small), draw(small)])
     return dict(k=k, start=np.array([s_az, s_el]), theta=theta, point=point, c=c, cd=cd, me=me, rp=rp,
                 ap=np.array([draw(small), draw(small)]), em0=np.array([draw(finite), draw(finite)]),
                 a=a.astype(np.float32 if draw(st.booleans()) else np.float64), noise=noise,
-                xi=[draw(st.floats(-4.0, 4.0)) for _ in range(K_NOISE)], x0=[draw(small) for _ in range(M_STATES)],
+                xi=[draw(st.floats(-4.0, 4.0)) for _ in range(K_NOISE)],
+                x0=[draw(small) for _ in range(M_STATES)],
                 hits=(draw(st.integers(0, 5)), draw(st.integers(0, 5))), xel=draw(st.floats(0.1, 1.0)),
                 wind=(draw(st.floats(0.0, 25.0)), draw(st.floats(-7.0, 7.0))))
 
@@ -213,7 +217,8 @@ def test_pointing_error_is_command_less_pointing_angle() -> None:
     c = np.array([[0.01, 0.02]])
     point = np.array([[0.019, 0.006]])
     pe = pointing_errors(c, point, math.cos(math.radians(45.0)))
-    np.testing.assert_allclose(pe[0], [(0.02 - 0.019) * R2MD, (0.01 * math.cos(math.radians(45.0)) - 0.006) * R2MD])
+    cos_e = math.cos(math.radians(45.0))
+    np.testing.assert_allclose(pe[0], [(0.02 - 0.019) * R2MD, (0.01 * cos_e - 0.006) * R2MD])
 
 
 def test_scalar_step_refuses_what_the_batched_check_refuses() -> None:

@@ -55,7 +55,7 @@ def test_constant_rate_command_moves_the_encoder_at_the_rate_loop_dc_gain(axis: 
     a = np.zeros(2, np.float32)
     a[axis] = 0.1 / env.config.action_scale_deg_s  # 0.1 deg/s requested
     pos = []
-    for k in range(500):  # 10 s; the acceleration limit ramps the command up in 0.5 s
+    for _ in range(500):  # 10 s; the acceleration limit ramps the command up in 0.5 s
         obs, *_ = env.step(a)
         pos.append(float(obs[8 + axis]))
     slope = (pos[-1] - pos[249]) / (250 * env.config.dt)  # deg/s over the last 5 s
@@ -67,7 +67,8 @@ def test_start_state_is_the_steady_motion_of_the_command(wind_kmh: float) -> Non
     # a pure ramp (no sinusoid) held with the reported start command: the error stays at zero
     # without wind.  In 70 km/h front wind the mean torque alone would make the antenna drift
     # by ~0.2 mdeg in 0.2 s if the start ignored it; the gusts move it by ~0.01 mdeg
-    env = DSS14Env(scenario="track", track_amp_max_deg=0.0, track_rate_max_deg_s=0.02, wind_speed_kmh=wind_kmh,
+    env = DSS14Env(scenario="track", track_amp_max_deg=0.0, track_rate_max_deg_s=0.02,
+                   wind_speed_kmh=wind_kmh,
                    wind_direction="front", encoder_bits=None)
     obs, info = env.reset(seed=3)
     assert abs(obs[6]) > 0.0  # moving
@@ -123,7 +124,7 @@ def test_sampled_pi_three_sigma_is_the_continuous_one(direction: str, dt: float)
 def test_sampled_pi_three_sigma_does_not_depend_on_dt(direction: str) -> None:
     a = sampled_three_sigma_mdeg(get_plant(50 * KMH, 0.02), DIRECTIONS[direction])
     b = sampled_three_sigma_mdeg(get_plant(50 * KMH, 0.01), DIRECTIONS[direction])
-    np.testing.assert_allclose(a, b, rtol=0.01)  # issue: within 5 %; measured 0.3 %
+    np.testing.assert_allclose(a, b, rtol=0.01)  # the exact values differ by 0.3 %
 
 
 @pytest.mark.parametrize("direction", DIRECTIONS)
@@ -196,7 +197,8 @@ def test_pi_batch_equals_single() -> None:
     rng = np.random.default_rng(0)
     for _ in range(5):
         out = batch.act(obs)
-        np.testing.assert_allclose(out, np.stack([c.act(o) for c, o in zip(singles, obs)]), rtol=1e-6)
+        expected = np.stack([c.act(o) for c, o in zip(singles, obs, strict=True)])
+        np.testing.assert_allclose(out, expected, rtol=1e-6)
         obs = obs + rng.normal(0, 0.01, obs.shape).astype(np.float32)
 
 

@@ -46,10 +46,12 @@ numbers = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.integers(
                     st.sampled_from([0, 1, -1, 0.5, 1e-300, 1e300, 1e5, 90.0, 90.000001, -0.0]))
 scalars = st.one_of(numbers, st.booleans(), st.none(), st.text(max_size=6),
                     st.sampled_from(["random", "front", "side", "1e-2", "50", "nan", "hold", "both"]))
-values = st.one_of(scalars, st.lists(scalars, max_size=3), st.dictionaries(st.text(max_size=4), scalars, max_size=2))
+values = st.one_of(scalars, st.lists(scalars, max_size=3),
+                   st.dictionaries(st.text(max_size=4), scalars, max_size=2))
 # values that keep the plant cache small where a key picks the plant
 PLANT_KEYS = {"dt": st.sampled_from([0.02, 0.01, 0.0, -0.02, 0.5, 1e-300, float("nan"), "1e-2", None]),
-              "wind_speed_kmh": st.sampled_from([0.0, 30.0, 89.9, 90.0, 90.01, 3000.0, 1e5, -1.0, "random", "50"]),
+              "wind_speed_kmh": st.sampled_from([0.0, 30.0, 89.9, 90.0, 90.01, 3000.0, 1e5, -1.0, "random",
+                                                 "50"]),
               "wind_speed_grid_kmh": st.sampled_from([[30.0], [0.0, 70.0], [], [1e5], ["x"]]),
               "params": st.sampled_from([None, {}, {"hydraulics.zeta_o": 0.7}, {"hydraulics.zeta_o": 5.0},
                                          {"x": 1.0}, {"hydraulics.mu": "1e9"}, [1]])}
@@ -131,15 +133,17 @@ def any_action(draw, n: int | None = None):
     if kind == 0:  # numpy arrays of any dtype and shape
         dtype = draw(st.sampled_from(DTYPES))
         shape = draw(st.sampled_from(shapes))
+        size = int(np.prod(shape))
         if dtype is np.object_:
-            return np.array(draw(st.lists(scalars, min_size=int(np.prod(shape)), max_size=int(np.prod(shape)))),
-                            dtype=object).reshape(shape)
+            items = draw(st.lists(scalars, min_size=size, max_size=size))
+            return np.array(items, dtype=object).reshape(shape)
         if dtype is np.str_:
-            return np.array(draw(st.lists(st.sampled_from(["0.5", "1e3", "a", ""]), min_size=int(np.prod(shape)),
-                                          max_size=int(np.prod(shape))))).reshape(shape)
+            texts = st.sampled_from(["0.5", "1e3", "a", ""])
+            return np.array(draw(st.lists(texts, min_size=size, max_size=size))).reshape(shape)
         return draw(hnp.arrays(dtype, shape))
     if kind == 1:  # nested Python lists of anything
-        return draw(st.lists(st.one_of(numbers, st.lists(numbers, max_size=3), st.text(max_size=2)), max_size=4))
+        items = st.one_of(numbers, st.lists(numbers, max_size=3), st.text(max_size=2))
+        return draw(st.lists(items, max_size=4))
     if kind == 2:  # well-formed float actions
         return draw(hnp.arrays(draw(st.sampled_from([np.float32, np.float64])), shapes[0],
                                elements=st.floats(-3, 3, width=32)))
@@ -205,7 +209,8 @@ def _check_vector_action(venv: DSS14VectorEnv, action) -> None:
         return
     assert not isinstance(expected, ValueError), f"accepted {action!r}"
     np.testing.assert_array_equal(info["action_unclipped"], expected)
-    assert np.all(np.isfinite(obs)) and np.all(np.isfinite(rew)) and term.dtype == bool and trunc.dtype == bool
+    assert np.all(np.isfinite(obs)) and np.all(np.isfinite(rew))
+    assert term.dtype == bool and trunc.dtype == bool
 
 
 @given(any_action(n=3))

@@ -126,5 +126,6 @@ def test_vector_env_info_arrays_and_counters() -> None:
                 "rate_command_az_deg_s", "accel_limited"):
         assert info[key].shape == (5,)
     assert info["action_unclipped"].shape == (5, 2)
-    assert np.all(info["accel_limited"]) and np.all(venv.n_accel_limited == 1) and np.all(info["n_accel_limited"] == 1)
+    assert np.all(info["accel_limited"]) and np.all(venv.n_accel_limited == 1)
+    assert np.all(info["n_accel_limited"] == 1)
     assert np.allclose(info["wind_speed_mps"], 50 / 3.6)

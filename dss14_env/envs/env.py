@@ -470,7 +470,8 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
             self._renderer.close()
 
 
-DSS14Env.__doc__ = DSS14Env.__doc__.replace("{registered_ids}", registered_ids_table().replace("\n", "\n    "))
+DSS14Env.__doc__ = DSS14Env.__doc__.replace("{registered_ids}",
+                                            registered_ids_table().replace("\n", "\n    "))
 
 
 def gust_divisor(kappa: np.ndarray, g0: float) -> tuple[bool, float]:

@@ -447,13 +447,13 @@ class PlantFactory:
         out = {}
         for name, value in params.items():
             if name not in SWEEP_PARAMS:
-                raise ValueError(f"{source}: field 'params': must name parameters of {', '.join(SWEEP_PARAMS)}, "
-                                 f"got {name!r}")
+                raise ValueError(f"{source}: field 'params': must name parameters of "
+                                 f"{', '.join(SWEEP_PARAMS)}, got {name!r}")
             lo, hi = self.model.cfg.params[name].range
             v = float(value)
             if not lo <= v <= hi:
-                raise ValueError(f"{source}: field 'params.{name}': must lie in the range [{lo:g}, {hi:g}] (SI) "
-                                 f"of the model {self.source or 'configs/model.yaml'}, got {value!r}")
+                raise ValueError(f"{source}: field 'params.{name}': must lie in the range [{lo:g}, {hi:g}] "
+                                 f"(SI) of the model {self.source or 'configs/model.yaml'}, got {value!r}")
             out[name] = v
         return out
 

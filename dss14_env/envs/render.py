@@ -42,7 +42,7 @@ class Renderer:
                cd_az: float, cd_el: float, wind: float) -> None:
         """Add one sample: time (s), true servo errors (mdeg), applied and commanded rates
         (deg/s), wind speed (m/s)."""
-        for k, v in zip(_FIELDS, (t, e_az, e_el, r_az, r_el, cd_az, cd_el, wind)):
+        for k, v in zip(_FIELDS, (t, e_az, e_el, r_az, r_el, cd_az, cd_el, wind), strict=True):
             self.hist[k].append(v)
 
     # ------------------------------------------------------------------ drawing

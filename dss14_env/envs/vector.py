@@ -87,7 +87,8 @@ class DSS14VectorEnv(VectorEnv):
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
         if max_episode_steps is not None and (isinstance(max_episode_steps, bool) or not isinstance(
                 max_episode_steps, (int, np.integer)) or max_episode_steps < 1):
-            raise ValueError(f"max_episode_steps must be None or a positive integer, got {max_episode_steps!r}")
+            raise ValueError(f"max_episode_steps must be None or a positive integer, got "
+                             f"{max_episode_steps!r}")
         if render_mode is not None:
             raise ValueError(f"render_mode must be None (DSS14VectorEnv does not render; use the single "
                              f"environment), got {render_mode!r}")
@@ -290,7 +291,8 @@ class DSS14VectorEnv(VectorEnv):
                     if not done[i]:
                         normals[:, i] = draw_noise_block(self._rngs[i], k, enc)
                 tr = {key: v[None] for key, v in self._traj.items()}
-                block_rows(tr, int(self._k[0]), kc.dt, kc.rate_limit, normals, kc.encoder_sigma, out=self._blocks)
+                block_rows(tr, int(self._k[0]), kc.dt, kc.rate_limit, normals, kc.encoder_sigma,
+                           out=self._blocks)
                 j0 = 0
                 j[:] = 0
             row = self._blocks[j0]
@@ -299,8 +301,9 @@ class DSS14VectorEnv(VectorEnv):
             if full.any():
                 for i in np.flatnonzero(full & ~done).tolist():
                     tr = {key: v[i] for key, v in self._traj.items()}
-                    block_rows(tr, int(self._k[i]), kc.dt, kc.rate_limit, draw_noise_block(self._rngs[i], k, enc),
-                               kc.encoder_sigma, out=self._blocks[:, i])
+                    block_rows(tr, int(self._k[i]), kc.dt, kc.rate_limit,
+                               draw_noise_block(self._rngs[i], k, enc), kc.encoder_sigma,
+                               out=self._blocks[:, i])
                     j[i] = 0
                 np.minimum(j, NOISE_BLOCK - 1, out=j)
             row = self._blocks[j, self._arange]
@@ -417,6 +420,6 @@ class DSS14VectorEnv(VectorEnv):
 
 
 #: the keys of the reset info
-_RESET_KEYS = ("servo_error_az_mdeg", "servo_error_el_mdeg", "measured_error_az_mdeg", "measured_error_el_mdeg",
-               "pointing_error_el_mdeg", "pointing_error_xel_mdeg", "wind_speed_mps", "wind_direction_rad",
-               "rate_command_az_deg_s", "rate_command_el_deg_s")
+_RESET_KEYS = ("servo_error_az_mdeg", "servo_error_el_mdeg", "measured_error_az_mdeg",
+               "measured_error_el_mdeg", "pointing_error_el_mdeg", "pointing_error_xel_mdeg",
+               "wind_speed_mps", "wind_direction_rad", "rate_command_az_deg_s", "rate_command_el_deg_s")

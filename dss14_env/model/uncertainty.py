@@ -61,7 +61,7 @@ def stability_sweep(model: DSS14Model, params=SWEEP_PARAMS, levels: int = 3) -> 
         kp, ki = model.gains(gname)
         worst, worst_combo, unstable = -np.inf, None, []
         for combo in combos:
-            vals = dict(zip(params, combo))
+            vals = dict(zip(params, combo, strict=True))
             pl = position_loop(perturbed_rate_loop(model, vals), kp, ki)
             a = float(np.max(np.linalg.eigvals(pl.A).real))
             if a > worst:
