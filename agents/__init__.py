@@ -1,2 +1,29 @@
-"""Learned controllers: PPO training (stable-baselines3), trained policies behind the controller
-interface, and residual learning on top of the report's PI."""
+"""Learned controllers: training (stable-baselines3 PPO, RecurrentPPO, SAC), trained policies
+behind the controller interface, residual and model-informed policy interfaces.
+
+Importing this package registers the agents' environment ids (nothing is built):
+``DSS14-Residual-v0``, ``DSS14-ResidualLQG-v0``, ``DSS14-KalmanObs-v0``
+(:mod:`dss14_env.agents.envs`).
+"""
+
+#: the agents' registered ids and their entry points
+AGENT_ENV_IDS = {
+    "DSS14-Residual-v0": "dss14_env.agents.residual:make_residual_env",
+    "DSS14-ResidualLQG-v0": "dss14_env.agents.envs:make_residual_lqg_env",
+    "DSS14-KalmanObs-v0": "dss14_env.agents.envs:make_kalman_obs_env",
+}
+
+
+def register_agent_envs() -> None:
+    """Register :data:`AGENT_ENV_IDS` with Gymnasium (idempotent; builds nothing).
+
+    The base environment's ``TimeLimit`` truncates, so the ids have no episode limit of their own.
+    """
+    from gymnasium.envs.registration import register, registry
+
+    for env_id, entry_point in AGENT_ENV_IDS.items():
+        if env_id not in registry:
+            register(id=env_id, entry_point=entry_point)
+
+
+register_agent_envs()

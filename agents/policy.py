@@ -1,197 +1,307 @@
-"""A trained PPO policy behind the shared controller interface, and a small evaluation helper.
+"""A trained policy behind the shared controller interface, loaded without unpickling.
 
-:class:`PPOController` loads ``model.zip`` + ``vecnormalize.pkl`` (a run folder, its
-``eval/best/`` folder, or a checkpoint zip), normalises each observation with the *frozen*
-training statistics and returns the deterministic (mean) action::
+:func:`load_policy` reads a policy folder (:mod:`dss14_env.agents.storage`: ``policy.pt``,
+``normalization.npz``, ``config.yaml``; a run folder, its ``eval/best/`` or a checkpoint
+folder), rebuilds the network from the configuration, checks that weights and statistics
+belong to the same run, and returns a :class:`PolicyController`: it normalises each
+observation with the *frozen* training statistics and returns the deterministic action::
 
-    from dss14_env.agents.policy import load_policy, evaluate
-    ctrl = load_policy("runs/ppo-20250101-120000")   # or load_policy(): the shipped policy
+    from dss14_env.agents.policy import load_policy
+    ctrl = load_policy("runs/ppo-20250101-120000", env=env)   # or load_policy(): the shipped one
     ctrl.reset(seed=0)
-    action = ctrl.act(obs)            # shape of the action space, clipped to its bounds
+    action = ctrl.act(obs)            # shape (2,), in [-1, 1]
     ctrl.info["inference_time_s"]     # wall time of the last act()
 
-    evaluate("runs/ppo-20250101-120000", seeds=[0, 1, 2], n_episodes=1)
+The controller is batchable (the runner's vector path): ``reset_batch(n)``, ``act_batch(obs
+(n, 12)) -> (n, 2)``, ``restart(mask)`` for rows whose sub-environment was reset,
+``info_batch``.  A residual or model-informed policy composes its base controller (PI or
+LQG) itself per row, a recurrent policy keeps one LSTM state per row; like every other
+controller it takes the environment's plain 12 observations.
+
+A foreign stable-baselines3 policy (``model.zip`` + ``vecnormalize.pkl``) is unpickled, which
+can run code: it loads only with ``trust_pickle=True``.
 """
 
 from __future__ import annotations
 
-import pickle
 import time
+from collections.abc import Iterable, Mapping
 from pathlib import Path
-from typing import Any, Iterable, Mapping
+from typing import Any
 
 import numpy as np
-import yaml
 
-from dss14_env.agents.ppo import PPOConfig, make_env, vecnormalize_path_for
+from dss14_env.agents.algos import algo_class, build_policy, is_recurrent
+from dss14_env.agents.config import TrainConfig, load_config
+from dss14_env.agents.envs import make_env, resolve_env
+from dss14_env.agents.interface import InterfaceSpec, PolicyInterface
+from dss14_env.agents.storage import (
+    NormStats,
+    PolicyFileError,
+    PolicyFiles,
+    check_fingerprints,
+    find_policy_files,
+    load_sb3_model,
+    load_stats,
+    load_weights,
+    policy_problem,
+)
 from dss14_env.baselines.base import Controller
 
-#: the policy shipped with the package (docs/ppo.md: how it was trained, how to reproduce it)
+#: the policy shipped with the package (docs/rl.md: how it was trained, how to reproduce it)
 DEFAULT_POLICY = Path(__file__).resolve().parent / "policies" / "residual_pi"
+#: labels of the algorithms in controller names
+ALGO_LABELS = {"ppo": "PPO", "recurrent_ppo": "RecurrentPPO", "sac": "SAC"}
 
 
-def _model_paths(path: str | Path) -> tuple[Path, Path]:
-    """(model zip, VecNormalize pickle) for a folder or a zip path."""
-    p = Path(path)
-    if p.is_dir():
-        model = p / "model.zip"
-    elif p.suffix == ".zip":
-        model = p
-    elif p.with_suffix(".zip").is_file():  # SB3 style: the path without .zip
-        model = p.with_suffix(".zip")
-    else:
-        raise ValueError(f"no PPO policy at {p}: expected a folder with model.zip or a .zip file")
-    if not model.is_file():
-        raise ValueError(f"PPO model not found: {model}")
-    stats = vecnormalize_path_for(model)
-    if not stats.is_file():
-        raise ValueError(f"VecNormalize stats of {model} not found: {stats}")
-    return model, stats
+def _env_config(env: Any) -> Any:
+    return getattr(getattr(env, "unwrapped", env), "config", None)
 
 
-class PPOController(Controller):
-    """Deterministic PPO policy with frozen observation normalisation.
+class PolicyController(Controller):
+    """Deterministic trained policy with frozen observation normalisation (see the module doc).
 
-    :param path: run folder, ``eval/best`` folder (both with ``model.zip`` and
-        ``vecnormalize.pkl``), or a model/checkpoint zip with its stats beside it
-    :param name: label in tables and plots, default None: ``"PPO (<folder name>)"``
-    :param torch_threads: ``torch.set_num_threads`` value (process-wide; one thread is fastest
-        for small MLPs), default 1; None leaves torch alone
-    :param env: the DSS14 environment the controller will act on, default None; only used by a
-        residual policy (run trained on ``DSS14-Residual-v0``, :mod:`dss14_env.agents.residual`), whose PI
-        takes the period and scales from it; None: the run's base environment
-
-    A residual policy's controller composes ``PI + residual_scale * policy`` itself (the run's
-    ``config.yaml`` names the gains and scale), so like every other controller it takes the
-    environment's plain 12 observations.
+    :param policy: the SB3 policy network (``predict``)
+    :param config: the run's configuration (algorithm, environment, interface), or None for a
+        foreign policy without one (then it acts on the raw observations)
+    :param stats: frozen observation statistics, or None
+    :param name: label in tables and plots
+    :param env: the environment it will act on, default None: the run's; a residual or
+        model-informed policy's base controller is designed for the *training* environment,
+        and actions are converted to ``env``'s action scale
+    :param torch_threads: ``torch.set_num_threads`` value (process-wide), default 1; None leaves
+        torch alone
     """
 
-    def __init__(self, path: str | Path, name: str | None = None,
-                 torch_threads: int | None = 1, env: Any = None) -> None:
-        import torch
-        from stable_baselines3 import PPO
+    batchable = True
 
-        model_path, stats_path = _model_paths(path)
-        run = model_path.parent
-        if run.name == "checkpoints":
-            run = run.parent
-        super().__init__(name or f"PPO ({run.name})")
+    def __init__(self, policy: Any, config: TrainConfig | None, stats: NormStats | None,
+                 name: str, env: Any = None, torch_threads: int | None = 1) -> None:
+        import torch
+
+        super().__init__(name)
         if torch_threads is not None:
             torch.set_num_threads(torch_threads)
-        self.model_path, self.stats_path = model_path, stats_path
-        self.model = PPO.load(model_path, device="cpu")
-        with open(stats_path, "rb") as fh:  # what VecNormalize.load does, without a venv
-            self.vec_normalize = pickle.load(fh)
-        self.vec_normalize.training = False  # frozen statistics
-        self.vec_normalize.norm_reward = False
-        self.observation_space = self.model.observation_space
-        self.action_space = self.model.action_space
-        self.config = _run_config(model_path)
-        self.residual = _residual_core(self.config, env)
-        if self.residual is not None and self.observation_space.shape != (self.residual.obs_dim,):
-            raise ValueError(f"{model_path}: this residual run's policy must observe "
-                             f"{self.residual.obs_dim} entries, got {self.observation_space.shape}")
+        self.policy, self.config, self.stats = policy, config, stats
+        self.recurrent = config is not None and is_recurrent(config.algo)
+        self.obs_dim = int(np.prod(policy.observation_space.shape))
+        self.spec: InterfaceSpec | None = None
+        self.train_env_config = None
+        self.to_env = 1.0
+        if config is not None:
+            plan = resolve_env(config)
+            self.spec = plan.interface
+            if plan.dss14:
+                base = make_env(plan.base_id, plan.base_kwargs)
+                self.train_env_config = _env_config(base)
+                base.close()
+        self.input_dim = 12 if self.spec is not None else self.obs_dim
+        if env is not None:
+            self.target_env(env)
+        if self.spec is not None:
+            probe = PolicyInterface(self.spec, self.train_env_config, 1)
+            if probe.obs_dim != self.obs_dim:
+                raise PolicyFileError(f"{config.source}: the interface of env_id "
+                                      f"{config.env_id!r} gives {probe.obs_dim} observations, the "
+                                      f"weights expect {self.obs_dim}")
+        self.info_batch: dict[str, np.ndarray] = {}
+        self.reset_batch(1)
 
+    def target_env(self, env: Any) -> None:
+        """Act on ``env`` from now on: actions are converted from the training environment's
+        action scale to ``env``'s (a DSS14 environment; others are left alone)."""
+        target = _env_config(env)
+        if self.train_env_config is not None and target is not None:
+            self.to_env = self.train_env_config.action_scale_deg_s / target.action_scale_deg_s
+
+    # ------------------------------------------------------------------ single
     def reset(self, seed: int | None = None) -> None:
-        """New episode (restarts a residual policy's PI).
+        """New episode (restarts a base controller, history and LSTM state).
 
         :param seed: unused (the policy is deterministic)
         """
         super().reset(seed)
-        if self.residual is not None:
-            self.residual.reset()
+        self.reset_batch(1)
 
     def act(self, observation: np.ndarray) -> np.ndarray:
-        """Deterministic action for one observation.
+        """Deterministic action for one observation (the environment's, not normalised).
 
-        :param observation: one observation of the environment (not normalised)
-        :return: the action, shape of the action space, clipped to its bounds
+        :raises ValueError: wrong shape or non-finite observation
         """
-        t0 = time.perf_counter()
         obs = np.asarray(observation, dtype=np.float32)
-        expected = (12,) if self.residual is not None else self.observation_space.shape
-        if obs.shape != expected:
+        if obs.shape != (self.input_dim,):
             raise ValueError(f"{self.name}: observation shape {obs.shape}, the policy expects "
-                             f"{expected}")
-        if self.residual is not None:
-            obs = self.residual.observe(obs)
-        action, _ = self.model.predict(self.vec_normalize.normalize_obs(obs), deterministic=True)
-        if self.residual is not None:
-            action = self.residual.combine(action)
-        dt = time.perf_counter() - t0
+                             f"({self.input_dim},)")
+        if self._n != 1:
+            self.reset_batch(1)
+        a = self.act_batch(obs[None])[0]
+        dt = float(self.info_batch["inference_time_s"][0])
         # "solve_time_s" too, so that tables of solve times include the learned controller
         self.info = {"inference_time_s": dt, "solve_time_s": dt}
-        return action
+        return a
+
+    # ------------------------------------------------------------------ batched
+    def reset_batch(self, n: int, seeds: Iterable[int] | None = None) -> None:
+        """Start ``n`` episodes (rows).
+
+        :param n: number of rows
+        :param seeds: unused (the policy is deterministic)
+        """
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+            raise ValueError(f"reset_batch: n must be a positive integer, got {n!r}")
+        self._n = int(n)
+        self.interface = (None if self.spec is None
+                          else PolicyInterface(self.spec, self.train_env_config, self._n))
+        self._state: Any = None
+        self._starts = np.ones(self._n, bool)
+        self.info_batch = {}
+
+    def restart(self, mask: np.ndarray) -> None:
+        """Rows ``mask`` (bool ``(n,)``) start new episodes at the next :meth:`act_batch`."""
+        mask = np.asarray(mask, bool)
+        if mask.shape != (self._n,):
+            raise ValueError(f"restart: mask must have shape ({self._n},), got {mask.shape}")
+        if self.interface is not None:
+            self.interface.restart(mask)
+        self._starts |= mask
+
+    def act_batch(self, observations: np.ndarray) -> np.ndarray:
+        """Deterministic actions ``(n, act_dim)`` float32 for observations ``(n, input_dim)``.
+
+        :raises ValueError: wrong shape or non-finite observations (naming the rows)
+        """
+        t0 = time.perf_counter()
+        obs = np.asarray(observations, dtype=np.float32)
+        if obs.shape != (self._n, self.input_dim):
+            raise ValueError(f"{self.name}: observation shape {obs.shape}, the policy expects "
+                             f"({self._n}, {self.input_dim})")
+        bad = ~np.isfinite(obs).all(axis=1)
+        if bad.any():
+            raise ValueError(f"{self.name}: non-finite observation in row(s) "
+                             f"{np.flatnonzero(bad).tolist()}")
+        feats = obs if self.interface is None else self.interface.observe(obs)
+        x = feats if self.stats is None else self.stats.normalize(feats)
+        if self.recurrent:
+            u, self._state = self.policy.predict(x, state=self._state, episode_start=self._starts,
+                                                 deterministic=True)
+        else:
+            u, _ = self.policy.predict(x, deterministic=True)
+        self._starts = np.zeros(self._n, bool)
+        u = np.asarray(u, np.float64).reshape(self._n, -1)
+        a = u if self.interface is None else self.interface.action(u)
+        if self.to_env != 1.0:
+            a = np.clip(a * self.to_env, -1.0, 1.0)
+        a = np.asarray(a, np.float32)
+        dt = time.perf_counter() - t0
+        per_row = np.full(self._n, dt / self._n)
+        self.info_batch = {"inference_time_s": per_row, "solve_time_s": per_row}
+        return a
 
 
-def load_policy(path: str | Path | None = None, env: Any = None,
-                name: str | None = None) -> PPOController:
-    """Load a trained PPO policy as a :class:`dss14_env.baselines.base.Controller`.
+#: the name of the PPO-only controller class of earlier versions
+PPOController = PolicyController
 
-    :param path: run folder, ``eval/best`` folder, or a model/checkpoint zip; default None:
-        the policy shipped with the package (:data:`DEFAULT_POLICY`)
-    :param env: the environment it will act on (see :class:`PPOController`), default None
-    :param name: label, default None (from the folder name)
+
+def _label(files: PolicyFiles, algo: str) -> str:
+    folder = files.folder
+    name = folder.name
+    if folder.parent.name == "eval":  # <run>/eval/best
+        name = f"{folder.parent.parent.name}/{folder.name}"
+    elif folder.parent.name == "checkpoints":
+        name = f"{folder.parent.parent.name}/{folder.name}"
+    return f"{ALGO_LABELS.get(algo, algo)} ({name})"
+
+
+def load_policy(path: str | Path | None = None, env: Any = None, name: str | None = None,
+                trust_pickle: bool = False, torch_threads: int | None = 1) -> PolicyController:
+    """Load a trained policy as a :class:`dss14_env.baselines.base.Controller`.
+
+    :param path: a policy folder (run folder, ``eval/best``, ``checkpoints/<N>_steps``);
+        default None: the policy shipped with the package (:data:`DEFAULT_POLICY`)
+    :param env: the environment it will act on (see :class:`PolicyController`), default None
+    :param name: label, default None: ``"<ALGO> (<folder>)"``
+    :param trust_pickle: allow a foreign stable-baselines3 ``.zip`` / ``vecnormalize.pkl``
+        (unpickled: can run code), default False
+    :param torch_threads: see :class:`PolicyController`
+    :raises PolicyFileError: (a ValueError) one line naming the file: missing, unreadable,
+        refused pickle, weights and statistics of different runs, weights that do not fit the
+        configured architecture
     """
-    return PPOController(DEFAULT_POLICY if path is None else path, name=name, env=env)
+    files = find_policy_files(DEFAULT_POLICY if path is None else path)
+    cfg = None
+    if files.config is not None:
+        cfg = load_config(files.config)
+    if files.foreign:
+        model, vn = load_sb3_model(files, algo_class(cfg.algo if cfg else "ppo"), trust_pickle)
+        stats = NormStats.from_vec_normalize(vn) if vn is not None and vn.norm_obs else None
+        algo = cfg.algo if cfg else "ppo"
+        return PolicyController(model.policy, cfg, stats, name or _label(files, algo), env,
+                                torch_threads)
+    wfp, state = load_weights(files.weights)
+    if wfp["algo"] != cfg.algo:
+        raise PolicyFileError(f"{files.weights}: weights of algo {wfp['algo']!r}, "
+                              f"{files.config} says {cfg.algo!r}")
+    stats = None
+    if cfg.normalize_obs:
+        if files.stats is None:
+            raise PolicyFileError(f"policy folder {files.folder}: normalization.npz is missing "
+                                  f"({files.config} has normalize_obs: true)")
+        sfp, stats = load_stats(files.stats)
+        check_fingerprints(files.weights, wfp, files.stats, sfp)
+        if stats.obs_mean.size != int(wfp["obs_dim"]):
+            raise PolicyFileError(f"{files.stats}: statistics of {stats.obs_mean.size} "
+                                  f"observations, the weights expect {wfp['obs_dim']}")
+    low = wfp.get("action_low", [-1.0] * int(wfp["act_dim"]))
+    high = wfp.get("action_high", [1.0] * int(wfp["act_dim"]))
+    policy = build_policy(cfg, int(wfp["obs_dim"]), low, high)
+    try:
+        policy.load_state_dict(state, strict=True)
+    except (RuntimeError, KeyError, TypeError) as exc:
+        first = str(exc).strip().splitlines()[0][:160]
+        raise PolicyFileError(f"{files.weights}: the weights do not fit the architecture of "
+                              f"{files.config} ({first})") from None
+    return PolicyController(policy, cfg, stats, name or _label(files, cfg.algo), env,
+                            torch_threads)
 
 
-def _residual_core(cfg: PPOConfig | None, env: Any) -> Any:
-    """The :class:`dss14_env.agents.residual.ResidualPI` of a residual run, else None."""
-    from dss14_env.agents.residual import (
-        DEFAULT_GAINS,
-        DEFAULT_HISTORY,
-        DEFAULT_RESIDUAL_SCALE,
-        RESIDUAL_ENV_ID,
-        ResidualPI,
-        base_env_args,
-    )
+def _model_paths(path: str | Path) -> PolicyFiles:
+    """The policy files at ``path``; raises ValueError (one line) when it cannot be loaded.
 
-    if cfg is None or cfg.env_id != RESIDUAL_ENV_ID:
-        return None
-    kw = dict(cfg.env_kwargs)
-    if env is None:
-        env = make_env(*base_env_args(kw))
-    gains = kw.get("gains", DEFAULT_GAINS)
-    return ResidualPI(env, tuple(gains) if isinstance(gains, list) else gains,
-                      kw.get("residual_scale", DEFAULT_RESIDUAL_SCALE),
-                      kw.get("history", DEFAULT_HISTORY))
-
-
-def _run_config(model_path: Path) -> PPOConfig | None:
-    for d in (model_path.parent, model_path.parent.parent, model_path.parent.parent.parent):
-        f = d / "config.yaml"
-        if f.is_file():
-            return PPOConfig.from_dict(yaml.safe_load(f.read_text()) or {}, source=str(f))
-    return None
+    Kept for callers of earlier versions; use :func:`find_policy_files` and
+    :func:`policy_problem`.
+    """
+    problem = policy_problem(path)
+    if problem is not None:
+        raise PolicyFileError(problem)
+    return find_policy_files(path)
 
 
 def evaluate(path: str | Path, env_id: str | None = None, seeds: Iterable[int] = (0,),
-             n_episodes: int = 1, env_kwargs: Mapping[str, Any] | None = None) -> dict[str, Any]:
+             n_episodes: int = 1, env_kwargs: Mapping[str, Any] | None = None,
+             trust_pickle: bool = False) -> dict[str, Any]:
     """Mean and spread of the episode return of the deterministic policy (a quick check; the
-    project's runner does the real scoring).
+    project's runner and :mod:`dss14_env.agents.evaluation` do the real scoring).
 
     For every seed the first episode starts with ``reset(seed=seed)``; the next
-    ``n_episodes - 1`` continue the environment's generator (as the training-time evaluation
-    does with ``eval_seeds`` and ``n_eval_episodes``).
+    ``n_episodes - 1`` continue the environment's generator.  A policy with an interface
+    (residual, model-informed, history) is stepped on the base environment underneath (same
+    episodes, same rewards).
 
-    :param path: run folder, ``eval/best`` folder, or a model/checkpoint zip
-    :param env_id: environment, default None: ``env_id`` of the run's ``config.yaml``
+    :param path: a policy folder
+    :param env_id: environment, default None: the run's
     :param seeds: episode seeds, default ``(0,)``
     :param n_episodes: episodes per seed, default 1
     :param env_kwargs: ``gymnasium.make`` arguments, default None: the run's (or none when
         ``env_id`` is given and differs from the run's)
+    :param trust_pickle: see :func:`load_policy`
     :return: ``mean_return``, ``std_return``, ``min_return``, ``max_return``, ``returns``,
         ``lengths``, ``n_episodes`` (total), ``seeds``, ``env_id``, ``mean_inference_time_s``
-
-    A residual policy (trained on ``DSS14-Residual-v0``) composes its actions itself, so it
-    is stepped on the base environment underneath (same episodes, same rewards).
     """
-    ctrl = PPOController(path)
-    cfg = _run_config(ctrl.model_path)
+    ctrl = load_policy(path, trust_pickle=trust_pickle)
+    cfg = ctrl.config
     if env_id is None:
         if cfg is None:
-            raise ValueError(f"no config.yaml near {ctrl.model_path}: pass env_id")
+            raise ValueError(f"no config.yaml with the policy at {path}: pass env_id")
         env_id = cfg.env_id
     env_module = cfg.env_module if cfg is not None else None
     if env_kwargs is None:
@@ -199,10 +309,9 @@ def evaluate(path: str | Path, env_id: str | None = None, seeds: Iterable[int] =
     seeds = [int(s) for s in seeds]
     if not seeds or n_episodes < 1:
         raise ValueError("evaluate: need at least one seed and n_episodes >= 1")
-    from dss14_env.agents.residual import RESIDUAL_ENV_ID, base_env_args
-
-    if ctrl.residual is not None and env_id == RESIDUAL_ENV_ID:  # step the base environment
-        env_id, env_kwargs = base_env_args(env_kwargs)
+    if cfg is not None and env_id == cfg.env_id and ctrl.spec is not None:
+        plan = resolve_env(cfg.replace(env_kwargs=dict(env_kwargs)))
+        env_id, env_kwargs = plan.base_id, dict(plan.base_kwargs)
     env = make_env(env_id, env_kwargs, env_module)
     returns, lengths, times = [], [], []
     try:
@@ -229,4 +338,5 @@ def evaluate(path: str | Path, env_id: str | None = None, seeds: Iterable[int] =
             "mean_inference_time_s": float(np.mean(times))}
 
 
-__all__ = ["DEFAULT_POLICY", "PPOController", "evaluate", "load_policy"]
+__all__ = ["ALGO_LABELS", "DEFAULT_POLICY", "PPOController", "PolicyController", "PolicyFiles",
+           "evaluate", "find_policy_files", "load_policy", "policy_problem"]

@@ -44,15 +44,17 @@ True
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 from scipy import linalg
 
 from dss14_env.core.schema import ConfigError, Param, load_section, read_config, spec
+from dss14_env.core.units import MDEG, WIND_DIRECTIONS
 from dss14_env.model.assembly import DSS14Model, default_model
 from dss14_env.model.linsys import balance, discretize, noise_factor
 from dss14_env.wind.loads import WindLoads, default_wind_loads, direction_angle
@@ -61,9 +63,8 @@ ENCODER_OUTPUTS = ("enc_az", "enc_el")
 RATE_OUTPUTS = ("enc_rate_az", "enc_rate_el")
 COMMAND_INPUTS = ("r_a", "r_e")
 WIND_INPUTS = ("Tw_az", "Tw_el")
-DIRECTIONS = ("front", "side")
 #: floor of the measurement-noise standard deviation (rad): 1e-3 mdeg, for exact encoders
-MIN_MEASUREMENT_NOISE = 1e-3 * math.pi / 180e3
+MIN_MEASUREMENT_NOISE = 1e-3 * MDEG
 
 
 # ------------------------------------------------------------------------- configuration
@@ -156,7 +157,7 @@ def default_controllers_config() -> ControllersConfig:
 def encoder_step(bits: int) -> float:
     """Encoder quantisation step ``2 pi / 2^bits`` in rad (20 bits: 0.343 mdeg).
 
-    >>> round(encoder_step(20) * 180e3 / math.pi, 4)
+    >>> round(encoder_step(20) / MDEG, 4)
     0.3433
     """
     if int(bits) != bits or bits < 1:
@@ -204,7 +205,8 @@ def split_rate_loop(model: DSS14Model) -> StableRateLoop:
     tol = 1e-8 * max(1.0, np.abs(A).max())
     T, Z, n_s = linalg.schur(A, output="real", sort=lambda re, im: re < -tol)
     if A.shape[0] - n_s != 2:
-        raise ValueError(f"expected 2 rigid-body (zero) eigenvalues in the rate loop, found {A.shape[0] - n_s}")
+        raise ValueError(f"expected 2 rigid-body (zero) eigenvalues in the rate loop, found "
+                         f"{A.shape[0] - n_s}")
     X = linalg.solve_sylvester(T[:n_s, :n_s], -T[n_s:, n_s:], -T[:n_s, n_s:])
     M = np.eye(A.shape[0])
     M[:n_s, n_s:] = X
@@ -291,18 +293,6 @@ class ReducedRateLoop:
             out.append((self.C @ np.linalg.solve(s * eye - self.A, self.B) + self.D) / s)
         return np.array(out)
 
-    def to_ss(self) -> Any:
-        """Named python-control system with the rate loop's labels (inputs ``r_a, r_e,
-        Tw_az, Tw_el``; outputs ``enc_az, enc_el``), usable with
-        :func:`dss14_env.model.loops.position_loop`."""
-        from dss14_env.model.linsys import ss
-        n = self.A.shape[0]
-        A = np.block([[np.zeros((2, 2)), self.C], [np.zeros((n, 2)), self.A]])
-        B = np.vstack([self.D, self.B])
-        C = np.hstack([np.eye(2), np.zeros((2, n))])
-        return ss(A, B, C, np.zeros((2, 4)), list(COMMAND_INPUTS + WIND_INPUTS),
-                  list(ENCODER_OUTPUTS), name=f"rate_loop_reduced_{self.order}")
-
 
 _CACHE: dict[tuple, Any] = {}
 
@@ -340,7 +330,7 @@ def _reduce(order, model, loads, speed, rate_limit) -> ReducedRateLoop:
     speed = cfg.wind_speed if speed is None else float(speed)
     rate_limit = cfg.rate_limit if rate_limit is None else float(rate_limit)
     srl = _split(model)
-    t_std = np.max([gust_torque_std(loads, speed, d) for d in DIRECTIONS], axis=0)
+    t_std = np.max([gust_torque_std(loads, speed, d) for d in WIND_DIRECTIONS], axis=0)
     su = np.concatenate([[rate_limit, rate_limit], t_std])
     Ar, Br, Cr, Dr, hsv = balanced_reduction(srl.A, srl.B * su, srl.C / rate_limit, srl.D * su / rate_limit,
                                              order)
@@ -415,7 +405,6 @@ class DesignModel:
     order: int
     wind: Any
     hsv: np.ndarray = field(repr=False)
-    Tw_matrix: np.ndarray = field(repr=False)  # gust torques = Tw_matrix @ x
 
     @property
     def n(self) -> int:
@@ -468,7 +457,7 @@ def _wind_model(loads: WindLoads, wind: Any) -> tuple[np.ndarray, np.ndarray, np
         a, g, c = (np.asarray(m, float) for m in (f.A, f.B, f.C))
         A_w = linalg.block_diag(a, a)
         G_w = linalg.block_diag(g, g)
-        C_w = np.hstack([np.outer(loads.gust_gain(speed, d), c) for d in DIRECTIONS])
+        C_w = np.hstack([np.outer(loads.gust_gain(speed, d), c) for d in WIND_DIRECTIONS])
         return A_w, G_w, C_w
     if isinstance(wind, tuple) and len(wind) == 2:
         speed, direction = float(wind[0]), wind[1]
@@ -531,12 +520,10 @@ def _build(dt, order, wind, encoder_noise, bits, model, loads) -> DesignModel:
     G[w] = G_w
     C = np.zeros((2, n))
     C[:, :2] = np.eye(2)
-    Tw = np.zeros((2, n))
-    Tw[:, w] = C_w
     Ad, Bd, Qd = discretize(A, B, dt, G)
     q2 = encoder_step(bits) ** 2 / 12.0 if bits is not None else 0.0
     R = max(q2 + encoder_noise ** 2, MIN_MEASUREMENT_NOISE ** 2) * np.eye(2)
-    return DesignModel(dt, A, B, G, C, Ad, Bd, Qd, R, 2, nv, nw, nv, wind, red.hsv, Tw)
+    return DesignModel(dt, A, B, G, C, Ad, Bd, Qd, R, 2, nv, nw, nv, wind, red.hsv)
 
 
 def smallest_order(budget_rel: float) -> int:
@@ -580,142 +567,3 @@ def infer_wind(r0: np.ndarray, c_rate0: np.ndarray, model: DSS14Model | None = N
     M = q * np.column_stack([loads.c_front, loads.c_side])
     a, b = np.linalg.solve(M, T)
     return float(math.sqrt(math.hypot(a, b))), float(math.atan2(b, a) % math.pi)
-
-
-# ------------------------------------------------------------------------- command shaper
-class CommandShaper:
-    """Command preprocessor: a rate- and acceleration-limited copy of the command.
-
-    The DSN LQG servos need one ([DETC99], lit. Q4): an LQG that is handed a command its
-    limits cannot follow saturates the command limiter and limit-cycles.  The shaped command
-    ``(c_s, v_s)`` moves with a piecewise-constant acceleration ``acc_s`` (held over each
-    period, so ``c_s`` is exactly a parabola between steps) chosen each step from the raw
-    command ``(c, v)``: the raw command's own acceleration passes through, a gap (a step) is
-    closed with at most ``accel``, the total is capped at ``accel_max``::
-
-        p      = c - c_s                                  (gap)
-        k      = sqrt(1/4 + 2 |p| / (a dt^2)) - 1/2       (steps needed to brake over p)
-        v_des  = clip(v + sign(p) min(a dt k, |p| / dt), -v_max, v_max)
-        dv_raw = v - v_prev                               (raw command's change)
-        acc_s  = clip(dv_raw + clip(v_des - v_s - dv_raw, -a dt, a dt), -a_max dt, a_max dt) / dt
-
-    A command that respects the limits is passed through (``p = 0``, ``v_s = v``).
-
-    :param rate: largest shaped rate (encoder rad/s)
-    :param accel: largest acceleration used to close a gap (rad/s^2)
-    :param dt: period, s
-    :param accel_max: largest shaped acceleration in all (rad/s^2), default ``accel``
-    """
-
-    def __init__(self, rate: float, accel: float, dt: float, accel_max: float | None = None) -> None:
-        accel_max = accel if accel_max is None else accel_max
-        for name, v in (("rate", rate), ("accel", accel), ("dt", dt), ("accel_max", accel_max)):
-            if not (math.isfinite(v) and v > 0):
-                raise ValueError(f"shaper {name} must be positive and finite, got {v!r}")
-        self.rate, self.accel, self.dt = float(rate), float(accel), float(dt)
-        self.accel_max = max(float(accel_max), self.accel)
-        self.tol = 1e-3 * math.pi / 180e3  # 1e-3 mdeg
-        self.reset()
-
-    def reset(self) -> None:
-        """Forget the shaped command (the next call starts on the raw one)."""
-        self.active = False
-        self.c: np.ndarray | None = None
-        self.v = np.zeros(2)
-        self.acc = np.zeros(2)
-        self.v_raw = np.zeros(2)
-
-    def __call__(self, c: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Shaped ``(c_s, v_s, acc_s)`` for the raw command ``(c, v)`` of this step (rad,
-        rad/s, rad/s^2); ``acc_s`` is held over the coming period."""
-        c, v = np.asarray(c, float), np.asarray(v, float)
-        a, dt = self.accel, self.dt
-        if self.c is None:
-            self.c, self.v = c.copy(), np.clip(v, -self.rate, self.rate)
-            self.v_raw = v.copy()
-        else:
-            self.c = self.c + self.v * dt + 0.5 * self.acc * dt * dt
-            self.v = self.v + self.acc * dt
-        p = c - self.c
-        ap = np.abs(p)
-        k = np.sqrt(0.25 + 2.0 * ap / (a * dt * dt)) - 0.5
-        v_des = np.clip(v + np.sign(p) * np.minimum(a * dt * k, ap / dt), -self.rate, self.rate)
-        dv_raw = v - self.v_raw
-        self.v_raw = v.copy()
-        am = self.accel_max * dt
-        self.acc = np.clip(dv_raw + np.clip(v_des - self.v - dv_raw, -a * dt, a * dt), -am, am) / dt
-        #: True while the shaped command differs from the raw one (a step or a slew is shaped)
-        self.active = bool(np.any(ap > self.tol))
-        return self.c.copy(), self.v.copy(), self.acc.copy()
-
-
-class ReferenceGenerator:
-    """Feasible reference for the model-based controllers: shaper + reference model.
-
-    The raw command goes through the :class:`CommandShaper`.  A noise-free copy of the design
-    model is driven along the shaped motion by the quasi-steady feedforward of the shaped
-    parabola and a gentle state feedback ``K_ref`` (the controllers use a position pull,
-    ``K_ref = [k_pos I, 0]``)::
-
-        x_qs, r_qs = reference_state(c_s, v_s, accel_ff * acc_s)
-        r_ff       = r_qs - K_ref [x_ref - x_qs; r_ff_prev - r_qs]    (limited to margin x limits)
-        x_ref(k+1) = Ad x_ref(k) + Bd r_ff(k)
-
-    The controller then regulates the deviation from ``(x_ref, r_ff)``, which the plant can
-    follow within the limits, so the feedback does not saturate on a step or a slew.  A command
-    the limits can follow (hold, track) passes through: the ramp feedforward is exact for the
-    model, ``x_ref = x_qs``.  The rate loop settles in 3-5 s (its lag compensator and the az
-    anti-resonance), so a shaped step of a few mdeg/s^2 is what it follows without overshoot.
-
-    :param dm: design model (its wind states stay at zero)
-    :param shaper: the command shaper
-    :param K_ref: state feedback of the reference model on ``[x; r_prev]`` (2 x (n + 2))
-    :param rate_limit: command limiter's rate limit, rad/s
-    :param rate_step: command limiter's largest change per period, rad/s
-    :param margin: fraction of the limits the feedforward may use
-    """
-
-    def __init__(self, dm: DesignModel, shaper: CommandShaper, K_ref: np.ndarray, rate_limit: float,
-                 rate_step: float, margin: float = 0.9, accel_ff: float = 0.0) -> None:
-        self.dm, self.shaper = dm, shaper
-        self.accel_ff = float(accel_ff)
-        if K_ref.shape != (2, dm.n + 2):
-            raise ValueError(f"K_ref must be 2 x {dm.n + 2}, got {K_ref.shape}")
-        self.K = K_ref
-        self.rate_limit, self.rate_step = float(rate_limit), float(rate_step)
-        self.margin = float(margin)
-        z2 = np.zeros(2)
-        n = dm.n
-        self.Xv, self.Xa = np.zeros((n, 2)), np.zeros((n, 2))
-        self.Rv, self.Ra = np.zeros((2, 2)), np.zeros((2, 2))
-        for i, e in enumerate(np.eye(2)):
-            self.Xv[:, i], self.Rv[:, i] = dm.reference_state(z2, e)
-            self.Xa[:, i], self.Ra[:, i] = dm.reference_state(z2, z2, e)
-        self.reset()
-
-    def reset(self) -> None:
-        """Start over at the next call."""
-        self.shaper.reset()
-        self.x: np.ndarray | None = None
-        self.r = np.zeros(2)
-
-    def quasi_steady(self, c: np.ndarray, v: np.ndarray, a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """State and command of the model on the parabola ``(c, v, a)``."""
-        x = self.Xv @ v + self.Xa @ a
-        x[:2] += c
-        return x, self.Rv @ v + self.Ra @ a
-
-    def __call__(self, c: np.ndarray, c_rate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``(x_ref, r_ff)`` of this period for the raw command ``(c, c_rate)`` (SI)."""
-        c, c_rate = np.asarray(c, float), np.asarray(c_rate, float)
-        first = self.x is None
-        if not first:
-            self.x = self.dm.Ad @ self.x + self.dm.Bd @ self.r
-        c_s, v_s, a_s = self.shaper(c, c_rate)
-        x_qs, r_qs = self.quasi_steady(c_s, v_s, self.accel_ff * a_s)
-        if first:
-            self.x, self.r = x_qs, r_qs
-        r_des = r_qs - self.K @ np.concatenate([self.x - x_qs, self.r - r_qs])
-        step, lim = self.margin * self.rate_step, self.margin * self.rate_limit
-        self.r = np.clip(np.clip(r_des, self.r - step, self.r + step), -lim, lim)
-        return self.x.copy(), self.r.copy()

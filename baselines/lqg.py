@@ -14,70 +14,48 @@ Stage cost of the LQR, per control period, on the environment's normalised quant
     w_e |e_k / sigma_e|^2 + w_i |xi_k / (sigma_e * 1 s)|^2 + w_a w |(r_k - r_{k-1}) / s_a|^2
 
 ``x_ref, r_ref`` put the model on the commanded ramp ``c + c_rate t``
-(:meth:`DesignModel.reference_state`), so hold, step and track all use the same law.  With
+(:meth:`DesignModel.reference_state`), or on the reference model of
+:mod:`dss14_env.baselines.shaping`, so hold, step and track all use the same law.  With
 ``w_e = w_a = 1`` and ``w_i = 0`` this is exactly the environment's reward; the small
 integral weight removes the offset of the mean wind torque, which the gust model (zero mean)
 does not describe.
 
 The Riccati equations are solved by :func:`scipy.linalg.solve_discrete_are`; the residuals are
-returned for the tests.  :func:`closed_loop` interconnects any such controller with a
-(full-order) plant model and :func:`stationary_performance` gives the exact stationary 3-sigma
-servo error and expected per-step cost by a discrete Lyapunov equation.
+returned for the tests.  The closed-loop analysis of these designs is in
+:mod:`dss14_env.baselines.analysis`.
 """
 
 from __future__ import annotations
 
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from scipy import linalg
 
-from dss14_env.baselines.base import Controller
+from dss14_env.baselines.analysis import dare_residual
+from dss14_env.baselines.base import (
+    Controller,
+    check_batch_size,
+    check_mask,
+    check_observation,
+    check_observations,
+)
 from dss14_env.baselines.design import (
-    CommandShaper,
     DesignModel,
     LQGConfig,
-    ReferenceGenerator,
     build_design_model,
     default_controllers_config,
     infer_wind,
 )
+from dss14_env.baselines.interface import ControlInterface, ObservationReader, Weights, as_interface
+from dss14_env.baselines.shaping import CommandShaper, ReferenceGenerator
 
 
-# ------------------------------------------------------------------------- Riccati helpers
-def dare_residual(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, P: np.ndarray,
-                  S: np.ndarray | None = None) -> float:
-    """Relative residual of ``P = A'PA - (A'PB + S)(R + B'PB)^-1 (B'PA + S') + Q``.
-
-    :return: ``||residual||_F / max(||P||_F, ||Q||_F)``
-    """
-    S = np.zeros((A.shape[0], B.shape[1])) if S is None else S
-    G = A.T @ P @ B + S
-    res = A.T @ P @ A - P - G @ np.linalg.solve(R + B.T @ P @ B, G.T) + Q
-    return float(np.linalg.norm(res) / max(np.linalg.norm(P), np.linalg.norm(Q)))
-
-
-@dataclass(frozen=True)
-class Weights:
-    """Cost scales taken from the environment: error scale (rad), action scale (rad/s per unit
-    action) and the reward's action-change weight."""
-
-    error_scale: float
-    action_scale: float
-    action_change: float
-
-    def __post_init__(self) -> None:
-        for name in ("error_scale", "action_scale"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise ValueError(f"{name} must be positive and finite, got {v!r}")
-        if not (math.isfinite(self.action_change) and self.action_change >= 0):
-            raise ValueError(f"action_change weight must be >= 0, got {self.action_change!r}")
-
-
+# ------------------------------------------------------------------------- design
 @dataclass(frozen=True)
 class LQGDesign:
     """Gains and Riccati solutions of one LQG design.
@@ -216,448 +194,387 @@ def design_lqg(dm: DesignModel, weights: Weights, w_e: float = 1.0, w_a: float =
 
 
 # ------------------------------------------------------------------------- analysis
-@dataclass(frozen=True)
-class LinearController:
-    """A discrete LTI controller ``zeta+ = Ac zeta + Bc y``, ``r = Cc zeta + Dc y`` (regulation
-    about a constant command; ``y`` the measured encoder angles, rad; ``r`` rad/s)."""
-
-    Ac: np.ndarray
-    Bc: np.ndarray
-    Cc: np.ndarray
-    Dc: np.ndarray
-
-
-def lqg_as_linear(design: LQGDesign) -> LinearController:
-    """The LQG law (hold, no clipping) as one LTI system from ``y`` to ``r``.
-
-    Controller state ``zeta_k = [x^-_k; d^-_k; xi_k; r_{k-1}]`` (``d`` and ``xi`` where the
-    design has them); the law is ``r = -d - K_x x - K_xi xi - K_u (r_prev + d)``.  The
-    integrator sums the estimated error here (the controller class sums the measured one; in
-    the linear analysis the two differ only by the filtered innovation).
-    """
-    dm = design.dm
-    n, nd = dm.n, design.n_d
-    ne = n + nd
-    Kx, Ki, Ku = design.split_gain()
-    ni = Ki.shape[1]
-    Lg = design.L
-    Ce = np.hstack([dm.C, np.zeros((2, nd))])
-    Imlc = np.eye(ne) - Lg @ Ce  # [x; d]_k|k = (I - L C) [x; d]^- + L y
-    # r = Fx [x; d]_k|k - Ki xi - Ku r_prev
-    Fx = np.hstack([-Kx, -(np.eye(2) + Ku) if nd else np.zeros((2, 0))])
-    Cc = np.hstack([Fx @ Imlc, -Ki, -Ku])
-    Dc = Fx @ Lg
-    nzc = ne + ni + 2
-    Ac = np.zeros((nzc, nzc))
-    Bc = np.zeros((nzc, 2))
-    Ae = np.eye(ne)
-    Ae[:n, :n] = dm.Ad
-    if nd:
-        Ae[:n, n:] = dm.Bd
-    Be = np.vstack([dm.Bd, np.zeros((nd, 2))])
-    Ac[:ne, :ne] = Ae @ Imlc
-    Bc[:ne] = Ae @ Lg
-    Ac[:ne] += Be @ Cc
-    Bc[:ne] += Be @ Dc
-    if ni:
-        Ac[ne:ne + ni, :ne] = -dm.dt * Ce @ Imlc
-        Ac[ne:ne + ni, ne:ne + ni] = np.eye(ni)
-        Bc[ne:ne + ni] = -dm.dt * Ce @ Lg
-    Ac[ne + ni:] = Cc
-    Bc[ne + ni:] = Dc
-    return LinearController(Ac, Bc, Cc, Dc)
-
-
-@dataclass(frozen=True)
-class ClosedLoop:
-    """Plant (discrete design model) + linear controller, driven by the plant's process noise
-    and the measurement noise.  State ``[x_plant; zeta; r_prev]``."""
-
-    A: np.ndarray
-    W: np.ndarray          # covariance of the state noise per step
-    C_e: np.ndarray        # servo error e = -theta (hold)
-    C_r: np.ndarray        # rate command r_k = C_r X + D_rv v_k
-    D_rv: np.ndarray
-    C_rprev: np.ndarray
-    R: np.ndarray
-
-    def eigenvalues(self) -> np.ndarray:
-        return np.linalg.eigvals(self.A)
-
-    def spectral_radius(self) -> float:
-        return float(np.max(np.abs(self.eigenvalues())))
-
-
-def closed_loop(plant: DesignModel, ctrl: LinearController) -> ClosedLoop:
-    """Interconnect a plant model with a linear controller (``y = C x + v``).
-
-    The controller's command enters the plant as the held input of the next period; the
-    previous command is carried as two extra states so the action change is an output.
-    """
-    n, nc = plant.n, ctrl.Ac.shape[0]
-    Ap, Bp, Cp = plant.Ad, plant.Bd, plant.C
-    N = n + nc + 2
-    A = np.zeros((N, N))
-    A[:n, :n] = Ap + Bp @ ctrl.Dc @ Cp
-    A[:n, n:n + nc] = Bp @ ctrl.Cc
-    A[n:n + nc, :n] = ctrl.Bc @ Cp
-    A[n:n + nc, n:n + nc] = ctrl.Ac
-    A[n + nc:, :n] = ctrl.Dc @ Cp
-    A[n + nc:, n:n + nc] = ctrl.Cc
-    Bv = np.vstack([Bp @ ctrl.Dc, ctrl.Bc, ctrl.Dc])
-    Wx = np.zeros((N, N))
-    Wx[:n, :n] = plant.Qd
-    W = Wx + Bv @ plant.R @ Bv.T
-    C_e = np.zeros((2, N))
-    C_e[:, :n] = -Cp
-    C_r = np.zeros((2, N))
-    C_r[:, :n] = ctrl.Dc @ Cp
-    C_r[:, n:n + nc] = ctrl.Cc
-    C_rprev = np.zeros((2, N))
-    C_rprev[:, n + nc:] = np.eye(2)
-    return ClosedLoop(A, W, C_e, C_r, ctrl.Dc, C_rprev, plant.R)
-
-
-def stationary_performance(cl: ClosedLoop, weights: Weights) -> dict[str, Any]:
-    """Stationary servo-error statistics and expected per-step cost of a closed loop.
-
-    Solves ``X = A X A' + W`` (:func:`scipy.linalg.solve_discrete_lyapunov`).
-
-    :return: dict with ``three_sigma_mdeg`` ([az, el]), ``rms_mdeg``, ``rate_rms`` (rad/s),
-        ``cost`` (expected ``|e/sigma_e|^2 + w |da|^2`` per step), ``cost_error``,
-        ``cost_action`` and ``spectral_radius``
-    :raises ValueError: if the loop is not asymptotically stable
-    """
-    rho = cl.spectral_radius()
-    if rho >= 1.0:
-        raise ValueError(f"closed loop unstable (spectral radius {rho:.6f}): no stationary error")
-    X = linalg.solve_discrete_lyapunov(cl.A, cl.W)
-    X = 0.5 * (X + X.T)
-    var_e = np.diag(cl.C_e @ X @ cl.C_e.T)
-    Cd = cl.C_r - cl.C_rprev
-    var_da = np.diag(Cd @ X @ Cd.T + cl.D_rv @ cl.R @ cl.D_rv.T) / weights.action_scale ** 2
-    var_r = np.diag(cl.C_r @ X @ cl.C_r.T + cl.D_rv @ cl.R @ cl.D_rv.T)
-    ce = float(var_e.sum() / weights.error_scale ** 2)
-    ca = float(weights.action_change * var_da.sum())
-    sig = np.sqrt(var_e) * 180e3 / math.pi
-    return {"three_sigma_mdeg": (3 * sig).tolist(), "rms_mdeg": sig.tolist(),
-            "rate_rms_rad_s": np.sqrt(var_r).tolist(), "cost": ce + ca, "cost_error": ce,
-            "cost_action": ca, "spectral_radius": rho}
 
 
 # ------------------------------------------------------------------------- the controllers
-DEG = math.pi / 180.0
-MDEG = math.pi / 180.0e3
-
-
 @dataclass(frozen=True)
-class EnvSpec:
-    """What a controller may know about the environment: its interface, not its plant.
+class DesignMaps:
+    """One design as the controller applies it to rows (row vectors: ``x_next = x @ Ae.T``).
 
-    Control period, action scale, command-limiter limits, error scale, the reward's
-    action-change weight and the encoder's resolution and noise (sensor specification), all
-    SI.  Built from an environment (:meth:`from_env`) or its configuration (:meth:`from_config`).
+    ``Ae, Be, Ce``: estimator model on ``[x; d]``; reference maps ``x_ref = Xc c + Xv c_rate``,
+    ``r_ref = Rv c_rate``; ``Kx`` the LQR gain's state block; ``reference`` the reference model
+    (None without a command shaper).
     """
 
-    dt: float
-    action_scale: float
-    rate_limit: float
-    accel_limit: float
-    error_scale: float
-    action_change_weight: float
-    encoder_bits: int | None
-    encoder_noise: float
+    design: LQGDesign
+    Ae: np.ndarray
+    Be: np.ndarray
+    Ce: np.ndarray
+    Xc: np.ndarray
+    Xv: np.ndarray
+    Rv: np.ndarray
+    Kx: np.ndarray
+    reference: ReferenceGenerator | None
 
     @classmethod
-    def from_config(cls, cfg: Any) -> "EnvSpec":
-        """From a :class:`dss14_env.envs.scenarios.EnvConfig` (or anything with its key names)."""
-        return cls(float(cfg.dt), cfg.action_scale_deg_s * DEG, cfg.rate_limit_deg_s * DEG,
-                   cfg.accel_limit_deg_s2 * DEG, cfg.error_scale_mdeg * MDEG,
-                   float(cfg.action_change_weight), cfg.encoder_bits, cfg.encoder_noise_mdeg * MDEG)
+    def build(cls, design: LQGDesign, interface: ControlInterface, shaped: bool,
+              reference_pull: float) -> DesignMaps:
+        """The maps of ``design``; with ``shaped`` the reference model pulls onto the shaped
+        command with ``reference_pull`` (1/s).
 
-    @classmethod
-    def from_env(cls, env: Any) -> "EnvSpec":
-        """From a ``DSS14Env`` (wrapped or not)."""
-        cfg = getattr(getattr(env, "unwrapped", env), "config", None)
-        if cfg is None:
-            raise TypeError(f"{env!r} has no DSS14 configuration (.unwrapped.config)")
-        return cls.from_config(cfg)
-
-    @classmethod
-    def default(cls, **overrides: Any) -> "EnvSpec":
-        """From the shipped ``configs/env.yaml`` (keys of it as overrides)."""
-        from dss14_env.envs.config import load_env_config
-        return cls.from_config(load_env_config(**overrides))
-
-    @property
-    def weights(self) -> Weights:
-        return Weights(self.error_scale, self.action_scale, self.action_change_weight)
-
-    @property
-    def rate_step(self) -> float:
-        """Largest change of the rate command per period, rad/s."""
-        return self.accel_limit * self.dt
-
-
-def as_spec(env_or_spec: Any) -> EnvSpec:
-    """An :class:`EnvSpec` from an environment, its config, a spec, or ``None`` (defaults)."""
-    if env_or_spec is None:
-        return EnvSpec.default()
-    if isinstance(env_or_spec, EnvSpec):
-        return env_or_spec
-    if hasattr(env_or_spec, "unwrapped") or hasattr(env_or_spec, "config"):
-        return EnvSpec.from_env(env_or_spec)
-    return EnvSpec.from_config(env_or_spec)
-
-
-class ObservationReader:
-    """Decode the ``DSS14-v0`` observation (layout in :class:`dss14_env.envs.env.DSS14Env`) to SI.
-
-    :return: of :meth:`read`: ``(y, c, c_rate, r_prev)`` -- encoder reading relative to the
-        start (rad), command relative to the start (rad), command rate (rad/s), previous applied
-        rate command (rad/s)
-    """
-
-    def __init__(self, spec: EnvSpec) -> None:
-        self.spec = spec
-
-    def read(self, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        o = np.asarray(obs, dtype=np.float64)
-        if o.shape != (12,):
-            raise ValueError(f"expected the 12-element DSS14 observation, got shape {o.shape}")
-        if not np.all(np.isfinite(o)):
-            raise ValueError(f"observation contains NaN or inf: {o}")
-        rl = self.spec.rate_limit
-        return o[8:10] * DEG, o[4:6] * DEG, o[6:8] * rl, o[10:12] * rl
+        :raises ValueError: if the design's period is not the environment's
+        """
+        dm = design.dm
+        if abs(dm.dt - interface.dt) > 1e-12:
+            raise ValueError(f"design period {dm.dt} s differs from the env's {interface.dt} s")
+        n, nd = dm.n, design.n_d
+        Ae = np.eye(n + nd)
+        Ae[:n, :n] = dm.Ad
+        if nd:
+            Ae[:n, n:] = dm.Bd
+        Be = np.vstack([dm.Bd, np.zeros((nd, 2))])
+        Ce = np.hstack([dm.C, np.zeros((2, nd))])
+        Xc = np.zeros((n, 2))
+        Xc[:2] = np.eye(2)
+        Xv, Rv = np.zeros((n, 2)), np.zeros((2, 2))
+        for i, e in enumerate(np.eye(2)):
+            Xv[:, i], Rv[:, i] = dm.reference_state(np.zeros(2), e)
+        reference = None
+        if shaped:
+            K_ref = np.zeros((2, n + 2))
+            K_ref[:, :2] = reference_pull * np.eye(2)
+            reference = ReferenceGenerator(dm, K_ref, interface.rate_limit, interface.rate_step,
+                                           accel_ff=1.0)
+        return cls(design, Ae, Be, Ce, Xc, Xv, Rv, design.split_gain()[0], reference)
 
 
 class EstimatorController(Controller):
     """Kalman filter + integrator + LQR law; the base of the LQG, MPC and yardstick controllers.
 
-    Per step: predict with the previously APPLIED command (observation 10, 11, so the command
-    limiter is accounted for), correct with the encoder reading, build the ramp reference from
-    the observed (optionally shaped, :class:`dss14_env.baselines.design.CommandShaper`) command and rate,
-    compute the command (:meth:`law`), then advance the integrator with the measured servo
-    error clipped to ``integral_clip``.  The first step chooses the episode's design
-    (:meth:`select_design`) and initialises bumplessly: the estimate sits on the reference and
-    the input disturbance ``d`` takes the observed start command, so the first command equals it.
+    Per step and row: predict with the previously APPLIED command (observation 10, 11, so the
+    command limiter is accounted for), correct with the encoder reading, build the reference --
+    the raw command as a ramp, or (with a shaper) the reference model driven along the shaped
+    command -- compute the command (:meth:`law_rows`, :meth:`law`), then advance the integrator
+    with the measured servo error clipped to ``integral_clip``.  A row's first step chooses its
+    episode's design (:meth:`select_designs`) and initialises bumplessly: the estimate sits on
+    the reference and the input disturbance ``d`` takes the observed start command, so the first
+    command equals it.  Rows with the same design are computed together (batchable: every row is
+    an independent controller, see :class:`dss14_env.baselines.base.Controller`).
 
-    :param design: the LQG design (model, gains) used unless :meth:`select_design` picks another
-    :param spec: the environment's interface
+    Anti-windup by conditioning (R. Hanus, M. Kinnaert, J.-L. Henrotte, "Conditioning technique,
+    a general anti-windup and bumpless transfer method", Automatica 23(6), 1987): if the LQR
+    command ``r_ss - K z`` would be clipped by the limiter, the reference model's encoder angles
+    are moved toward the estimate, ``theta_ref += beta (theta^ - theta_ref)``, with the smallest
+    ``beta`` in [0, 1] that makes it realisable (as far as the shift can; the limiter clips the
+    rest).  The law then asks only for what the drive can do and the reference model's pull
+    brings the reference back to the shaped command.  Without it the LQG's high gain saturates
+    the acceleration limit and limit-cycles; the MPC uses the same shift, so a badly mismatched
+    plant (randomised parameters) cannot drive it into a constrained limit cycle either.  Only
+    the angles are shifted: shifting the rate-loop states of the reference model would leave it
+    to its own slow (3-5 s) dynamics.  ``info["conditioned"]`` is ``beta``.
+
+    :param design: the LQG design (model, gains) used unless :meth:`select_designs` picks another
+    :param interface: the environment's interface
     :param name: label
     :param integral_clip: anti-windup clip of the integrated error, rad
     :param shaper: command preprocessor (then the reference is a
-        :class:`dss14_env.baselines.design.ReferenceGenerator` on the design model), or None (the raw
-        command as a ramp)
+        :class:`dss14_env.baselines.shaping.ReferenceGenerator` on the design model), or None
+        (the raw command as a ramp)
     :param reference_pull: gain (1/s) pulling the reference model onto the shaped command
     """
 
-    def __init__(self, design: LQGDesign, spec: EnvSpec, name: str,
-                 integral_clip: float = math.inf, shaper: Any = None,
+    batchable = True
+
+    def __init__(self, design: LQGDesign, interface: ControlInterface, name: str,
+                 integral_clip: float = math.inf, shaper: CommandShaper | None = None,
                  reference_pull: float = 0.3) -> None:
         super().__init__(name)
-        self.reference_pull = float(reference_pull)
-        self.spec = spec
-        self.reader = ObservationReader(spec)
+        self.interface = interface
+        self.reader = ObservationReader(interface)
         self.integral_clip = float(integral_clip)
         self.shaper = shaper
-        self.condition = True
-        self.reference: ReferenceGenerator | None = None
+        self.reference_pull = float(reference_pull)
         self.default_design = design
-        self.use_design(design)
+        self._law_design = design           # the design :meth:`law` applies (set per group)
+        self._maps: dict[int, DesignMaps] = {}
+        self.maps(design)
         self.reset()
 
-    def use_design(self, design: LQGDesign) -> None:
-        """Load the matrices of a design (model, gains, reference maps)."""
-        dm = design.dm
-        if abs(dm.dt - self.spec.dt) > 1e-12:
-            raise ValueError(f"design period {dm.dt} s differs from the env's {self.spec.dt} s")
-        self.design = design
-        n, nd = dm.n, design.n_d
-        self._Ae = np.eye(n + nd)
-        self._Ae[:n, :n] = dm.Ad
-        if nd:
-            self._Ae[:n, n:] = dm.Bd
-        self._Be = np.vstack([dm.Bd, np.zeros((nd, 2))])
-        self._Ce = np.hstack([dm.C, np.zeros((2, nd))])
-        # reference maps: x_ref = Xc c + Xv c_rate + Xa c_acc, r_ref = Rv c_rate + Ra c_acc
-        Xc = np.zeros((n, 2))
-        Xc[:2] = np.eye(2)
-        Xv, Xa = np.zeros((n, 2)), np.zeros((n, 2))
-        Rv, Ra = np.zeros((2, 2)), np.zeros((2, 2))
-        z2 = np.zeros(2)
-        for i in range(2):
-            e = np.zeros(2)
-            e[i] = 1.0
-            Xv[:, i], Rv[:, i] = dm.reference_state(z2, e)
-            Xa[:, i], Ra[:, i] = dm.reference_state(z2, z2, e)
-        self._Xc, self._Xv, self._Rv, self._Xa, self._Ra = Xc, Xv, Rv, Xa, Ra
-        self.Kx, self.Ki, self.Ku = design.split_gain()
+    def maps(self, design: LQGDesign) -> DesignMaps:
+        """The :class:`DesignMaps` of a design (built once per design)."""
+        key = id(design)
+        if key not in self._maps:
+            self._maps[key] = DesignMaps.build(design, self.interface, self.shaper is not None,
+                                               self.reference_pull)
+        return self._maps[key]
+
+    def select_designs(self, rows: np.ndarray, r0: np.ndarray, c_rate0: np.ndarray) -> list[LQGDesign]:
+        """The designs of the episodes that start in ``rows``, from their start commands
+        ``r0`` and command rates ``c_rate0`` (``(k, 2)``, rad/s); default: the fixed one."""
+        return [self.default_design] * len(rows)
+
+    # -------------------------------------------------------------- episodes
+    def _allocate(self, n: int) -> None:
+        self.n = n
+        self._designs: list[LQGDesign] = [self.default_design] * n
+        self._groups: list[tuple[DesignMaps, np.ndarray]] | None = None
+        self._xe = np.zeros((n, 0))         # [x; d] filtered estimate
+        self._xr = np.zeros((n, 0))         # reference-model state
+        self._rr = np.zeros((n, 2))         # reference-model command (feedforward)
+        self._d_fixed = np.zeros((n, 2))    # start disturbance of a design without d states
+        self._xi = np.zeros((n, 2))         # error integral
+        self._k = np.zeros(n, np.int64)     # steps of the rows' episodes so far
+        self._fresh = np.ones(n, bool)
         if self.shaper is not None:
-            old = self.reference
-            K_ref = np.zeros((2, dm.n + 2))
-            K_ref[:, :2] = self.reference_pull * np.eye(2)
-            self.reference = ReferenceGenerator(dm, self.shaper, K_ref, self.spec.rate_limit,
-                                                self.spec.rate_step, accel_ff=1.0)
-            if old is not None and old.x is not None:  # switched at the first step
-                self.reference.x = None
+            self.shaper.reset(n)
 
-    def select_design(self, r0: np.ndarray, c_rate0: np.ndarray) -> LQGDesign:
-        """The design of this episode, chosen at its first step (default: the fixed one)."""
-        return self.default_design
-
-    # -------------------------------------------------------------- state
     def reset(self, seed: int | None = None) -> None:
         """Forget the estimate, the integrator, the shaper and the start command."""
         super().reset(seed)
-        self.xe: np.ndarray | None = None   # [x; d] filtered estimate
-        self.xi = np.zeros(2)
-        self.d_fixed = np.zeros(2)          # start disturbance of a design without d states
-        self.n_steps = 0
-        if self.reference is not None:
-            self.reference.reset()
+        self._allocate(1)
 
-    def _start(self, y: np.ndarray, c: np.ndarray, cd: np.ndarray, r_prev: np.ndarray) -> None:
-        del y  # see below
-        t0 = time.perf_counter()
-        design = self.select_design(r_prev, cd)
-        if design is not self.design:
-            self.use_design(design)
-        self.info["design_time_s"] = time.perf_counter() - t0
-        n, nd = self.design.dm.n, self.design.n_d
-        r_ref = self._Rv @ cd  # = the reference generator's first feedforward
-        xe = np.zeros(n + nd)
-        # the environment starts on the command in steady motion (docs/env.md): the estimate
-        # starts on the reference, not on the quantised reading, so the start is bumpless
-        xe[:n] = self._Xc @ c + self._Xv @ cd
-        if nd:
-            xe[n:] = r_ref - r_prev
-        else:
-            self.d_fixed = r_ref - r_prev
-        self.xe = xe
+    def reset_batch(self, n: int, seeds: Sequence[int] | None = None) -> None:
+        """Start ``n`` episodes (rows); ``seeds`` unused (the controller is deterministic)."""
+        if not self.batchable:
+            super().reset_batch(n, seeds)
+        self._allocate(check_batch_size(n, seeds))
+        self.info_batch = {}
 
-    def _estimate(self, y: np.ndarray, r_prev: np.ndarray) -> None:
-        nd = self.design.n_d
-        # d enters through Ae when estimated, as a known input otherwise
-        prior = self._Ae @ self.xe + self._Be @ (r_prev if nd else r_prev + self.d_fixed)
-        self.xe = prior + self.design.L @ (y - self._Ce @ prior)
+    def restart(self, mask: np.ndarray) -> None:
+        """The rows ``mask`` start a new episode (and choose its design) at the next
+        :meth:`act_batch`."""
+        if not self.batchable:
+            super().restart(mask)
+        m = check_mask(mask, self.n)
+        self._fresh |= m
+        if self.shaper is not None:
+            self.shaper.restart(m)
 
-    def disturbance(self) -> np.ndarray:
-        """Current input-disturbance estimate (rad/s, command units)."""
-        return self.xe[self.design.dm.n:] if self.design.n_d else self.d_fixed
+    @property
+    def design(self) -> LQGDesign:
+        """The design of the (first row's) episode."""
+        return self._designs[0]
 
-    def lqr_state(self, c: np.ndarray, cd: np.ndarray, r_prev: np.ndarray,
-                  cdd: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """``(z, r_ss)``: LQR state about the reference (ramp, or parabola with ``cdd``) and
-        the command that holds the model on it."""
-        n = self.design.dm.n
-        x_ref = self._Xc @ c + self._Xv @ cd
-        r_ss = self._Rv @ cd - self.disturbance()
-        if cdd is not None:
-            x_ref = x_ref + self._Xa @ cdd
-            r_ss = r_ss + self._Ra @ cdd
-        parts = [self.xe[:n] - x_ref]
-        if self.design.integral:
-            parts.append(self.xi)
-        parts.append(r_prev - r_ss)
-        return np.concatenate(parts), r_ss
+    @property
+    def designs(self) -> list[LQGDesign]:
+        """The designs of the rows' episodes (chosen at their first step)."""
+        return list(self._designs)
 
-    def deviation(self, x_ref: np.ndarray, r_ff: np.ndarray, r_prev: np.ndarray
-                  ) -> tuple[np.ndarray, np.ndarray]:
-        """``(z, r_ss)`` about a reference-model state and its feedforward command."""
-        n = self.design.dm.n
-        r_ss = r_ff - self.disturbance()
-        parts = [self.xe[:n] - x_ref]
-        if self.design.integral:
-            parts.append(self.xi)
-        parts.append(r_prev - r_ss)
-        return np.concatenate(parts), r_ss
+    def _start_rows(self, rows: np.ndarray, c: np.ndarray, cd: np.ndarray, r_prev: np.ndarray) -> None:
+        """Choose the designs of the rows starting an episode and initialise them bumplessly:
+        the environment starts on the command in steady motion (docs/env.md), so the estimate
+        starts on the reference, not on the quantised reading."""
+        for i, d in zip(rows.tolist(), self.select_designs(rows, r_prev[rows], cd[rows]), strict=True):
+            self._designs[i] = d
+        self._groups = None
+        width = max(d.dm.n + d.n_d for d in self._designs)
+        if self._xe.shape[1] < width:
+            self._xe = np.hstack([self._xe, np.zeros((self.n, width - self._xe.shape[1]))])
+            self._xr = np.hstack([self._xr, np.zeros((self.n, width - self._xr.shape[1]))])
+        for M, idx in self._group(rows):
+            n, nd = M.design.dm.n, M.design.n_d
+            r_ref = cd[idx] @ M.Rv.T
+            self._xe[idx, :n] = c[idx] @ M.Xc.T + cd[idx] @ M.Xv.T
+            self._xe[idx, n:n + nd] = r_ref - r_prev[idx]
+            self._d_fixed[idx] = 0.0 if nd else r_ref - r_prev[idx]
+        self._xi[rows] = 0.0
+        self._k[rows] = 0
 
-    def _condition(self, z: np.ndarray, r_ss: np.ndarray, r_prev: np.ndarray) -> float:
-        """Anti-windup by conditioning the reference (after Hanus et al. 1987).
+    def _group(self, rows: np.ndarray | None = None) -> list[tuple[DesignMaps, np.ndarray]]:
+        """``(maps, row indices)`` per design among ``rows`` (default: all, cached)."""
+        if rows is None and self._groups is not None:
+            return self._groups
+        sel = np.arange(self.n) if rows is None else rows
+        ids = np.array([id(self._designs[i]) for i in sel.tolist()])
+        out = [(self.maps(self._designs[int(sel[np.argmax(ids == key)])]), sel[ids == key])
+               for key in dict.fromkeys(ids.tolist())]
+        if rows is None:
+            self._groups = out
+        return out
 
-        If the LQR command ``r_ss - K z`` would be clipped by the limiter, the reference
-        model's encoder angles are moved toward the estimate, ``theta_ref += beta (theta^ -
-        theta_ref)``, with the smallest ``beta`` in [0, 1] that makes it realisable (as far as
-        the shift can; the limiter clips the rest).  The law then asks only for what the drive
-        can do and the reference model's pull brings the reference back to the shaped
-        command.  Without this the LQG's high gain saturates the acceleration limit and
-        limit-cycles (lit. Q4, [DETC99]); the MPC uses the same shift, so a badly mismatched
-        plant (randomised parameters) cannot drive it into a constrained limit cycle either.
-        Only the angles are shifted: shifting the rate-loop states of the reference model
-        would leave it to its own slow (3-5 s) dynamics.
+    # -------------------------------------------------------------- control
+    def lqr_command(self, design: LQGDesign, z: np.ndarray, r_ss: np.ndarray) -> np.ndarray:
+        """The LQR law ``r = r_ss - K z`` (rad/s) for rows ``z`` ``(k, n_z)``."""
+        return r_ss - z @ design.K.T
 
-        :return: ``beta`` (the reference is changed in place)
-        """
-        spec = self.spec
-        r = self.lqr_command(z, r_ss)
-        lo = np.maximum(r_prev - spec.rate_step, -spec.rate_limit)
-        hi = np.minimum(r_prev + spec.rate_step, spec.rate_limit)
-        if np.all((r >= lo) & (r <= hi)):
-            return 0.0
-        delta = self.xe[:2] - self.reference.x[:2]
-        g = self.Kx[:, :2] @ delta          # d r / d beta
-        beta = 0.0
-        for i in range(2):
-            target = lo[i] if r[i] < lo[i] else (hi[i] if r[i] > hi[i] else r[i])
-            if target != r[i]:
-                b = (target - r[i]) / g[i] if g[i] != 0.0 else 0.0
-                beta = max(beta, min(b, 1.0))  # b <= 0: the shift cannot help this axis
-        self.reference.x[:2] += beta * delta
-        return beta
-
-    def lqr_command(self, z: np.ndarray, r_ss: np.ndarray) -> np.ndarray:
-        """The LQR law ``r = r_ss - K z`` (rad/s)."""
-        return r_ss - self.design.K @ z
+    def law_rows(self, design: LQGDesign, rows: np.ndarray, z: np.ndarray, r_ss: np.ndarray,
+                 r_prev: np.ndarray) -> np.ndarray:
+        """The rate commands (rad/s) of the rows ``rows`` of one design (``z`` ``(k, n_z)``,
+        ``r_ss`` and ``r_prev`` ``(k, 2)``): the LQR for all of them at once, or :meth:`law`
+        row by row where a subclass overrides that (the MPC overrides this method)."""
+        if type(self).law is EstimatorController.law:
+            return self.lqr_command(design, z, r_ss)
+        self._law_design = design
+        return np.array([self.law(z[j], r_ss[j], r_prev[j]) for j in range(len(rows))])
 
     def law(self, z: np.ndarray, r_ss: np.ndarray, r_prev: np.ndarray) -> np.ndarray:
-        """The rate command (rad/s); the LQR here, overridden by the MPC."""
-        return self.lqr_command(z, r_ss)
+        """The rate command (rad/s) of one row (``z`` ``(n_z,)``, ``r_ss``, ``r_prev`` ``(2,)``):
+        the LQR of the row's design; the hook a subclass overrides to see or change the law one
+        row at a time."""
+        return r_ss - self._law_design.K @ z
+
+    @property
+    def Kx(self) -> np.ndarray:
+        """The LQR gain's block on the model state, of :attr:`design`."""
+        return self.design.split_gain()[0]
+
+    @property
+    def Ki(self) -> np.ndarray:
+        """The LQR gain's block on the error integral (no columns without one), of :attr:`design`."""
+        return self.design.split_gain()[1]
+
+    @property
+    def Ku(self) -> np.ndarray:
+        """The LQR gain's block on the previous command, of :attr:`design`."""
+        return self.design.split_gain()[2]
+
+    def disturbance(self, row: int = 0) -> np.ndarray:
+        """The input-disturbance estimate ``d`` of a row (rad/s, command units): the mean wind
+        torque's effect."""
+        D = self._designs[row]
+        n, nd = D.dm.n, D.n_d
+        return self._xe[row, n:n + nd].copy() if nd else self._d_fixed[row].copy()
+
+    @staticmethod
+    def _deviation(design: LQGDesign, xe: np.ndarray, x_ref: np.ndarray, r_ff: np.ndarray,
+                   dist: np.ndarray, xi: np.ndarray, r_prev: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(z, r_ss)``: LQR state about a reference state and its feedforward command."""
+        r_ss = r_ff - dist
+        parts = [xe[:, :design.dm.n] - x_ref] + ([xi] if design.integral else []) + [r_prev - r_ss]
+        return np.concatenate(parts, axis=1), r_ss
+
+    def _condition(self, M: DesignMaps, z: np.ndarray, r_ss: np.ndarray, r_prev: np.ndarray,
+                   xe: np.ndarray, x_ref: np.ndarray) -> np.ndarray:
+        """Conditioning ``beta`` per row (see the class); shifts ``x_ref`` in place."""
+        ci = self.interface
+        r = self.lqr_command(M.design, z, r_ss)
+        lo = np.maximum(r_prev - ci.rate_step, -ci.rate_limit)
+        hi = np.minimum(r_prev + ci.rate_step, ci.rate_limit)
+        viol = (r < lo) | (r > hi)
+        beta = np.zeros(len(r))
+        rows = np.flatnonzero(viol.any(axis=1))
+        if rows.size == 0:
+            return beta
+        delta = xe[rows, :2] - x_ref[rows, :2]
+        g = delta @ M.Kx[:, :2].T            # d r / d beta
+        rv = r[rows]
+        target = np.clip(rv, lo[rows], hi[rows])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            b = np.where(g != 0.0, (target - rv) / g, 0.0)
+        b = np.where(viol[rows], np.minimum(b, 1.0), -np.inf)  # b <= 0: the shift cannot help
+        beta[rows] = np.maximum(b.max(axis=1), 0.0)
+        x_ref[rows, :2] += beta[rows, None] * delta
+        return beta
+
+    def _step_group(self, M: DesignMaps, idx: np.ndarray, fresh: np.ndarray, y: np.ndarray,
+                    c: np.ndarray, cd: np.ndarray, r_prev: np.ndarray,
+                    shaped: tuple[np.ndarray, ...] | None) -> tuple[np.ndarray, np.ndarray]:
+        """One period for the rows ``idx`` of one design; returns ``(r, beta)``."""
+        D = M.design
+        n, ne = D.dm.n, D.dm.n + D.n_d
+        xe, xi = self._xe[idx, :ne], self._xi[idx]
+        est = ~fresh
+        if est.any():
+            # d enters through Ae when estimated, as a known input otherwise
+            u = r_prev[est] if D.n_d else r_prev[est] + self._d_fixed[idx][est]
+            prior = xe[est] @ M.Ae.T + u @ M.Be.T
+            xe[est] = prior + (y[est] - prior @ M.Ce.T) @ D.L.T
+        dist = xe[:, n:] if D.n_d else self._d_fixed[idx]
+        beta = np.zeros(len(idx))
+        if M.reference is not None:
+            cs, vs, acc = (a[idx] for a in shaped)
+            x_ref, r_ff = np.empty((len(idx), n)), np.empty((len(idx), 2))
+            if fresh.any():
+                x_ref[fresh], r_ff[fresh] = M.reference.start(cs[fresh], vs[fresh], acc[fresh])
+            if est.any():
+                x_ref[est], r_ff[est] = M.reference.advance(self._xr[idx, :n][est], self._rr[idx][est],
+                                                            cs[est], vs[est], acc[est])
+            z, r_ss = self._deviation(D, xe, x_ref, r_ff, dist, xi, r_prev)
+            beta = self._condition(M, z, r_ss, r_prev, xe, x_ref)
+            z, r_ss = self._deviation(D, xe, x_ref, r_ff, dist, xi, r_prev)
+            self._xr[idx, :n], self._rr[idx] = x_ref, r_ff
+            c_int = x_ref[:, :2]
+        else:
+            z, r_ss = self._deviation(D, xe, c @ M.Xc.T + cd @ M.Xv.T, cd @ M.Rv.T, dist, xi, r_prev)
+            c_int = c
+        r = self.law_rows(D, idx, z, r_ss, r_prev)
+        if D.integral:
+            self._xi[idx] = xi + self.interface.dt * np.clip(c_int - y, -self.integral_clip,
+                                                             self.integral_clip)
+        self._xe[idx, :ne] = xe
+        return r, beta
+
+    def _step(self, obs: np.ndarray) -> np.ndarray:
+        """One period for all rows; ``obs`` checked, float64 ``(n, 12)``."""
+        t0 = time.perf_counter()
+        y, c, cd, r_prev = self.reader.read(obs)
+        fresh = self._fresh.copy()
+        if fresh.any():
+            self._start_rows(np.flatnonzero(fresh), c, cd, r_prev)
+            self._fresh[:] = False
+        shaped = self.shaper(c, cd) if self.shaper is not None else None
+        r, beta = np.zeros((self.n, 2)), np.zeros(self.n)
+        for M, idx in self._group():
+            r[idx], beta[idx] = self._step_group(M, idx, fresh[idx], y[idx], c[idx], cd[idx],
+                                                 r_prev[idx], shaped)
+        self._k += 1
+        a = np.clip(r / self.interface.action_scale, -1.0, 1.0).astype(np.float32)
+        self.info_batch = {"rate_command_rad_s": r, "conditioned": beta, **self.row_info(),
+                           "solve_time_s": np.full(self.n, (time.perf_counter() - t0) / self.n)}
+        return a
+
+    def row_info(self) -> dict[str, np.ndarray]:
+        """Per-row entries of :attr:`info_batch` that subclasses add (none here)."""
+        return {}
+
+    def episode_info(self) -> dict[str, Any]:
+        """Entries of :attr:`info` that describe the episode so far (none here)."""
+        return {}
 
     def act(self, observation: np.ndarray) -> np.ndarray:
-        """One control period: estimate, build the reference, apply the law (see the class)."""
+        """One control period of one episode (see the class).
+
+        :raises ValueError: on a wrong-shape or non-finite observation, or after
+            :meth:`reset_batch` with more than one row
+        """
+        obs = check_observation(observation)
+        if self.n != 1:
+            raise ValueError(f"act() runs one episode, but the controller runs a batch of {self.n}; "
+                             "use act_batch or reset()")
         t0 = time.perf_counter()
-        y, c, cd, r_prev = self.reader.read(observation)
-        if self.xe is None:
-            self._start(y, c, cd, r_prev)
-        else:
-            self._estimate(y, r_prev)
-        if self.reference is not None:
-            x_ref, r_ff = self.reference(c, cd)
-            z, r_ss = self.deviation(x_ref, r_ff, r_prev)
-            if self.condition:
-                beta = self._condition(z, r_ss, r_prev)
-                self.info["conditioned"] = beta
-                if beta:
-                    x_ref = self.reference.x.copy()
-                    z, r_ss = self.deviation(x_ref, r_ff, r_prev)
-            c_int = x_ref[:2]
-        else:
-            z, r_ss = self.lqr_state(c, cd, r_prev)
-            c_int = c
-        r = self.law(z, r_ss, r_prev)
-        if self.design.integral:
-            self.xi = self.xi + self.spec.dt * np.clip(c_int - y, -self.integral_clip, self.integral_clip)
-        self.n_steps += 1
-        a = np.clip(r / self.spec.action_scale, -1.0, 1.0)
-        self.info["solve_time_s"] = time.perf_counter() - t0
-        return a.astype(np.float32)
+        a = self._step(obs[None])[0]
+        self.info = {**{k: v[0] for k, v in self.info_batch.items()}, **self.episode_info(),
+                     "solve_time_s": time.perf_counter() - t0}
+        return a
+
+    def act_batch(self, observations: np.ndarray) -> np.ndarray:
+        """Actions ``(n, 2)`` for the rows' observations ``(n, 12)``; per-row information
+        (``rate_command_rad_s``, ``conditioned``, ``solve_time_s``, ...) in :attr:`info_batch`.
+
+        :raises ValueError: on a wrong shape or a non-finite entry
+        """
+        if not self.batchable:
+            super().act_batch(observations)
+        return self._step(check_observations(observations, self.n))
 
 
-def lqg_design_from_config(spec: EnvSpec, cfg: LQGConfig | None = None, order: Any = "config",
-                           wind: Any = None) -> LQGDesign:
+def lqg_design_from_config(interface: ControlInterface, cfg: LQGConfig | None = None,
+                           order: Any = "config", wind: Any = None) -> LQGDesign:
     """The LQG design of ``configs/controllers.yaml`` for an environment interface.
 
     :param wind: ``None``: the direction-free design wind; ``(speed, direction)``: a coherent gust
     """
-    cc = default_controllers_config()
-    cfg = cfg or cc.lqg
-    noise = math.hypot(spec.encoder_noise, cfg.measurement_noise)
-    dm = build_design_model(spec.dt, order=order, wind=wind, encoder_noise=noise,
-                            bits=spec.encoder_bits)
-    return design_lqg(dm, spec.weights, w_e=cfg.error_weight, w_a=cfg.action_change_weight,
+    cfg = cfg or default_controllers_config().lqg
+    noise = math.hypot(interface.encoder_noise, cfg.measurement_noise)
+    dm = build_design_model(interface.dt, order=order, wind=wind, encoder_noise=noise,
+                            bits=interface.encoder_bits)
+    return design_lqg(dm, interface.weights, w_e=cfg.error_weight, w_a=cfg.action_change_weight,
                       w_i=cfg.integral_weight, input_noise=cfg.input_noise,
-                      disturbance_drift=cfg.disturbance_drift, rate_limit=spec.rate_limit)
+                      disturbance_drift=cfg.disturbance_drift, rate_limit=interface.rate_limit)
+
+
+#: the inferred wind directions are rounded to this step for the design cache, rad
+DIRECTION_STEP = math.radians(2.0)
 
 
 class LQGController(EstimatorController):
@@ -665,43 +582,60 @@ class LQGController(EstimatorController):
 
     With ``wind_model: inferred`` the gust model of each episode is the coherent Davenport gust
     at the design speed from the direction read from the start command
-    (:func:`dss14_env.baselines.design.infer_wind`; designs cached per 2 deg); when the inferred speed is
-    below ``min_wind_speed`` (no wind) and with ``direction-free`` it is the front+side model.
+    (:func:`dss14_env.baselines.design.infer_wind`; designs cached per 2 deg, rows of a batch
+    with different directions use different designs); when the inferred speed is below
+    ``min_wind_speed`` (no wind) and with ``direction-free`` it is the front+side model.
+    ``info["design_wind"]`` is the episode's ``(speed, direction)`` or None (``info_batch``:
+    ``design_wind_speed_mps`` and ``design_wind_direction_rad``, NaN for None).
 
-    :param env: the environment (or its config / an :class:`EnvSpec`; None: shipped defaults)
-        -- only its interface is read, never its plant
+    :param env: the environment (or its config / a :class:`ControlInterface`; None: shipped
+        defaults) -- only its interface is read, never its plant
     :param name: label, default ``"LQG"``
     :param config: LQG settings, default section ``lqg`` of ``configs/controllers.yaml``
     """
 
     def __init__(self, env: Any = None, name: str = "LQG", config: LQGConfig | None = None) -> None:
-        spec = as_spec(env)
+        interface = as_interface(env)
         self.config = cfg = config or default_controllers_config().lqg
-        self._designs: dict[Any, LQGDesign] = {}
-        shaper = (CommandShaper(cfg.shaper_rate, cfg.shaper_accel, spec.dt, cfg.shaper_accel_max)
+        self._designs_by_wind: dict[Any, LQGDesign] = {}
+        self.interface = interface
+        shaper = (CommandShaper(cfg.shaper_rate, cfg.shaper_accel, interface.dt, cfg.shaper_accel_max)
                   if cfg.shaper else None)
-        self.spec = spec
-        super().__init__(self._design_for(None), spec, name, cfg.integral_clip, shaper,
+        super().__init__(self.design_for(None), interface, name, cfg.integral_clip, shaper,
                          cfg.reference_pull)
 
-    def _design_for(self, wind: Any) -> LQGDesign:
-        if wind not in self._designs:
-            self._designs[wind] = lqg_design_from_config(self.spec, self.config, wind=wind)
-        return self._designs[wind]
+    def design_for(self, wind: Any) -> LQGDesign:
+        """The design for a wind key (:meth:`wind_key`; cached)."""
+        if wind not in self._designs_by_wind:
+            self._designs_by_wind[wind] = lqg_design_from_config(self.interface, self.config, wind=wind)
+        return self._designs_by_wind[wind]
 
     def wind_key(self, r0: np.ndarray, c_rate0: np.ndarray) -> tuple[float, float] | None:
-        """The (rounded) wind of the episode's design, None for the direction-free model."""
+        """The (rounded) wind of an episode's design, None for the direction-free model."""
         if self.config.wind_model != "inferred":
             return None
         speed, theta = infer_wind(r0, c_rate0)
         if not speed >= self.config.min_wind_speed:
             return None
-        step = math.radians(2.0)
         # the direction is exact on the nominal plant; the speed is not (start gust), so the
         # gust model takes the design speed
-        return default_controllers_config().design.wind_speed, (round(theta / step) * step) % math.pi
+        return (default_controllers_config().design.wind_speed,
+                (round(theta / DIRECTION_STEP) * DIRECTION_STEP) % math.pi)
 
-    def select_design(self, r0: np.ndarray, c_rate0: np.ndarray) -> LQGDesign:
-        key = self.wind_key(r0, c_rate0)
-        self.info["design_wind"] = key
-        return self._design_for(key)
+    def _allocate(self, n: int) -> None:
+        super()._allocate(n)
+        self._wind_keys: list[tuple[float, float] | None] = [None] * n
+
+    def select_designs(self, rows: np.ndarray, r0: np.ndarray, c_rate0: np.ndarray) -> list[LQGDesign]:
+        out = []
+        for i, r, v in zip(rows.tolist(), r0, c_rate0, strict=True):
+            self._wind_keys[i] = key = self.wind_key(r, v)
+            out.append(self.design_for(key))
+        return out
+
+    def row_info(self) -> dict[str, np.ndarray]:
+        w = np.array([(math.nan, math.nan) if k is None else k for k in self._wind_keys], float)
+        return {"design_wind_speed_mps": w[:, 0], "design_wind_direction_rad": w[:, 1]}
+
+    def episode_info(self) -> dict[str, Any]:
+        return {"design_wind": self._wind_keys[0]}

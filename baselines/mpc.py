@@ -1,11 +1,11 @@
 """Model-predictive position controller (cvxpy + OSQP), condensed and parametrised once.
 
-The MPC shares the LQG's design model, estimator, integrator and weights
+The MPC shares the LQG's design model, estimator, integrator, reference and weights
 (:mod:`dss14_env.baselines.lqg`); it replaces the LQR law by a constrained finite-horizon problem.
 
 Prediction (condensed: the commands are the only decision variables).  In deviation
-coordinates about the commanded ramp ``c + c_rate t`` the LQR state ``z = [x - x_ref; xi;
-r_prev - r_ss]`` obeys ``z_{j+1} = Az z_j + Bz (r_j - r_ss)`` exactly, so over the horizon ``N``::
+coordinates about the reference the LQR state ``z = [x - x_ref; xi; r_prev - r_ss]`` obeys
+``z_{j+1} = Az z_j + Bz (r_j - r_ss)`` exactly, so over the horizon ``N``::
 
     Z = Phi z_0 + Gamma (U - 1 (x) r_ss),        U = [r_0; ...; r_{N-1}]
 
@@ -13,22 +13,26 @@ Problem (decision ``U`` in units of the rate limit, slack ``s >= 0`` in units of
 scale)::
 
     minimise    sum_j l(z_j, r_j - r_ss) + z_N' P z_N  +  lambda_1 sum(s) + lambda_2 |s|^2
-    subject to  |r_j| <= r_max                                   (rate, 0.25 deg/s)
-                |r_0 - r_prev| <= a_max dt,  |r_j - r_{j-1}| <= a_max dt      (acceleration)
-                |e_j| <= e_max + s_j,  j = 1..N                   (soft servo-error bound)
+    subject to  -r_max <= r_j <= r_max                                (rate, 0.25 deg/s)
+                -a_max dt <= r_j - r_{j-1} <= a_max dt, r_{-1} = r_prev  (acceleration)
+                -(e_max + s_j) <= e_j <= e_max + s_j,  j = 1..N        (soft servo-error bound)
 
 ``l`` is the LQR stage cost and ``P`` its Riccati solution, so with no constraint active the
 first move equals the LQR's (tested).  The objective is written as ``quad_form(U, H) + q' U``
 with ``H`` constant and ``q`` a :class:`cvxpy.Parameter`, the error bounds with a parameter
-offset; the problem is DPP (:meth:`cvxpy.Problem.is_dpp`) and canonicalised by cvxpy once
-(:class:`CanonicalQP`): its OSQP data ``(P, q, A, l, u)`` is affine in the parameters with
-``P`` and ``A`` constant, so each step only updates ``q`` and ``u`` of one OSQP workspace and
-re-solves it warm-started.  (Calling ``Problem.solve`` every step re-applies the parameters
-through cvxpy's sparse tensors; with cvxpy 1.9 / scipy 1.17 that alone costs 2-4 ms a step.
-Both paths give the same solution, tested.)  A solver exception, a status other than optimal,
-or a first
-move that violates the hard limits makes the controller use the LQG action (clipped to the
-limits) for that step; the fallbacks are counted in ``info`` and never end the episode.
+offset; the problem is DPP (:meth:`cvxpy.Problem.is_dpp`), stated and canonicalised by cvxpy
+once and re-solved each step by :class:`dss14_env.baselines.qp.ParametricQP` (one OSQP
+workspace whose ``q`` and ``u`` are updated, warm-started; ``Problem.solve`` when that fast
+path cannot be built or a fast solve is not optimal).  The bounds are written as pairs of
+linear inequalities, not as ``abs(.) <= b``: cvxpy would add an epigraph variable per bounded
+entry (120 extra variables that appear in no cost), a degenerate QP on which OSQP's solution
+polishing never succeeded and its duality-gap test needed thousands of iterations; as pairs the
+QP has the 80 decision variables only and polishing succeeds.
+
+A solver exception, a status other than optimal on both paths, or a first move that violates
+the hard limits makes the controller use the LQG action (clipped to the limits) for that step;
+the fallbacks are recorded in ``info`` (each with its step and status) and never end the
+episode.
 """
 
 from __future__ import annotations
@@ -41,16 +45,21 @@ from typing import Any
 
 import cvxpy as cp
 import numpy as np
-import scipy.sparse as sp
 from scipy import linalg
 
 from dss14_env.baselines.design import LQGConfig, MPCConfig, default_controllers_config
 from dss14_env.baselines.lqg import LQGController, LQGDesign
+from dss14_env.baselines.qp import ParametricQP
 
 
 @dataclass(frozen=True)
 class MPCSettings:
-    """Horizon, limits (SI) and penalties of the MPC problem."""
+    """Horizon, limits (SI), penalties and OSQP settings of the MPC problem.
+
+    ``polishing``: OSQP's solution polishing (a solve of the KKT system on the active set the
+    ADMM iterates identify; the documented way to a high-accuracy solution when that guess is
+    right, and the ADMM solution otherwise).
+    """
 
     horizon: int
     rate_limit: float
@@ -61,105 +70,54 @@ class MPCSettings:
     eps_abs: float = 1e-5
     eps_rel: float = 1e-5
     max_iter: int = 4000
+    polishing: bool = True
 
     def __post_init__(self) -> None:
         if int(self.horizon) != self.horizon or self.horizon < 2:
             raise ValueError(f"MPC horizon must be an integer >= 2, got {self.horizon!r}")
-        for name in ("rate_limit", "rate_step", "error_soft_limit"):
+        for name in ("rate_limit", "rate_step", "error_soft_limit", "eps_abs", "eps_rel"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"MPC {name} must be positive and finite, got {v!r}")
         for name in ("slack_linear", "slack_quadratic"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"MPC {name} must be >= 0, got {getattr(self, name)!r}")
+        if int(self.max_iter) != self.max_iter or self.max_iter < 1:
+            raise ValueError(f"MPC max_iter must be a positive integer, got {self.max_iter!r}")
+
+    def osqp_settings(self) -> dict[str, Any]:
+        """The OSQP settings of both solve paths."""
+        return {"eps_abs": self.eps_abs, "eps_rel": self.eps_rel, "max_iter": int(self.max_iter),
+                "polishing": bool(self.polishing)}
 
 
-class CanonicalQP:
-    """A DPP cvxpy problem, canonicalised once for OSQP, re-solved with new parameter values.
+@dataclass(frozen=True)
+class MPCStep:
+    """One solve of :meth:`CondensedMPC.solve`.
 
-    At construction every parameter entry is probed (cvxpy's own ``get_problem_data`` with a
-    unit value, the others zero) to get the affine maps ``q = q0 + Mq p``, ``u = u0 + Mu p``;
-    a random parameter vector then checks that ``P`` and ``A`` stay constant and the maps are
-    exact (``l`` is -inf: cvxpy's OSQP data has inequalities only here), else
-    :class:`ValueError`.  One OSQP workspace is set up; :meth:`solve`
-    updates ``q``, ``u`` and solves, warm-started from the previous solution (OSQP's default).
-
-    :param problem: DPP problem whose parameters enter only the linear cost and the upper
-        bounds of inequalities (as in :class:`CondensedMPC`)
-    :param params: its parameters, in the order of the vector :meth:`solve` reads
-    :param variable: the variable to return
-    :param solver_opts: OSQP settings (``eps_abs``, ``eps_rel``, ``max_iter``, ``polishing``)
+    :param r: first move (rad/s), None when the solve failed or the move violates the limits
+    :param status: cvxpy status (or ``"limits_violated"``, ``"solver_error: ..."``)
+    :param time_s: wall time of the solve, s
+    :param path: ``"osqp"`` (fast path) or ``"cvxpy"`` (``Problem.solve``)
+    :param fast_status: the fast path's status when it was re-solved through cvxpy, else None
     """
 
-    def __init__(self, problem: cp.Problem, params: list[cp.Parameter], variable: cp.Variable,
-                 solver_opts: dict[str, Any]) -> None:
-        import osqp
-        from cvxpy.reductions.solvers.qp_solvers.osqp_qpif import OSQP as CvxpyOSQP
-
-        self.params = list(params)
-        saved = [None if p.value is None else np.array(p.value, copy=True) for p in self.params]
-        sizes = [int(p.size) for p in self.params]
-        n_p = sum(sizes)
-
-        def data_at(vec: np.ndarray) -> tuple[Any, np.ndarray, Any, np.ndarray, int]:
-            k = 0
-            for p, n in zip(self.params, sizes):
-                p.value = vec[k:k + n].reshape(p.shape)
-                k += n
-            d, _, _ = problem.get_problem_data(cp.OSQP)
-            if d[cp.settings.A].shape[0]:
-                raise ValueError("CanonicalQP: equality constraints are not supported")
-            col = d[cp.settings.PARAM_PROB].var_id_to_col[variable.id]
-            return d[cp.settings.P], np.array(d[cp.settings.Q], float), d[cp.settings.F], \
-                np.array(d[cp.settings.G], float), col
-
-        P, q0, F, u0, col = data_at(np.zeros(n_p))
-        Mq, Mu = np.zeros((q0.size, n_p)), np.zeros((u0.size, n_p))
-        for j in range(n_p):
-            e = np.zeros(n_p)
-            e[j] = 1.0
-            _, q, _, u, _ = data_at(e)
-            Mq[:, j], Mu[:, j] = q - q0, u - u0
-        check = np.random.default_rng(0).standard_normal(n_p)  # fixed draw: a structural check
-        Pc, qc, Fc, uc, _ = data_at(check)
-        if (abs(Pc - P).max() > 0 or abs(Fc - F).max() > 0
-                or not np.allclose(qc, q0 + Mq @ check, rtol=1e-9, atol=1e-12)
-                or not np.allclose(uc, u0 + Mu @ check, rtol=1e-9, atol=1e-12)):
-            raise ValueError("CanonicalQP: P or A depends on the parameters, or the data is not "
-                             "affine in them")
-        for p, v in zip(self.params, saved):
-            p.value = v
-        self.q0, self.Mq, self.u0, self.Mu = q0, Mq, u0, Mu
-        self.sl = slice(col, col + int(variable.size))
-        self.status_map = CvxpyOSQP.STATUS_MAP
-        self.solver = osqp.OSQP()
-        # rebuilt from (data, indices, indptr) as cvxpy does: OSQP needs 32-bit indices
-        P, F = (sp.csc_matrix(M) for M in (P, F))
-        P, F = (sp.csc_matrix((M.data, M.indices, M.indptr), shape=M.shape) for M in (P, F))
-        self.solver.setup(P, q0, F, np.full(u0.size, -np.inf), u0, verbose=False, **solver_opts)
-
-    def solve(self) -> tuple[np.ndarray | None, str]:
-        """Solve at the parameters' current values.
-
-        :return: ``(value of the variable, or None unless optimal; cvxpy status string)``
-        """
-        p = np.concatenate([np.ravel(prm.value) for prm in self.params])
-        self.solver.update(q=self.q0 + self.Mq @ p, u=self.u0 + self.Mu @ p)
-        res = self.solver.solve(raise_error=False)
-        status = str(self.status_map.get(res.info.status_val, cp.SOLVER_ERROR))
-        if status != cp.OPTIMAL or res.x is None:
-            return None, status
-        return np.array(res.x[self.sl], float), status
+    r: np.ndarray | None
+    status: str
+    time_s: float
+    path: str
+    fast_status: str | None = None
 
 
 class CondensedMPC:
     """The parametrised MPC problem, built once (see the module docstring).
 
     :param design: the LQG design whose model, weights and Riccati solution are used
-    :param settings: horizon, limits and penalties
+    :param settings: horizon, limits, penalties and OSQP settings
+    :param fast: use the OSQP fast path (default True; False: ``Problem.solve`` every step)
     """
 
-    def __init__(self, design: LQGDesign, settings: MPCSettings) -> None:
+    def __init__(self, design: LQGDesign, settings: MPCSettings, fast: bool = True) -> None:
         self.design = design
         self.settings = st = settings
         N = int(st.horizon)
@@ -191,21 +149,17 @@ class CondensedMPC:
         w2 = st.slack_quadratic / self._Hs_scale
         e_pred = self.e0 + Eg @ self.U
         D = np.eye(N * m) - np.eye(N * m, k=-m)  # U_j - U_{j-1}
-        cons = [cp.abs(self.U) <= 1.0,
-                cp.abs(D @ self.U - cp.hstack([self.u_prev, np.zeros((N - 1) * m)])) <= step,
-                cp.abs(e_pred) <= lim_e + self.s]
+        dU = D @ self.U - cp.hstack([self.u_prev, np.zeros((N - 1) * m)])
+        cons = [self.U <= 1.0, -self.U <= 1.0, dU <= step, -dU <= step,
+                e_pred <= lim_e + self.s, -e_pred <= lim_e + self.s]
         obj = cp.quad_form(self.U, cp.psd_wrap(Hs)) + self.q @ self.U + w1 * cp.sum(self.s) \
             + w2 * cp.sum_squares(self.s)
         self.problem = cp.Problem(cp.Minimize(obj), cons)
         if not self.problem.is_dpp():
             raise RuntimeError("the MPC problem is not DPP: it would be re-canonicalised every "
                                "step")
-        self._solver_opts = dict(solver=cp.OSQP, warm_start=True, eps_abs=st.eps_abs,
-                                 eps_rel=st.eps_rel, max_iter=int(st.max_iter), polishing=True,
-                                 verbose=False)
-        self.qp = CanonicalQP(self.problem, [self.q, self.e0, self.u_prev], self.U,
-                              {k: v for k, v in self._solver_opts.items()
-                               if k in ("eps_abs", "eps_rel", "max_iter", "polishing")})
+        self.qp = ParametricQP(self.problem, [self.q, self.e0, self.u_prev], self.U,
+                               st.osqp_settings(), fast=fast)
 
     def _prediction(self, design: LQGDesign) -> np.ndarray:
         """Prediction matrices of a design; returns the (unscaled) Hessian ``H``."""
@@ -270,101 +224,117 @@ class CondensedMPC:
         self.e0.value = (self.Ephi @ z0 - self.Egam @ Rss) / es
         self.u_prev.value = np.clip(r_prev / ru, -1.0, 1.0)
 
-    def solve(self, z0: np.ndarray, r_ss: np.ndarray, r_prev: np.ndarray
-              ) -> tuple[np.ndarray | None, str, float]:
-        """Solve one step.
+    def solve(self, z0: np.ndarray, r_ss: np.ndarray, r_prev: np.ndarray) -> MPCStep:
+        """Solve one step for one row (``z0`` ``(n_z,)``, ``r_ss`` and ``r_prev`` ``(2,)``).
 
-        :return: ``(r_0, status, solve_time_s)``; ``r_0`` (rad/s) is None when the solve failed
-            or the first move violates the hard limits
+        :return: the :class:`MPCStep`; its ``r`` (rad/s) is None when the solve failed or the
+            first move violates the hard limits
         """
         self.set_parameters(z0, r_ss, r_prev)
         t0 = time.perf_counter()
-        U = None
         try:
-            U, status = self.qp.solve()
+            res = self.qp.solve()
+            U, status, path, fast_status = res.x, res.status, res.path, res.fast_status
         except (cp.error.SolverError, ValueError, ArithmeticError) as exc:
-            status = f"solver_error: {type(exc).__name__}: {exc}"
+            U, status, path, fast_status = None, f"solver_error: {type(exc).__name__}: {exc}", "", None
         dt = time.perf_counter() - t0
         if status != cp.OPTIMAL or U is None:
-            return None, status, dt
+            return MPCStep(None, status, dt, path, fast_status)
         u0 = np.asarray(U[:self.m], float)
         step = self.settings.rate_step / self._ru
         up = self.u_prev.value
         # OSQP meets constraints to ~eps_abs; more than 1 % of a rate step is a failed solve
         viol = max(float(np.max(np.abs(u0) - 1.0)), float(np.max(np.abs(u0 - up) - step)))
         if viol > 0.01 * step:
-            return None, "limits_violated", dt
+            return MPCStep(None, "limits_violated", dt, path, fast_status)
         u0 = np.clip(np.clip(u0, up - step, up + step), -1.0, 1.0)
-        return u0 * self._ru, status, dt
+        return MPCStep(u0 * self._ru, status, dt, path, fast_status)
 
 
 class MPCController(LQGController):
-    """The MPC behind the controller interface: the LQG's estimator, wind inference and
-    integrator, with the constrained problem as the law and the LQG law as the fallback.
+    """The MPC behind the controller interface: the LQG's estimator, wind inference, reference
+    and integrator, with the constrained problem as the law and the LQG law as the fallback.
 
-    ``info`` carries ``solve_time_s`` (the OSQP call), ``status`` and the episode's counts
-    ``n_solves``, ``n_fallbacks`` and ``fallback_statuses`` (status -> count).
+    Not batchable (``batchable = False``): one QP per episode and step; run one instance per
+    episode.  ``info`` carries ``mpc_solve_time_s`` (the QP solve), ``status`` and ``qp_path``
+    of the step, and the episode's ``n_solves``, ``n_fallbacks``, ``fallbacks`` (a list of
+    ``{"step": k, "status": s}``, see :mod:`dss14_env.baselines.base`), ``fallback_statuses``
+    (status -> count) and ``resolves`` (steps whose fast solve was not optimal and was re-solved
+    through ``Problem.solve``, as ``{"step": k, "status": fast status}``).
 
-    :param env: the environment (or its config / an :class:`EnvSpec`)
+    :param env: the environment (or its config / a
+        :class:`~dss14_env.baselines.interface.ControlInterface`)
     :param name: label, default ``"MPC"``
     :param config: MPC settings, default section ``mpc`` of ``configs/controllers.yaml``
     :param lqg_config: settings of the shared estimator/fallback, default section ``lqg``
+    :param fast: use the OSQP fast path of :class:`~dss14_env.baselines.qp.ParametricQP`
+        (default True)
     """
 
+    batchable = False
+
     def __init__(self, env: Any = None, name: str = "MPC", config: MPCConfig | None = None,
-                 lqg_config: LQGConfig | None = None) -> None:
+                 lqg_config: LQGConfig | None = None, fast: bool = True) -> None:
         cc = default_controllers_config()
         self.mpc_config = mcfg = config or cc.mpc
         lcfg = lqg_config or cc.lqg
         lcfg = dataclasses.replace(lcfg, shaper=mcfg.shaper,
                                    action_change_weight=mcfg.action_change_weight)
+        self.fast = bool(fast)
+        self._mpcs: dict[int, CondensedMPC] = {}
         super().__init__(env, name, lcfg)
-        spec = self.spec
+        ci = self.interface
         # 0.1 % margin: the observed previous command is float32, the limiter checks in float64
-        self.settings = MPCSettings(int(mcfg.horizon), spec.rate_limit * (1 - 1e-3),
-                                    spec.rate_step * (1 - 1e-3),
+        self.settings = MPCSettings(int(mcfg.horizon), ci.rate_limit * (1 - 1e-3),
+                                    ci.rate_step * (1 - 1e-3),
                                     mcfg.error_soft_limit, mcfg.slack_weight_linear,
                                     mcfg.slack_weight_quadratic, mcfg.eps_abs, mcfg.eps_rel,
                                     int(mcfg.max_iter))
-        self._mpcs: dict[int, CondensedMPC] = {}
-        self.use_design(self.design)
 
-    def use_design(self, design: LQGDesign) -> None:
-        """Load a design; the MPC problem is built once per LQR state size (the direction-free
-        and the inferred gust models differ in filter states) and re-pointed otherwise."""
-        super().use_design(design)
-        mpcs = getattr(self, "_mpcs", None)
-        if mpcs is None:  # during the base-class constructor
-            return
+    def problem_for(self, design: LQGDesign) -> CondensedMPC:
+        """The MPC problem of a design: built once per LQR state size (the direction-free and
+        the inferred gust models differ in filter states) and re-pointed otherwise."""
         nz = design.n_z
-        if nz not in mpcs:
-            mpcs[nz] = CondensedMPC(design, self.settings)
+        if nz not in self._mpcs:
+            self._mpcs[nz] = CondensedMPC(design, self.settings, fast=self.fast)
         else:
-            mpcs[nz].load_design(design)
-        self.mpc = mpcs[nz]
+            self._mpcs[nz].load_design(design)
+        return self._mpcs[nz]
 
     def reset(self, seed: int | None = None) -> None:
         super().reset(seed)
         self.n_solves = 0
-        self.n_fallbacks = 0
-        self.fallback_statuses: dict[str, int] = {}
+        self.fallbacks: list[dict[str, Any]] = []
+        self.resolves: list[dict[str, Any]] = []
+        self._last = MPCStep(None, "", 0.0, "")
 
-    def fallback(self, z: np.ndarray, r_ss: np.ndarray, r_prev: np.ndarray) -> np.ndarray:
+    def fallback(self, design: LQGDesign, z: np.ndarray, r_ss: np.ndarray, r_prev: np.ndarray) -> np.ndarray:
         """The LQG command, clipped to the rate and rate-change limits."""
-        r = self.lqr_command(z, r_ss)
+        r = self.lqr_command(design, z, r_ss)
         st = self.settings
         return np.clip(np.clip(r, r_prev - st.rate_step, r_prev + st.rate_step),
                        -st.rate_limit, st.rate_limit)
 
-    def law(self, z: np.ndarray, r_ss: np.ndarray, r_prev: np.ndarray) -> np.ndarray:
-        r, status, dt = self.mpc.solve(z, r_ss, r_prev)
+    def law_rows(self, design: LQGDesign, rows: np.ndarray, z: np.ndarray, r_ss: np.ndarray,
+                 r_prev: np.ndarray) -> np.ndarray:
+        """The MPC's first move for the episode's row (one row: the MPC is not batchable)."""
+        mpc = self.problem_for(design)
+        step = int(self._k[rows[0]])
+        res = self._last = mpc.solve(z[0], r_ss[0], r_prev[0])
         self.n_solves += 1
-        if r is None:
-            self.n_fallbacks += 1
-            key = status.split(":")[0]
-            self.fallback_statuses[key] = self.fallback_statuses.get(key, 0) + 1
-            r = self.fallback(z, r_ss, r_prev)
-        self.info.update({"mpc_solve_time_s": dt, "status": status, "n_solves": self.n_solves,
-                          "n_fallbacks": self.n_fallbacks,
-                          "fallback_statuses": dict(self.fallback_statuses)})
-        return r
+        if res.fast_status is not None:
+            self.resolves.append({"step": step, "status": res.fast_status})
+        if res.r is None:
+            self.fallbacks.append({"step": step, "status": res.status})
+            return self.fallback(design, z, r_ss, r_prev)
+        return res.r[None]
+
+    def episode_info(self) -> dict[str, Any]:
+        statuses: dict[str, int] = {}
+        for f in self.fallbacks:
+            key = f["status"].split(":")[0]
+            statuses[key] = statuses.get(key, 0) + 1
+        return {**super().episode_info(), "mpc_solve_time_s": self._last.time_s,
+                "status": self._last.status, "qp_path": self._last.path, "n_solves": self.n_solves,
+                "n_fallbacks": len(self.fallbacks), "fallbacks": [dict(f) for f in self.fallbacks],
+                "fallback_statuses": statuses, "resolves": [dict(r) for r in self.resolves]}

@@ -19,7 +19,8 @@ controller with the same measurements does better on this cost, whatever its ord
 structure; every reduced-order, constrained or learned controller is therefore scored as a
 multiple of the yardstick's expected error.  Its expected 3-sigma error and cost come from the
 Riccati solutions through the closed-loop stationary covariance (discrete Lyapunov equation,
-:func:`dss14_env.baselines.lqg.stationary_performance`); :func:`riccati_cost` gives the same cost from
+:func:`dss14_env.baselines.analysis.stationary_performance`);
+:func:`~dss14_env.baselines.analysis.riccati_cost` gives the same cost from
 the two Riccati solutions alone (checked in the tests).
 
 Two caveats, both reported: the optimality is for the model (quantisation as white noise, no
@@ -31,23 +32,19 @@ command (bumpless start) like the other controllers.
 
 from __future__ import annotations
 
+import copy
 import math
+from collections.abc import Sequence
 from functools import lru_cache
 from typing import Any
 
 import numpy as np
 
+from dss14_env.baselines.analysis import closed_loop, lqg_as_linear, riccati_cost, stationary_performance
 from dss14_env.baselines.design import build_design_model
-from dss14_env.baselines.lqg import (
-    EnvSpec,
-    EstimatorController,
-    LQGDesign,
-    as_spec,
-    closed_loop,
-    design_lqg,
-    lqg_as_linear,
-    stationary_performance,
-)
+from dss14_env.baselines.interface import ControlInterface, as_interface
+from dss14_env.baselines.lqg import EstimatorController, LQGDesign, design_lqg
+from dss14_env.core.units import KMH
 from dss14_env.wind.loads import direction_angle
 
 #: tiny random walk of the command-level disturbance in the runnable yardstick (fraction of
@@ -58,7 +55,7 @@ RUNNABLE_DRIFT = 1e-6
 REGULARISING_INPUT_NOISE = 1e-6
 
 
-def yardstick_design(spec: EnvSpec, wind_speed: float, direction: str | float,
+def yardstick_design(spec: ControlInterface, wind_speed: float, direction: str | float,
                      runnable: bool = False) -> LQGDesign:
     """See :func:`_yardstick_design` (cached)."""
     direction = direction if isinstance(direction, str) else float(direction)
@@ -66,7 +63,7 @@ def yardstick_design(spec: EnvSpec, wind_speed: float, direction: str | float,
 
 
 @lru_cache(maxsize=32)
-def _yardstick_design(spec: EnvSpec, wind_speed: float, direction: str | float,
+def _yardstick_design(spec: ControlInterface, wind_speed: float, direction: str | float,
                       runnable: bool = False) -> LQGDesign:
     """The full-order H2-optimal design for one scenario wind.
 
@@ -86,38 +83,15 @@ def _yardstick_design(spec: EnvSpec, wind_speed: float, direction: str | float,
                       rate_limit=spec.rate_limit)
 
 
-def riccati_cost(design: LQGDesign) -> float:
-    """Expected per-step cost of an LQG design on its own model, from the Riccati solutions.
-
-    ``J = tr(P_c W) + tr(Sigma K' (R + B' P_c B) K)``: the full-information cost plus the
-    cost of the estimation error, with ``P_c`` the LQR solution, ``W`` the process-noise
-    covariance of the augmented state and ``Sigma`` the filtered (a-posteriori) error
-    covariance of the Kalman filter.
-    """
-    if design.n_d:
-        raise ValueError("riccati_cost is for designs without disturbance states")
-    n = design.dm.n
-    nz = design.n_z
-    W = np.zeros((nz, nz))
-    W[:n, :n] = design.Qn
-    Ce = design.dm.C
-    P = design.P_kf
-    Sigma = P - P @ Ce.T @ np.linalg.solve(Ce @ P @ Ce.T + design.dm.R, Ce @ P)
-    Kx = design.K[:, :n]
-    Bz, Pc, Rz = design.Bz, design.P_lqr, design.Rz
-    return float(np.trace(Pc @ W) + np.trace(Sigma @ Kx.T @ (Rz + Bz.T @ Pc @ Bz) @ Kx))
-
-
-def expected_performance(spec: EnvSpec | Any, wind_speed: float, direction: str | float) -> dict:
+def expected_performance(spec: ControlInterface | Any, wind_speed: float, direction: str | float) -> dict:
     """See :func:`_expected_performance` (cached per interface and wind; a copy is returned)."""
-    import copy
-    spec = as_spec(spec)
+    spec = as_interface(spec)
     direction = direction if isinstance(direction, str) else float(direction)
     return copy.deepcopy(_expected_performance(spec, float(wind_speed), direction))
 
 
 @lru_cache(maxsize=32)
-def _expected_performance(spec: EnvSpec, wind_speed: float, direction: str | float) -> dict:
+def _expected_performance(spec: ControlInterface, wind_speed: float, direction: str | float) -> dict:
     """The yardstick's expected 3-sigma servo errors (mdeg) and per-step cost.
 
     :return: dict (JSON-ready): ``three_sigma_mdeg`` [az, el], ``rms_mdeg``, ``cost``,
@@ -136,29 +110,64 @@ class YardstickController(EstimatorController):
     """The yardstick as a controller (full-order LQG for the scenario's wind).
 
     It is an oracle of the scenario's disturbance model: the runner tells it the episode's
-    wind speed and direction (:meth:`set_scenario`, from the environment's reset info) and it
-    designs for them (cached per wind).  Without wind it has nothing to be optimal for and uses
-    a 1 m/s wind of the same direction.
+    wind speed and direction (:meth:`set_scenario`, or :meth:`set_scenario_batch` for rows,
+    from the environment's reset info) and it designs for them (cached per wind).  Without
+    wind it has nothing to be optimal for and uses a 1 m/s wind of the same direction.
 
-    :param env: the environment (or its config / an :class:`EnvSpec`)
+    :param env: the environment (or its config / a :class:`ControlInterface`)
     :param wind_speed: initial design wind speed, m/s
     :param direction: initial design direction
     :param name: label, default ``"yardstick"``
     """
 
-    def __init__(self, env: Any = None, wind_speed: float = 50 / 3.6,
+    def __init__(self, env: Any = None, wind_speed: float = 50 * KMH,
                  direction: str | float = "front", name: str = "yardstick") -> None:
-        spec = as_spec(env)
-        self._designs: dict[tuple, LQGDesign] = {}
-        super().__init__(self._design(spec, wind_speed, direction), spec, name)
+        interface = as_interface(env)
+        self.interface = interface
+        self._designs_by_wind: dict[tuple, LQGDesign] = {}
+        self._scenarios: list[tuple[float, str | float]] | None = None
+        super().__init__(self.design_for(wind_speed, direction), interface, name)
 
-    def _design(self, spec: EnvSpec, speed: float, direction: str | float) -> LQGDesign:
+    def design_for(self, speed: float, direction: str | float) -> LQGDesign:
+        """The runnable yardstick design for a wind (speed at least 1 m/s; cached)."""
         speed = max(float(speed), 1.0)
         key = (round(speed, 9), direction if isinstance(direction, str) else round(float(direction), 9))
-        if key not in self._designs:
-            self._designs[key] = yardstick_design(spec, speed, direction, runnable=True)
-        return self._designs[key]
+        if key not in self._designs_by_wind:
+            self._designs_by_wind[key] = yardstick_design(self.interface, speed, direction, runnable=True)
+        return self._designs_by_wind[key]
+
+    def reset(self, seed: int | None = None) -> None:
+        """New episode; it uses the wind of the last :meth:`set_scenario` (rows' winds of
+        :meth:`set_scenario_batch` are forgotten)."""
+        self._scenarios = None
+        super().reset(seed)
 
     def set_scenario(self, wind_speed: float, direction: str | float) -> None:
         """Design for the episode's wind (call before the episode's first :meth:`act`)."""
-        self.default_design = self._design(self.spec, wind_speed, direction)
+        self.default_design = self.design_for(wind_speed, direction)
+
+    def set_scenario_batch(self, wind_speeds: Sequence[float], directions: Sequence[str | float]) -> None:
+        """The rows' winds: row ``i``'s next episode (its first :meth:`act_batch` after
+        :meth:`reset_batch` or :meth:`restart`) is designed for ``(wind_speeds[i],
+        directions[i])`` (m/s; ``"front"``, ``"side"`` or rad).
+
+        :raises ValueError: naming the argument if it has not one finite entry per row
+        """
+        speeds = np.asarray(wind_speeds, float)
+        if speeds.shape != (self.n,) or not np.all(np.isfinite(speeds)) or np.any(speeds < 0):
+            raise ValueError(f"wind_speeds must be {self.n} finite speeds >= 0 (one per row), got "
+                             f"{np.asarray(wind_speeds).tolist()}")
+        if len(directions) != self.n:
+            raise ValueError(f"directions must have one entry per row ({self.n}), got {len(directions)}")
+        dirs = [d if isinstance(d, str) else float(d) for d in directions]
+        for d in dirs:
+            direction_angle(d)  # validates: a known name or a finite angle
+        self._scenarios = list(zip(speeds.tolist(), dirs, strict=True))
+
+    def select_designs(self, rows: np.ndarray, r0: np.ndarray, c_rate0: np.ndarray) -> list[LQGDesign]:
+        if self._scenarios is None:
+            return [self.default_design] * len(rows)
+        if len(self._scenarios) != self.n:
+            raise ValueError(f"set_scenario_batch was given {len(self._scenarios)} rows, the batch "
+                             f"has {self.n}")
+        return [self.design_for(*self._scenarios[i]) for i in rows.tolist()]

@@ -8,46 +8,57 @@ import time
 
 
 def _reproduce(args: argparse.Namespace) -> int:
+    """Write everything, then exit 1 when a row with an accepted range is outside it."""
+    from dss14_env.core.outdir import prepare_output_dir
     from dss14_env.model.assembly import build_model, default_model
     from dss14_env.model.config import load_model_config
-    from dss14_env.reproduce import reproduce
+    from dss14_env.reproduce import OWNED_FILES, reproduce
 
     t0 = time.perf_counter()
-    model = build_model(load_model_config(args.config)) if args.config else default_model()
+    cfg = load_model_config(args.config) if args.config else None  # bad config: before any work
+    prepare_output_dir(args.out, OWNED_FILES, overwrite=args.overwrite)
+    model = build_model(cfg) if cfg is not None else default_model()
     res = reproduce(args.out, model, figures=not args.no_figures)
     print(res["markdown"])
-    bad = [k for k, v in res["metrics"].items() if v["ok"] is False]
     print(f"{len(res['figures'])} figures, metrics.json and metrics.md written to {args.out} "
           f"in {time.perf_counter() - t0:.1f} s")
+    bad = res["failed"]
     if bad:
-        print(f"outside the accepted range: {', '.join(bad)}")
+        rows = res["metrics"]
+        for k in bad:
+            lo, hi = rows[k]["accepted"]
+            print(f"dss14 reproduce: {k} = {rows[k]['model']:.4g} is outside the accepted range "
+                  f"[{lo:.4g}, {hi:.4g}]", file=sys.stderr)
+        print(f"dss14 reproduce: {len(bad)} row(s) outside the accepted range: {', '.join(bad)}",
+              file=sys.stderr)
+        return 1
+    print("every row with an accepted range is inside it")
     return 0
 
 
 def _train(args: argparse.Namespace) -> int:
-    from pathlib import Path
+    from dss14_env.agents.campaign import parse_seeds, train_seeds
+    from dss14_env.agents.train import TrainingInterrupted, config_for_command, train
 
-    from dss14_env.agents.ppo import default_config_path, load_config, train
-
-    ckpt = Path(args.resume) if args.resume is not None else None
-    run_cfg = None  # with --resume and no --config: the config.yaml of the checkpoint's run
-    if ckpt is not None:
-        run = ckpt.parent.parent if ckpt.parent.name == "checkpoints" else ckpt.parent
-        run_cfg = run / "config.yaml"
-    if args.config is not None:
-        path = Path(args.config)
-    elif run_cfg is not None and run_cfg.is_file():
-        path = run_cfg
-    else:
-        path = default_config_path()
-    cfg = load_config(path)
-    changes = {k: v for k, v in (("total_timesteps", args.timesteps), ("seed", args.seed))
-               if v is not None}
-    if changes:
-        cfg = cfg.replace(**changes, source=f"{path} (command line)")
-    run = train(cfg, run_dir=args.out, resume=args.resume)
-    print(f"PPO run written to {run} (policy: {run / 'model.zip'}, "
-          f"stats: {run / 'vecnormalize.pkl'})")
+    cfg = config_for_command(args.algo, args.config, args.env, args.resume, args.timesteps,
+                             args.seed)
+    try:
+        if args.seeds is not None:
+            if args.resume is not None or args.seed is not None:
+                raise ValueError("--seeds trains fresh runs: without --resume and --seed")
+            if args.out is None:
+                raise ValueError("--seeds needs --out (the campaign folder)")
+            out = train_seeds(cfg, parse_seeds(args.seeds), args.out, overwrite=args.overwrite)
+            print(f"{len(parse_seeds(args.seeds))} runs, summary.json and learning curves "
+                  f"written to {out}")
+            return 0
+        run = train(cfg, run_dir=args.out, resume=args.resume, overwrite=args.overwrite,
+                    trust_pickle=args.trust_pickle)
+    except TrainingInterrupted as exc:
+        print(f"dss14 train: {exc.message}", file=sys.stderr)
+        return 130
+    print(f"{cfg.algo} run written to {run} (policy folder: policy.pt, normalization.npz, "
+          f"config.yaml)")
     return 0
 
 
@@ -78,17 +89,37 @@ def main(argv: list[str] | None = None) -> int:
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("reproduce", help="redraw the report's figures and check its numbers")
     p.add_argument("--out", default="reproduce_out", help="output folder (default: reproduce_out)")
-    p.add_argument("--config", default=None, help="model YAML (default: the shipped configs/model.yaml)")
-    p.add_argument("--no-figures", action="store_true", help="metrics only")
-    p.set_defaults(func=_reproduce)
-    p = sub.add_parser("train", help="train a learned controller (PPO)")
-    p.add_argument("algo", choices=["ppo"], help="algorithm")
     p.add_argument("--config", default=None,
-                   help="PPO YAML (default: configs/ppo.yaml; on --resume the run's config.yaml)")
-    p.add_argument("--out", default=None, help="run folder (default: runs/ppo-<timestamp>/)")
-    p.add_argument("--resume", default=None, help="checkpoint zip to continue from")
+                   help="model YAML, a path or a shipped name (default: the shipped configs/model.yaml)")
+    p.add_argument("--no-figures", action="store_true", help="metrics only")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace the results of an earlier run in --out (metrics, figures)")
+    p.set_defaults(func=_reproduce)
+    p = sub.add_parser("train", help="train a learned controller (PPO, RecurrentPPO, SAC)",
+                       description="Train one run (or one per seed with --seeds) into a run "
+                       "folder (docs/rl.md).")
+    p.add_argument("algo", choices=["ppo", "recurrent_ppo", "sac"], help="algorithm")
+    p.add_argument("--config", default=None, metavar="NAME|FILE",
+                   help="training YAML, or a shipped config's name (ppo, ppo_plain, ppo_smoke, "
+                   "sac, recurrent_ppo); default: configs/<algo>.yaml, on --resume the run's")
+    p.add_argument("--env", default=None, metavar="ID",
+                   help="take the shipped hyperparameters of this environment id "
+                   "(configs/hyperparams/<algo>.yml) instead of --config")
+    p.add_argument("--out", default=None,
+                   help="run folder (default: runs/<algo>-<timestamp>/); with --seeds the "
+                   "campaign folder")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace the run files already in --out (a finished or interrupted run)")
+    p.add_argument("--resume", default=None, metavar="CHECKPOINT",
+                   help="checkpoint folder (<run>/checkpoints/<N>_steps) to continue from")
+    p.add_argument("--trust-pickle", action="store_true",
+                   help="allow --resume from a stable-baselines3 .zip (unpickled: it can run "
+                   "code; only for files you trust)")
     p.add_argument("--timesteps", type=int, default=None, help="override total_timesteps")
     p.add_argument("--seed", type=int, default=None, help="override seed")
+    p.add_argument("--seeds", nargs="+", default=None, metavar="K",
+                   help="one run per seed index into --out/seed_<k>/ (0-4, or 0 3 7), then "
+                   "summary.json and learning curves")
     p.set_defaults(func=_train)
     p = sub.add_parser("bench", help="score PI, LQG, MPC and PPO on the same scenarios and seeds",
                        description="Run every controller through the runner on the same "
@@ -120,11 +151,35 @@ def main(argv: list[str] | None = None) -> int:
     p.set_defaults(func=_bench)
     args = parser.parse_args(argv)
     args.argv = list(argv) if argv is not None else sys.argv[1:]
+    return run_command(args)
+
+
+def run_command(args: argparse.Namespace) -> int:
+    """Run a parsed subcommand; every expected failure becomes one line on stderr.
+
+    Bad input (configuration, options, files) and operating-system errors (a folder that cannot
+    be written, a full disk) exit with status 2, an interruption (Ctrl-C) with 130; a bug still
+    shows its traceback.
+    """
     try:
         return args.func(args)
-    except (ValueError, KeyError, RuntimeError) as exc:  # config errors etc.: one clear line
-        print(f"dss14 {args.command}: error: {exc}", file=sys.stderr)
+    except (ValueError, KeyError, RuntimeError, OSError) as exc:
+        print(f"dss14 {args.command}: error: {_one_line(exc)}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f"dss14 {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+def _one_line(exc: BaseException) -> str:
+    """The exception's message on one line (an OSError names its file)."""
+    if isinstance(exc, OSError) and exc.filename is not None:
+        msg = f"{exc.filename}: {exc.strerror or exc}"
+    elif isinstance(exc, KeyError) and exc.args:
+        msg = str(exc.args[0])
+    else:
+        msg = str(exc) or type(exc).__name__
+    return " ".join(msg.split())
 
 
 if __name__ == "__main__":

@@ -11,8 +11,6 @@ import pytest
 from scipy import linalg
 
 from dss14_env.baselines.design import (
-    CommandShaper,
-    ReferenceGenerator,
     balanced_reduction,
     build_design_model,
     default_controllers_config,
@@ -26,12 +24,13 @@ from dss14_env.baselines.design import (
     smallest_order,
     split_rate_loop,
 )
+from dss14_env.baselines.shaping import CommandShaper, ReferenceGenerator
 from dss14_env.core.schema import ConfigError
+from dss14_env.core.units import DEG, KMH, MDEG
+from dss14_env.envs.plant import get_plant
 from dss14_env.model.assembly import default_model
 from dss14_env.model.linsys import freqresp
 
-DEG = math.pi / 180
-MDEG = DEG / 1e3
 DT = 0.02
 
 
@@ -52,7 +51,8 @@ def test_config_loads_in_si() -> None:
     ("order: {value: 18,", "order: {value: -3,", "design.order"),
     ("horizon: {value: 20,", "horizon: {value: 1,", "mpc.horizon"),
     ("wind_model: {value: inferred,", "wind_model: {value: sideways,", "lqg.wind_model"),
-    ('error_soft_limit: {value: 10.0, unit: "mdeg"', 'error_soft_limit: {value: 10.0, unit: "m"', "error_soft_limit"),
+    ('error_soft_limit: {value: 10.0, unit: "mdeg"', 'error_soft_limit: {value: 10.0, unit: "m"',
+     "error_soft_limit"),
 ])
 def test_config_errors_name_the_field(tmp_path: Path, old: str, new: str, message: str) -> None:
     text = Path(load_controllers_config().path).read_text()
@@ -139,7 +139,7 @@ def test_reference_state_follows_the_motion(dm, c_acc) -> None:
         assert np.abs(xdot[2:]).max() < 1e-9 * np.abs(x[2:]).max()
 
 
-@pytest.mark.parametrize("wind", [("design", 50 / 3.6), (50 / 3.6, "front"), (50 / 3.6, "side")])
+@pytest.mark.parametrize("wind", [("design", 50 * KMH), (50 * KMH, "front"), (50 * KMH, "side")])
 def test_design_model_is_stable_but_for_the_encoder_integrators(wind) -> None:
     m = build_design_model(DT, wind=wind)
     mags = np.sort(np.abs(np.linalg.eigvals(m.Ad)))
@@ -151,12 +151,11 @@ def test_design_model_is_stable_but_for_the_encoder_integrators(wind) -> None:
 @pytest.mark.parametrize("deg", [0.0, 45.0, 90.0, 135.0, 180.0, 270.0])
 @pytest.mark.parametrize("rate", [0.0, 0.01])
 def test_infer_wind_recovers_direction_and_speed_on_the_nominal_plant(deg: float, rate: float) -> None:
-    from dss14_env.envs.plant import get_plant
-    p = get_plant(50 / 3.6, DT)
+    p = get_plant(50 * KMH, DT)
     th = math.radians(deg)
     _, r0 = p.steady_start(np.zeros(8), p.mean_torque(th), np.full(2, rate * DEG))
     speed, theta = infer_wind(r0, np.full(2, rate * DEG))
-    assert speed == pytest.approx(50 / 3.6, rel=1e-6)
+    assert speed == pytest.approx(50 * KMH, rel=1e-6)
     assert 0.0 <= theta < math.pi
     # modulo pi, compared on the circle: 180 deg may come back as pi - 1e-13 (the same gust model)
     gap = (theta - th) % math.pi
@@ -169,8 +168,10 @@ def test_dc_gains_rate_command_is_074() -> None:
 
 # ------------------------------------------------------------------ shaper
 def _shape(shaper: CommandShaper, c: np.ndarray, v: np.ndarray):
-    out = [shaper(ci, vi) for ci, vi in zip(c, v)]
-    return tuple(np.array(z) for z in zip(*out))
+    """Shape one episode's commands (steps x 2) as one row."""
+    shaper.reset(1)
+    out = [shaper(ci[None], vi[None]) for ci, vi in zip(c, v, strict=True)]
+    return tuple(np.array([o[j][0] for o in out]) for j in range(3))
 
 
 def test_shaper_passes_a_feasible_command() -> None:
@@ -195,14 +196,16 @@ def test_shaper_respects_its_limits_and_arrives(size_deg: float) -> None:
 def test_reference_generator_feedforward_within_limits(dm) -> None:
     K = np.zeros((2, dm.n + 2))
     K[:, :2] = 0.3 * np.eye(2)
-    gen = ReferenceGenerator(dm, CommandShaper(0.16 * DEG, 0.03 * DEG, DT), K, 0.25 * DEG,
-                             0.2 * DEG * DT, accel_ff=1.0)
+    gen = ReferenceGenerator(dm, K, 0.25 * DEG, 0.2 * DEG * DT, accel_ff=1.0)
+    shaper = CommandShaper(0.16 * DEG, 0.03 * DEG, DT)
     rs, th = [], []
+    x = r = None
     for k in range(2000):
-        c = np.array([0.1, 1.0]) * DEG * (k >= 50)
-        x, r = gen(c, np.zeros(2))
-        rs.append(r)
-        th.append(x[:2])
+        c = np.array([[0.1, 1.0]]) * DEG * (k >= 50)
+        shaped = shaper(c, np.zeros((1, 2)))
+        x, r = gen.start(*shaped) if x is None else gen.advance(x, r, *shaped)
+        rs.append(r[0])
+        th.append(x[0, :2])
     rs, th = np.array(rs), np.array(th)
     assert np.abs(rs).max() <= 0.9 * 0.25 * DEG * (1 + 1e-12)
     assert np.abs(np.diff(rs, axis=0)).max() <= 0.9 * 0.2 * DEG * DT * (1 + 1e-12)

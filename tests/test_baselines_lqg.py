@@ -1,42 +1,35 @@
-"""LQG design (Riccati residuals, closed-loop stability) and the LQG and yardstick controllers
-against the environment (baselines/lqg.py, baselines/yardstick.py)."""
+"""LQG design (Riccati residuals, closed-loop analysis of baselines/analysis.py) and the LQG and
+yardstick controllers against the environment (baselines/lqg.py, baselines/yardstick.py)."""
 
 from __future__ import annotations
-
-import math
 
 import numpy as np
 import pytest
 
-from dss14_env.baselines.design import build_design_model
-from dss14_env.baselines.lqg import (
-    EnvSpec,
-    LQGController,
-    Weights,
+from dss14_env.baselines.analysis import (
     closed_loop,
     lqg_as_linear,
-    lqg_design_from_config,
+    riccati_cost,
+    sampled_three_sigma_mdeg,
     stationary_performance,
 )
+from dss14_env.baselines.design import build_design_model
+from dss14_env.baselines.interface import ControlInterface, Weights
+from dss14_env.baselines.lqg import EstimatorController, LQGController, lqg_design_from_config
 from dss14_env.baselines.pi import PIController
-from dss14_env.baselines.yardstick import (
-    YardstickController,
-    expected_performance,
-    riccati_cost,
-    yardstick_design,
-)
+from dss14_env.baselines.yardstick import YardstickController, expected_performance, yardstick_design
 from dss14_env.bench.runner import run
+from dss14_env.core.units import AXES, KMH, WIND_DIRECTIONS
 from dss14_env.envs.env import DSS14Env
+from dss14_env.envs.plant import get_plant
 
-DEG = math.pi / 180
-MDEG = DEG / 1e3
-U50 = 50 / 3.6
+U50 = 50 * KMH
 DOMINANT = {"front": 1, "side": 0}  # el in front wind, az in side wind
 
 
 @pytest.fixture(scope="module")
-def spec() -> EnvSpec:
-    return EnvSpec.default()
+def spec() -> ControlInterface:
+    return ControlInterface.default()
 
 
 @pytest.fixture(scope="module")
@@ -131,21 +124,23 @@ def hold_results() -> dict:
 
 
 def _three_sigma(summary: dict, ctrl: str, direction: str) -> float:
-    ax = ("az", "el")[DOMINANT[direction]]
+    ax = AXES[DOMINANT[direction]]
     return summary[ctrl][f"hold_{direction}"]["servo_error_mdeg"][ax]["three_sigma"]["median"]
 
 
 @pytest.mark.parametrize("ctrl", ["lqg", "mpc"])
 @pytest.mark.parametrize("direction", ["front", "side"])
 def test_half_of_pi_on_the_dominant_axis(hold_results, ctrl: str, direction: str) -> None:
-    assert _three_sigma(hold_results, ctrl, direction) <= 0.5 * _three_sigma(hold_results, "pi_kp1", direction)
+    pi = _three_sigma(hold_results, "pi_kp1", direction)
+    assert _three_sigma(hold_results, ctrl, direction) <= 0.5 * pi
 
 
 @pytest.mark.parametrize("ctrl", ["lqg", "mpc"])
 @pytest.mark.parametrize("direction", ["front", "side"])
 def test_within_1p2_of_the_simulated_yardstick(hold_results, ctrl: str, direction: str) -> None:
     """Same plant, gusts and quantised encoder; the analytic ratio is reported, not tested."""
-    assert _three_sigma(hold_results, ctrl, direction) <= 1.2 * _three_sigma(hold_results, "yardstick", direction)
+    yardstick = _three_sigma(hold_results, "yardstick", direction)
+    assert _three_sigma(hold_results, ctrl, direction) <= 1.2 * yardstick
 
 
 def test_pi_reproduces_table4_in_the_runner(hold_results) -> None:
@@ -159,7 +154,7 @@ def step_results() -> dict:
 
 
 @pytest.mark.parametrize("ctrl", ["lqg", "mpc"])
-@pytest.mark.parametrize("axis", ["az", "el"])
+@pytest.mark.parametrize("axis", AXES)
 def test_step_overshoot_and_settling(step_results, ctrl: str, axis: str) -> None:
     s = step_results[ctrl]["step"]["step"][axis]
     pi = step_results["pi_kp1"]["step"]["step"][axis]
@@ -183,7 +178,7 @@ def test_lqg_infers_the_wind_direction_from_the_start_command(direction: str) ->
     ctrl = LQGController(env)
     ctrl.reset(0)
     ctrl.act(obs)
-    assert ctrl.info["design_wind"][1] == pytest.approx({"front": 0.0, "side": math.pi / 2}[direction])
+    assert ctrl.info["design_wind"][1] == pytest.approx(WIND_DIRECTIONS[direction])
 
 
 def test_lqg_without_wind_uses_the_direction_free_model() -> None:
@@ -195,36 +190,35 @@ def test_lqg_without_wind_uses_the_direction_free_model() -> None:
     assert ctrl.info["design_wind"] is None
 
 
-def test_observation_of_wrong_shape_is_refused() -> None:
+@pytest.mark.parametrize("bad, match", [(np.zeros(5, np.float32), r"observation must have shape \(12,\)"),
+                                        (np.full(12, np.nan), "observation must be finite")])
+def test_bad_observation_is_refused(bad: np.ndarray, match: str) -> None:
     ctrl = LQGController(None)
-    with pytest.raises(ValueError, match="12-element"):
-        ctrl.act(np.zeros(5, np.float32))
+    with pytest.raises(ValueError, match=match):
+        ctrl.act(bad)
 
 
 def test_design_period_must_match_the_env() -> None:
-    d = lqg_design_from_config(EnvSpec.default())
-    from dss14_env.baselines.lqg import EstimatorController
+    d = lqg_design_from_config(ControlInterface.default())
     with pytest.raises(ValueError, match="period"):
-        EstimatorController(d, EnvSpec.default(dt=0.01), "x")
+        EstimatorController(d, ControlInterface.default(dt=0.01), "x")
 
 
 def test_yardstick_follows_the_episode_wind() -> None:
     ctrl = YardstickController(None)
-    ctrl.set_scenario(U50, math.pi / 2)
+    ctrl.set_scenario(U50, WIND_DIRECTIONS["side"])
     env = DSS14Env(scenario="hold", wind_speed_kmh=50.0, wind_direction="side")
     obs, _ = env.reset(seed=0)
     ctrl.reset(0)
     ctrl.act(obs)
-    assert ctrl.design.dm.wind == (U50, math.pi / 2)
+    assert ctrl.design.dm.wind == (U50, WIND_DIRECTIONS["side"])
     assert ctrl.design.dm.n == 64
 
 
 @pytest.mark.parametrize("direction", ["front", "side"])
 def test_yardstick_expected_error_is_below_pi(direction: str) -> None:
-    from dss14_env.baselines.pi import sampled_three_sigma_mdeg
-    from dss14_env.envs.plant import get_plant
     y = expected_performance(None, U50, direction)
-    pi = sampled_three_sigma_mdeg(get_plant(U50, 0.02), {"front": 0.0, "side": math.pi / 2}[direction])
+    pi = sampled_three_sigma_mdeg(get_plant(U50, 0.02), WIND_DIRECTIONS[direction])
     k = DOMINANT[direction]
     assert 0 < y["three_sigma_mdeg"][k] < 0.25 * pi[k]
 

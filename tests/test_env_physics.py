@@ -10,7 +10,8 @@ import math
 import numpy as np
 import pytest
 
-from dss14_env.baselines.pi import PIController, gain_set, sampled_three_sigma_mdeg
+from dss14_env.baselines.analysis import sampled_three_sigma_mdeg
+from dss14_env.baselines.pi import PIController, gain_set
 from dss14_env.core.units import KMH, WIND_DIRECTIONS
 from dss14_env.envs.env import DSS14Env
 from dss14_env.envs.plant import get_plant

@@ -3,7 +3,9 @@
 Expected values come from physics (rigid-body motion, inertia sums written out here from the
 configuration's masses and geometry), the report (150 modes, 1 % damping, 2 + 22 modes kept,
 1.2 / 2.2 Hz az resonances, none in el below 3 Hz) and independent numerics (scipy eigen
-solvers and Lyapunov equations).
+solvers and Lyapunov equations).  The 1.2 / 2.2 Hz az resonances are what the calibration's
+first step solves for: the tests named ``test_regression_calibrated_*`` re-check them (a broken
+calibration or reduction fails them); they are not evidence for the structure model.
 """
 
 from __future__ import annotations
@@ -264,7 +266,7 @@ def test_eq55_vs_exact_hsv(model: DSS14Model, full: ModalModel) -> None:
 def test_az_inertia_from_config(model: DSS14Model, full: ModalModel) -> None:
     j = _j_axis_by_hand(model, "az")
     assert full.modal_mass[0] == pytest.approx(j, rel=1e-9)
-    assert 5e8 <= j <= 1e9  # cal. 4 / lit. Q2 range of the az rotating inertia
+    assert 5e8 <= j <= 1e9  # assumed range of the az rotating inertia (docs/model.md section 5)
 
 
 @pytest.mark.parametrize("f_hz", [1e-4, 3e-4])
@@ -305,7 +307,7 @@ def _peaks(f: np.ndarray, mag: np.ndarray, prominence_db: float) -> np.ndarray:
     return f[idx[order]]
 
 
-def test_fig15_az_resonances(reduced: ModalModel, grid: np.ndarray) -> None:
+def test_regression_calibrated_fig15_az_resonances_reduced_model(reduced: ModalModel, grid: np.ndarray) -> None:
     mag = np.abs(freqresp(reduced.to_ss(), grid, "enc_rate_az", "T_a"))
     peaks = _peaks(grid, mag, 3.0)
     assert peaks.size >= 2
@@ -319,8 +321,9 @@ def test_fig15_el_no_resonance_below_3hz(reduced: ModalModel, grid: np.ndarray) 
     assert _peaks(grid, mag, 0.1).size == 0
 
 
-def test_fig15_full_model_az_resonances(full: ModalModel, grid: np.ndarray) -> None:
-    """The reduction keeps the Fig. 15 features of the 150-mode model."""
+def test_regression_calibrated_fig15_az_resonances_full_model(full: ModalModel, grid: np.ndarray) -> None:
+    """The 150-mode model the calibration works on has the Fig. 15 resonances (the reduced
+    model's are checked above: the reduction keeps them)."""
     # modal superposition of Eq. (40), written out (the modal system is diagonal):
     # rate output  sum_i cv_i b_i s / (s^2 + 2 zeta_i w_i s + w_i^2)
     o, i = STRUCT_OUTPUTS.index("enc_rate_az"), STRUCT_INPUTS.index("T_a")

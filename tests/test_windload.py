@@ -1,9 +1,12 @@
 """Wind loads, the Table 4 calibration and the exact discretisation helpers.
 
-Table 4 values and accepted ranges are the report's and the issue's, typed here.  The
-frequency-domain and time-domain checks compute the same 3-sigma figures by routes that do not
-share code with :func:`three_sigma_mdeg` (numerical PSD integral of the Davenport *formula*;
-a seeded simulation of the exactly discretised loop).
+Table 4 values are the report's and the accepted ranges the project's, typed here.  The four
+moment coefficients are solved so the exact 50 km/h figures equal Table 4: the test named
+``test_regression_calibrated_*`` re-checks that (a regression check of the calibration, not
+evidence).  The consequences the calibration does not set -- the time-domain simulation, the
+figures at 30 and 70 km/h, their scaling with speed -- are computed by routes that do not share
+code with :func:`three_sigma_mdeg` (numerical PSD integral of the Davenport *formula*; a seeded
+simulation of the exactly discretised loop) or checked against the load model's scaling laws.
 """
 
 from __future__ import annotations
@@ -49,6 +52,13 @@ def loads() -> WindLoads:
 
 
 @pytest.fixture(scope="module")
+def wind_response(loop) -> tuple[np.ndarray, np.ndarray]:
+    """Frequencies (Hz) and the loop's Tw -> servo-error responses, (n_f, 2, 2)."""
+    f = np.geomspace(1e-5, 200.0, 60000)
+    return f, freqresp(loop, f, ["e_a", "e_e"], ["Tw_az", "Tw_el"])
+
+
+@pytest.fixture(scope="module")
 def sims(loop, loads) -> dict:
     """Two 30-min records per direction at 0.05 s (seeded)."""
     rng = np.random.default_rng(12345)
@@ -58,9 +68,12 @@ def sims(loop, loads) -> dict:
 
 # ------------------------------------------------------------------ Table 4
 @pytest.mark.parametrize("axis,direction", list(TABLE4))
-def test_table4_exact_within_accepted(loop, loads, axis: str, direction: str) -> None:
-    _, lo, hi = TABLE4[(axis, direction)]
-    assert lo <= three_sigma_mdeg(loop, loads, U50, direction)[AXIS[axis]] <= hi
+def test_regression_calibrated_table4_exact(loop, loads, axis: str, direction: str) -> None:
+    """The calibration's objective: the exact 50 km/h figures are Table 4's (to 1 %)."""
+    report, lo, hi = TABLE4[(axis, direction)]
+    value = three_sigma_mdeg(loop, loads, U50, direction)[AXIS[axis]]
+    assert value == pytest.approx(report, rel=0.01)
+    assert lo <= value <= hi
 
 
 @pytest.mark.parametrize("axis,direction", list(TABLE4))
@@ -68,19 +81,25 @@ def test_table4_time_domain_agrees_with_lyapunov(loop, loads, sims, axis: str, d
     ts, rel = three_sigma_estimate(sims[direction])
     k = AXIS[axis]
     exact = three_sigma_mdeg(loop, loads, U50, direction)[k]
-    assert rel[k] < 0.03  # the statistical error the issue asks for
+    assert rel[k] < 0.03  # statistical error of two 30-min records
     assert rad_to_mdeg(ts[k]) == pytest.approx(exact, rel=max(4 * rel[k], 0.02))
     _, lo, hi = TABLE4[(axis, direction)]
     assert lo <= rad_to_mdeg(ts[k]) <= hi
 
 
+def _three_sigma_by_formula(wind_response, loads, speed: float, direction: str) -> np.ndarray:
+    """3 sqrt(int |H(f) g(U)|^2 S_Davenport(f; U) df), mdeg: the load model written out (gust
+    torque rho U A D C u, Davenport spectrum at U) with the formula, not the shaping filter."""
+    f, H = wind_response
+    h = H @ loads.gust_gain(speed, direction)
+    var = integrate.trapezoid(np.abs(h) ** 2 * davenport_psd(f, speed)[:, None], f, axis=0)
+    return rad_to_mdeg(3 * np.sqrt(var))
+
+
 @pytest.mark.parametrize("direction", ["front", "side"])
-def test_lyapunov_agrees_with_psd_integral_of_the_formula(loop, loads, direction: str) -> None:
+def test_lyapunov_agrees_with_psd_integral_of_the_formula(loop, loads, wind_response, direction: str) -> None:
     """int |H(f) g|^2 S_Davenport(f) df with the formula, not the rational filter."""
-    f = np.geomspace(1e-5, 200.0, 60000)
-    H = freqresp(loop, f, ["e_a", "e_e"], ["Tw_az", "Tw_el"]) @ loads.gust_gain(U50, direction)
-    var = integrate.trapezoid(np.abs(H) ** 2 * davenport_psd(f, U50)[:, None], f, axis=0)
-    by_integral = rad_to_mdeg(3 * np.sqrt(var))
+    by_integral = _three_sigma_by_formula(wind_response, loads, U50, direction)
     # the 4th-order filter is within 7.5 % in PSD; the variances agree much better
     assert three_sigma_mdeg(loop, loads, U50, direction) == pytest.approx(by_integral, rel=0.03)
 
@@ -96,6 +115,26 @@ def test_error_grows_with_speed(loop, loads) -> None:
     assert e[0] < e[1] < e[2]
     # gust torque ~ U * sigma_u ~ U^2, and the spectrum moves up in frequency with U
     assert 1.5 < e[2] / e[1] < 3.0
+
+
+@pytest.mark.parametrize("axis,direction", [("el", "front"), ("az", "side"), ("el", "side"),
+                                            ("az", "front")])
+def test_wind_error_scaling_30_to_70_kmh(loop, loads, wind_response, axis: str, direction: str) -> None:
+    """Not set by the calibration (which fixes 50 km/h only).  The load model gives
+    3 sigma ~ U^2 sqrt(I(U)), I(U) = int |H(x U / L)|^2 g(x) dx (x = L f / U, g the normalised
+    Davenport shape): U^2 from the torque rho U A D C u with sigma_u ~ U, and I(U) from the
+    spectrum moving up in frequency with U.  So between 30 and 70 km/h (i) the exact figures
+    scale like the formula integral (the filter's U-scaling is right), and (ii) the ratio lies
+    between (70/30)^2, a frequency-flat loop, and (70/30)^3, the steepest rise |H| ~ f of a
+    loop with integral action (below its bandwidth, where the gust energy is)."""
+    k = AXIS[axis]
+    exact = {v: three_sigma_mdeg(loop, loads, v / 3.6, direction)[k] for v in (30.0, 70.0)}
+    formula = {v: _three_sigma_by_formula(wind_response, loads, v / 3.6, direction)[k] for v in (30.0, 70.0)}
+    for v in (30.0, 70.0):
+        assert exact[v] == pytest.approx(formula[v], rel=0.03), v
+    ratio = exact[70.0] / exact[30.0]
+    assert ratio == pytest.approx(formula[70.0] / formula[30.0], rel=0.02)
+    assert (70 / 30) ** 2 < ratio < (70 / 30) ** 3
 
 
 def test_simulation_reproducible(loop, loads) -> None:
@@ -134,8 +173,9 @@ def test_torque_units_by_hand(loads) -> None:
 
 
 def test_gust_torque_order_of_magnitude(loads) -> None:
-    """literature.md Q3 expects 0.3-1.4 MN*m gust rms; the model needs a few times less
-    (docs/wind.md section 4 says why); check the order, not the calibration's exact value."""
+    """Moment coefficients of order 0.03-0.15 would give 0.3-1.4 MN*m gust rms at 50 km/h;
+    the model needs a few times less (docs/wind.md section 5 says why); check the order, not
+    the calibration's exact value."""
     sd_u = math.sqrt(6 * 0.005) * U50
     el_front = abs(loads.gust_gain(U50, "front")[1]) * sd_u
     az_side = abs(loads.gust_gain(U50, "side")[0]) * sd_u

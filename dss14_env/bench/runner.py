@@ -306,7 +306,7 @@ def yardstick_reference(scenario: Scenario, env: Any) -> dict[str, Any] | None:
     speed, direction = kw.get("wind_speed_kmh"), kw.get("wind_direction")
     if not isinstance(speed, (int, float)) or speed <= 0 or direction in (None, "random"):
         return None
-    from dss14_env.baselines.lqg import EnvSpec
+    from dss14_env.baselines.interface import ControlInterface as EnvSpec
     from dss14_env.baselines.yardstick import expected_performance
     return expected_performance(EnvSpec.from_env(env), speed / 3.6, direction)
 

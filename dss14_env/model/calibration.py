@@ -8,15 +8,22 @@ configuration.  docs/model.md section 7 explains the reasoning.
    alidade-to-tipping-structure spring) put the two dominant azimuth resonances of pinion torque
    to encoder rate at 1.2 and 2.2 Hz.
 2. Rate-loop gain (Fig. 17): with a free rigid load the DC gain of r -> encoder rate is
-   ``kappa * lam / (1 + lam)``, ``lam = |G_t(0)| k_a / (D N_t)`` (calibration.md section 3).
+   ``kappa * lam / (1 + lam)``, ``lam = |G_t(0)| k_a / (D N_t)`` (docs/model.md section 7: in
+   steady state the load torque, hence the motor torque, is zero, so leakage, line and valve
+   dynamics drop out; tests/test_model_invariants.py checks it to 1e-6).
    ``lam`` is solved so that ``|H(0.3 Hz)| = 0.9 |H(0)|`` (the report's "below 0.3 Hz the
    magnitude is 0.74", read as flat within 10 %), giving the valve gain ``k_a``; ``kappa``, the
    ratio of the board's design ratio ``|G_r/G_t|`` to the mechanical tach-to-axis ratio
    ``N N_p / N_t``, is solved so that ``|H(0)| = 0.74``, giving the gearbox ratio ``N``.
 3. Gearbox (Fig. 17): the stiffness ``k_g`` puts the rate loop's gearbox peak at 8 Hz (az) and
    20 Hz (el).
+4. Cross-coupling (Fig. 22): the tipping structure's product of inertia ``j_az_el`` gives a peak
+   el encoder response of 1e-3 to a unit az step with the first gain set; steps 2-3 are re-run.
 
-Steps 2 and 3 interact weakly and are iterated to a fixed point.
+Steps 2 and 3 interact weakly and are iterated to a fixed point.  Every quantity solved for here
+is a regression check, not evidence, in ``dss14 reproduce`` (its rows carry ``calibrated:
+true``): the rate-loop DC and 0.3 Hz gains, the gearbox and Fig. 15 peaks, the kp 1 az -> el
+coupling.
 """
 
 from __future__ import annotations

@@ -713,7 +713,8 @@ def plot_gust_psd(
     PSD with :func:`scipy.signal.welch` (Hann, ``nperseg`` samples), and plots
     it with :func:`davenport_psd` and :func:`filter_psd` of
     :func:`davenport_filter` over the record's band.  Matplotlib is imported
-    lazily with the Agg backend.
+    lazily and the figure is drawn on an off-screen Agg canvas
+    (:class:`matplotlib.figure.Figure`), so pyplot's backend is left alone.
 
     Parameters
     ----------
@@ -735,10 +736,8 @@ def plot_gust_psd(
     str
         The path written.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
 
     gusts = generate_gusts(mean_speed, duration, dt, rng, kappa=kappa, length=length)
     f_w, p_w = signal.welch(gusts, fs=1.0 / dt, nperseg=min(int(nperseg), gusts.size))
@@ -746,7 +745,9 @@ def plot_gust_psd(
     f_w, p_w = f_w[keep], p_w[keep]
     f = np.geomspace(f_w[0], f_w[-1], 400)
     ss = davenport_filter(mean_speed, order, kappa=kappa, length=length)
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    fig = Figure(figsize=(7, 4.5))
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
     ax.loglog(f_w, p_w, color="0.7", lw=0.8, label="Welch PSD of generated record")
     ax.loglog(f, davenport_psd(f, mean_speed, kappa=kappa, length=length), "k", lw=1.5,
               label="Davenport formula")
@@ -759,5 +760,4 @@ def plot_gust_psd(
     ax.legend(loc="lower left", fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    plt.close(fig)
     return os.fspath(path)

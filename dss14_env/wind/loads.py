@@ -10,7 +10,8 @@ torques (the structure's ``Tw_az``, ``Tw_el`` inputs, N*m)::
     C(theta) = C_front cos(theta) + C_side sin(theta)            (per axis: [C_az, C_el])
 
 ``u`` is the Davenport gust (:mod:`dss14_env.wind.gusts`), fully coherent over the dish (the
-report's assumption; literature.md Q3).  The moment coefficients ``C_front``, ``C_side`` come
+report's assumption; W. Gawronski, "Wind Gust Models Derived from Field Data", TDA PR 42-123,
+1995, notes that full coherence under-predicts the azimuth error in front wind).  The moment coefficients ``C_front``, ``C_side`` come
 from wind-tunnel pressure data that are not public, so :func:`calibrate_wind_loads` fixes
 them in code: the four numbers are solved so that the PI loop (gain set ``kp1``) gives the
 four 3-sigma encoder servo errors of Table 4 at 50 km/h.  Everything else (the U^2 and U

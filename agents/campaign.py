@@ -1,0 +1,240 @@
+"""Many training seeds, one folder, honest statistics.
+
+:func:`train_seeds` trains one run per seed index ``k`` (sequentially, in this process) into
+``<out>/seed_<k>/`` with the training seed ``config.seed + 1000 k`` (so the sub-environments
+of different runs never share a seed), then scores every run's final and best
+(``eval/best``) policy, loaded back from disk, on the test seeds (never seen in training,
+:mod:`dss14_env.agents.evaluation`), and writes::
+
+    summary.json        per training seed: training wall time and environment steps, the 3σ
+                        (DSS14) or return of every test episode and their mean per task; over
+                        the training seeds: the interquartile mean with its 95 % bootstrap
+                        interval (dss14_env.core.stats.iqm_ci), the mean, min and max
+    curves_<task>.png   validation 3σ and return vs environment steps: IQM over training
+                        seeds with its 95 % bootstrap band, and every seed's curve
+    config.yaml         the configuration the runs share (seed: the base seed)
+
+The interval resamples training seeds (the independent units); with fewer than 5 seeds it is
+wide, and the project reports learned agents with at least 5.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from dss14_env.agents.config import TrainConfig, as_config
+from dss14_env.agents.envs import resolve_env
+from dss14_env.agents.evaluation import DSS14_TASKS, TEST_SEEDS, TEST_STEPS, EvalTask, run_task
+from dss14_env.agents.policy import load_policy
+from dss14_env.agents.train import train
+from dss14_env.core.outdir import atomic_write_bytes, atomic_write_text, prepare_output_dir
+from dss14_env.core.stats import iqm_ci
+
+#: distance between the training seeds of two seed indices
+SEED_STRIDE = 1000
+#: what a campaign owns in its folder
+CAMPAIGN_FILES = ("seed_*", "summary.json", "curves_*.png", "config.yaml")
+#: seed of the bootstrap resampling (reproducible intervals)
+BOOTSTRAP_SEED = 0
+
+
+def parse_seeds(values: Sequence[str | int]) -> list[int]:
+    """Seed indices from ``--seeds`` values: ``["0-4"]`` -> 0..4, ``["0", "3", "7"]``.
+
+    :raises ValueError: a value that is not an index or a range, a repeated index
+    """
+    out: list[int] = []
+    for v in values:
+        s = str(v).strip()
+        m = re.fullmatch(r"(\d+)-(\d+)", s)
+        if m:
+            lo, hi = int(m[1]), int(m[2])
+            if hi < lo:
+                raise ValueError(f"--seeds: empty range {s!r}")
+            out += list(range(lo, hi + 1))
+        elif re.fullmatch(r"\d+", s):
+            out.append(int(s))
+        else:
+            raise ValueError(f"--seeds: expected seed indices (0 3 7) or a range (0-4), got {s!r}")
+    if not out:
+        raise ValueError("--seeds: no seed given")
+    if len(set(out)) != len(out):
+        raise ValueError(f"--seeds: a seed is repeated: {out}")
+    return out
+
+
+def training_seed(config: TrainConfig, k: int) -> int:
+    """The training seed of seed index ``k``: ``config.seed + SEED_STRIDE * k``."""
+    return config.seed + SEED_STRIDE * int(k)
+
+
+def _tasks(cfg: TrainConfig) -> list[EvalTask]:
+    plan = resolve_env(cfg)
+    if plan.dss14:
+        return list(DSS14_TASKS)
+    return [EvalTask("eval", cfg.env_id, {**cfg.env_kwargs, **cfg.eval_env_kwargs})]
+
+
+def _score(policy_dir: Path, tasks: list[EvalTask], seeds: Sequence[int],
+           steps: int | None) -> dict[str, Any]:
+    ctrl = load_policy(policy_dir)
+    out = {}
+    for t in tasks:
+        r = run_task(ctrl, t, seeds, steps if t.axis is not None else None)
+        d = {"returns": r["returns"].tolist(), "mean_return": float(np.mean(r["returns"])),
+             "terminated": int(r["terminated"].sum())}
+        if t.axis is not None:
+            d["axis"] = t.axis
+            d["three_sigma_mdeg"] = r["three_sigma_mdeg"].tolist()
+            d["mean_three_sigma_mdeg"] = float(np.mean(r["three_sigma_mdeg"]))
+        out[t.name] = d
+    return out
+
+
+def _aggregate(values: list[float]) -> dict[str, Any]:
+    est = iqm_ci(values, np.random.default_rng(BOOTSTRAP_SEED))
+    return {"iqm": est.as_dict(), "mean": float(np.mean(values)), "min": float(np.min(values)),
+            "max": float(np.max(values)), "per_seed": [float(v) for v in values]}
+
+
+def train_seeds(config: TrainConfig | Mapping[str, Any] | str | Path, seeds: Sequence[int],
+                out: str | Path, overwrite: bool = False, test_seeds: Sequence[int] = TEST_SEEDS,
+                test_steps: int = TEST_STEPS, figures: bool = True) -> Path:
+    """Train one run per seed index and score them (see the module doc).
+
+    :param config: the shared configuration (its ``seed`` is the base seed)
+    :param seeds: seed indices ``k``
+    :param out: the campaign folder (checked before any work; ``overwrite`` replaces an
+        earlier campaign's files)
+    :param test_seeds: evaluation seeds, default 0-9 (never used in training)
+    :param test_steps: episode length of the test episodes, default 3000 (60 s)
+    :param figures: draw the learning curves
+    :return: the campaign folder
+    """
+    cfg = as_config(config)
+    seeds = [int(k) for k in seeds]
+    folder = prepare_output_dir(out, CAMPAIGN_FILES, overwrite, "--out")
+    atomic_write_text(folder / "config.yaml", f"# shared configuration of the campaign (from "
+                      f"{cfg.source}); run k trains with seed {cfg.seed} + {SEED_STRIDE} k\n"
+                      + yaml.safe_dump(cfg.to_dict(), sort_keys=False))
+    tasks = _tasks(cfg)
+    per_seed = []
+    for k in seeds:
+        run = train(cfg.replace(seed=training_seed(cfg, k)), run_dir=folder / f"seed_{k}")
+        ts = json.loads((run / "train_summary.json").read_text())
+        entry: dict[str, Any] = {"seed_index": k, "training_seed": training_seed(cfg, k),
+                                 "run": run.name, "wall_s": ts["wall_s"],
+                                 "env_steps": ts["num_timesteps"]}
+        entry["final"] = _score(run, tasks, test_seeds, test_steps)
+        best = run / "eval" / "best"
+        entry["best"] = _score(best, tasks, test_seeds, test_steps) if best.is_dir() else None
+        per_seed.append(entry)
+    aggregate: dict[str, Any] = {}
+    for which in ("final", "best"):
+        rows = [e[which] for e in per_seed if e[which] is not None]
+        if len(rows) != len(per_seed):
+            continue
+        aggregate[which] = {}
+        for t in tasks:
+            key = "mean_three_sigma_mdeg" if t.axis is not None else "mean_return"
+            aggregate[which][t.name] = {"metric": key,
+                                        **_aggregate([r[t.name][key] for r in rows])}
+    summary = {
+        "algo": cfg.algo, "env_id": cfg.env_id, "config": cfg.source,
+        "seed_indices": seeds, "training_seeds": [training_seed(cfg, k) for k in seeds],
+        "protocol": {"test_seeds": [int(s) for s in test_seeds], "test_steps": int(test_steps),
+                     "tasks": [{"name": t.name, "env_id": t.env_id, "axis": t.axis,
+                                "warmup_steps": t.warmup_steps} for t in tasks],
+                     "validation_seeds": cfg.eval_seeds,
+                     "interval": "95 % percentile bootstrap over training seeds of the IQM "
+                                 "(dss14_env.core.stats.iqm_ci)"},
+        "per_seed": per_seed, "aggregate": aggregate,
+    }
+    atomic_write_text(folder / "summary.json", json.dumps(summary, indent=2) + "\n")
+    if figures:
+        write_curves(folder, [folder / f"seed_{k}" for k in seeds], tasks)
+    return folder
+
+
+def learning_curves(runs: Sequence[Path], task: str) -> dict[str, Any]:
+    """Validation curves of several runs on a common step grid (the steps all runs share).
+
+    :return: ``steps``, ``three_sigma`` and ``returns`` as ``(n_runs, n_steps)`` (mean over
+        the validation seeds; NaN where a run has no such value)
+    """
+    data = []
+    for r in runs:
+        with np.load(r / "eval" / "evaluations.npz", allow_pickle=False) as d:
+            sig = d[f"three_sigma_mdeg_{task}"] if f"three_sigma_mdeg_{task}" in d.files else None
+            data.append((d["timesteps"].astype(int), np.asarray(d[f"returns_{task}"]), sig))
+    common = sorted(set.intersection(*(set(t.tolist()) for t, _, _ in data))) if data else []
+    steps = np.array(common, int)
+    ret = np.full((len(data), steps.size), np.nan)
+    sig = np.full_like(ret, np.nan)
+    for i, (t, r, s) in enumerate(data):
+        idx = [int(np.flatnonzero(t == x)[0]) for x in common]
+        ret[i] = r[idx].mean(axis=1)
+        if s is not None:
+            sig[i] = np.nanmean(s[idx], axis=1)
+    return {"steps": steps, "returns": ret, "three_sigma": sig}
+
+
+def _band(values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(BOOTSTRAP_SEED)
+    mid, lo, hi = [], [], []
+    for col in values.T:
+        e = iqm_ci(col, rng)
+        mid.append(e.value)
+        lo.append(e.low)
+        hi.append(e.high)
+    return np.array(mid), np.array(lo), np.array(hi)
+
+
+def write_curves(folder: Path, runs: Sequence[Path], tasks: Sequence[EvalTask]) -> list[Path]:
+    """One PNG per task: validation 3σ (DSS14) and return vs environment steps (IQM over the
+    runs with its 95 % bootstrap band, each run thin)."""
+    import io
+
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    written = []
+    for t in tasks:
+        c = learning_curves(runs, t.name)
+        if c["steps"].size == 0:
+            continue
+        panels = [("returns", "validation return")]
+        if t.axis is not None:
+            panels.insert(0, ("three_sigma", f"validation 3σ servo error {t.axis} (mdeg)"))
+        fig = Figure(figsize=(6.0 * len(panels), 4.0))
+        FigureCanvasAgg(fig)
+        for j, (key, label) in enumerate(panels):
+            ax = fig.add_subplot(1, len(panels), j + 1)
+            v = c[key]
+            for row in v:
+                ax.plot(c["steps"], row, color="0.7", lw=0.8)
+            mid, lo, hi = _band(v)
+            ax.fill_between(c["steps"], lo, hi, alpha=0.3, label="95 % bootstrap CI")
+            ax.plot(c["steps"], mid, lw=2, label=f"IQM over {len(runs)} seeds")
+            ax.set_xlabel("environment steps")
+            ax.set_ylabel(label)
+            ax.grid(alpha=0.3)
+            ax.legend(fontsize=8)
+        fig.suptitle(f"{t.name}: learning curves")
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png", dpi=100)
+        path = folder / f"curves_{t.name}.png"
+        atomic_write_bytes(path, buf.getvalue())
+        written.append(path)
+    return written
+
+
+__all__ = ["CAMPAIGN_FILES", "SEED_STRIDE", "learning_curves", "parse_seeds", "train_seeds",
+           "training_seed", "write_curves"]

@@ -1,0 +1,313 @@
+"""The training configuration of every algorithm: one typed, validated :class:`TrainConfig`.
+
+A configuration is a flat mapping (YAML) of the keys every run has (environment, budget,
+seeding, normalisation, evaluation, checkpoints) and the hyperparameters of its algorithm
+(``algo``: ``ppo``, ``recurrent_ppo`` (sb3-contrib ``RecurrentPPO``) or ``sac``), with the
+stable-baselines3 names.  The fields and their checks are the project's configuration schema
+(:mod:`dss14_env.core.schema`): :class:`PPOSettings`, :class:`RecurrentPPOSettings` and
+:class:`SACSettings` (keys left out take that algorithm's defaults).  An unknown key, a key of
+another algorithm or a bad value raises :class:`~dss14_env.core.schema.ConfigError` (a
+ValueError) in the project's one style, ``<file>: field '<name>': ...``.  Shipped
+configurations are addressable by name (``ppo_plain`` is ``configs/ppo_plain.yaml``); a path
+works too.
+
+>>> cfg = TrainConfig.from_dict({"env_id": "Pendulum-v1", "n_envs": 2, "n_steps": 64,
+...                              "batch_size": 64})
+>>> cfg.algo, cfg.n_envs, cfg.n_steps, cfg.vec_env
+('ppo', 2, 64, 'auto')
+>>> TrainConfig.from_dict({"env_id": "Pendulum-v1", "n_env": 2})  # doctest: +ELLIPSIS
+Traceback (most recent call last):
+...
+dss14_env.core.schema.ConfigError: <dict>: top level: unknown field 'n_env' (did you mean 'n_envs'?); ...
+>>> TrainConfig.from_dict({"algo": "sac", "n_epochs": 3})  # doctest: +ELLIPSIS
+Traceback (most recent call last):
+...
+dss14_env.core.schema.ConfigError: <dict>: field 'n_epochs': is not a setting of algo 'sac' ...
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from dss14_env.core.schema import ConfigError, Spec, load_section, read_config, shipped_configs, spec
+
+#: the algorithms ``dss14 train`` knows
+ALGOS = ("ppo", "recurrent_ppo", "sac")
+ACTIVATIONS = ("tanh", "relu", "elu", "leaky_relu")
+#: ``auto``: ``batched`` for DSS14 ids (:mod:`dss14_env.agents.vec_env`), ``dummy`` otherwise
+VEC_ENVS = ("auto", "batched", "dummy", "subproc")
+
+_INT = Spec("1", "integer", lo=0)
+
+
+def _int(lo: int, default: int, hi: int | None = None) -> Any:
+    return spec("1", kind="integer", lo=lo, hi=hi, default=default)
+
+
+def _num(default: float | None, lo: float | None = None, hi: float | None = None,
+         lo_open: bool = False, **kw: Any) -> Any:
+    return spec("1", lo=lo, hi=hi, lo_open=lo_open, default=default, **kw)
+
+
+def _flag(default: bool) -> Any:
+    return spec(None, kind="bool", default=default)
+
+
+@dataclass(frozen=True)
+class CommonSettings:
+    """The keys of every run (docs/rl.md explains each)."""
+
+    algo: str = spec(None, kind="str", choices=ALGOS, default="ppo")
+    env_id: str = spec(None, kind="str", default="DSS14-v0")
+    env_kwargs: dict = spec(None, kind="mapping", default_factory=dict)
+    env_module: str | None = spec(None, kind="str", optional=True, default=None)
+    frame_stack: int = _int(0, 0)
+    n_envs: int = _int(1, 8)
+    vec_env: str = spec(None, kind="str", choices=VEC_ENVS, default="auto")
+    total_timesteps: int = _int(1, 2_000_000)
+    seed: int = _int(0, 10_000)
+    normalize_obs: bool = _flag(True)
+    normalize_reward: bool = _flag(True)
+    learning_rate: float = _num(3e-4, lo=0.0, lo_open=True)
+    gamma: float = _num(0.99, lo=0.0, hi=1.0, lo_open=True)
+    net_arch: Any = spec(None, kind="any", default_factory=lambda: [64, 64])
+    activation_fn: str = spec(None, kind="str", choices=ACTIVATIONS, default="tanh")
+    log_std_init: float = _num(-0.5, lo=-20.0, hi=5.0)
+    eval_freq: int = _int(0, 50_000)
+    n_eval_episodes: int = _int(1, 1)
+    eval_seeds: tuple = spec("1", kind="list", items=_INT,
+                             default=(1000, 1001, 1002, 1003, 1004))
+    eval_env_kwargs: dict = spec(None, kind="mapping", default_factory=dict)
+    eval_episode_steps: int = _int(1, 1000)
+    checkpoint_freq: int = _int(0, 200_000)
+    torch_threads: int = _int(1, 1)
+    progress_bar: bool = _flag(True)
+    verbose: int = _int(0, 1, hi=2)
+
+
+@dataclass(frozen=True)
+class PPOSettings(CommonSettings):
+    """PPO's keys (stable-baselines3 names and defaults of this package)."""
+
+    n_steps: int = _int(1, 256)
+    batch_size: int = _int(2, 256)
+    n_epochs: int = _int(1, 10)
+    gae_lambda: float = _num(0.95, lo=0.0, hi=1.0)
+    clip_range: float = _num(0.2, lo=0.0, lo_open=True)
+    ent_coef: float = _num(0.0, lo=0.0)
+    vf_coef: float = _num(0.5, lo=0.0)
+    max_grad_norm: float = _num(0.5, lo=0.0, lo_open=True)
+    target_kl: float | None = _num(None, lo=0.0, lo_open=True, optional=True)
+
+
+@dataclass(frozen=True)
+class RecurrentPPOSettings(PPOSettings):
+    """RecurrentPPO's keys: PPO's and the LSTM's."""
+
+    lstm_hidden_size: int = _int(1, 64)
+    n_lstm_layers: int = _int(1, 1)
+    shared_lstm: bool = _flag(False)
+    enable_critic_lstm: bool = _flag(True)
+
+
+@dataclass(frozen=True)
+class SACSettings(CommonSettings):
+    """SAC's keys (SB3's defaults for the network: [256, 256] ReLU, log std -3)."""
+
+    n_envs: int = _int(1, 1)
+    net_arch: Any = spec(None, kind="any", default_factory=lambda: [256, 256])
+    activation_fn: str = spec(None, kind="str", choices=ACTIVATIONS, default="relu")
+    log_std_init: float = _num(-3.0, lo=-20.0, hi=5.0)
+    buffer_size: int = _int(1, 1_000_000)
+    learning_starts: int = _int(0, 10_000)
+    batch_size: int = _int(1, 256)
+    tau: float = _num(0.005, lo=0.0, hi=1.0, lo_open=True)
+    train_freq: int = _int(1, 1)
+    gradient_steps: int = _int(-1, 1)
+    ent_coef: float | str = _num("auto", lo=0.0, lo_open=True, choices=("auto",))
+    target_entropy: float | str = _num("auto", choices=("auto",))
+    save_replay_buffer: bool = _flag(True)
+
+
+#: the settings class of each algorithm
+SETTINGS: dict[str, type] = {"ppo": PPOSettings, "recurrent_ppo": RecurrentPPOSettings,
+                             "sac": SACSettings}
+
+
+def keys_of(algo: str) -> list[str]:
+    """The keys of a configuration of ``algo``."""
+    return [f.name for f in dataclasses.fields(SETTINGS[algo])]
+
+
+def _layers(v: Any, where: str) -> list[int]:
+    if not isinstance(v, (list, tuple)) or not v or not all(
+            isinstance(n, (int, np.integer)) and not isinstance(n, bool) and n >= 1 for n in v):
+        raise ConfigError(f"{where}: must be a list of layer sizes (integers >= 1), got {v!r}")
+    return [int(n) for n in v]
+
+
+def _net_arch(v: Any, algo: str, source: str) -> Any:
+    where = f"{source}: field 'net_arch'"
+    if isinstance(v, Mapping):
+        want = {"pi", "qf"} if algo == "sac" else {"pi", "vf"}
+        if set(v) != want:
+            raise ConfigError(f"{where}: a mapping must have exactly the keys "
+                              f"{' and '.join(sorted(want))} for {algo}, got {v!r}")
+        return {k: _layers(v[k], f"{where[:-1]}.{k}'") for k in sorted(v)}
+    return _layers(v, where)
+
+
+def _plain(o: Any) -> Any:
+    return o.item() if hasattr(o, "item") else str(o)
+
+
+class TrainConfig:
+    """Everything one training run needs (see the module doc and ``docs/rl.md``).
+
+    Read the values as attributes (``cfg.n_steps``); build with :meth:`from_dict` or
+    :func:`load_config`; change with :meth:`replace` (validated again).
+
+    :param values: key -> value; missing keys take the defaults of ``values["algo"]``
+    :param source: file the values came from (error messages only)
+    """
+
+    __slots__ = ("_values", "source")
+
+    def __init__(self, values: Mapping[str, Any] | None = None, source: str = "<dict>") -> None:
+        values = dict(values or {})
+        object.__setattr__(self, "source", source)
+        algo = values.get("algo", "ppo")
+        if algo not in ALGOS:
+            raise ConfigError(f"{source}: field 'algo': must be one of {list(ALGOS)}, got {algo!r}")
+        mine = set(keys_of(algo))
+        for key in values:
+            owners = [a for a in ALGOS if key in keys_of(a)]
+            if key not in mine and owners:
+                raise ConfigError(f"{source}: field '{key}': is not a setting of algo {algo!r} "
+                                  f"(it belongs to {', '.join(owners)})")
+        settings = load_section(SETTINGS[algo], values, source)
+        out = {f.name: getattr(settings, f.name) for f in dataclasses.fields(settings)}
+        out["net_arch"] = _net_arch(out["net_arch"], algo, source)
+        out["eval_seeds"] = list(out["eval_seeds"])
+        out = json.loads(json.dumps(out, default=_plain))  # plain YAML types
+        if algo in ("ppo", "recurrent_ppo"):
+            rollout = out["n_steps"] * out["n_envs"]
+            if out["batch_size"] > rollout or rollout % out["batch_size"]:
+                raise ConfigError(f"{source}: field 'batch_size': must divide n_steps * n_envs = "
+                                  f"{rollout}, got {out['batch_size']}")
+        object.__setattr__(self, "_values", out)
+
+    # -- access -----------------------------------------------------------------------------
+    def __getattr__(self, name: str) -> Any:
+        try:
+            return self._values[name]
+        except KeyError:
+            raise AttributeError(f"{type(self).__name__} has no key {name!r}") from None
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        raise AttributeError("TrainConfig is immutable; use replace()")
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, TrainConfig) and self._values == other._values
+
+    def __hash__(self) -> int:
+        return hash(json.dumps(self._values, sort_keys=True))
+
+    def __repr__(self) -> str:
+        return f"TrainConfig({self._values!r})"
+
+    def __reduce__(self) -> Any:  # SubprocVecEnv workers receive the config
+        return (TrainConfig, (self._values, self.source))
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], source: str = "<dict>") -> TrainConfig:
+        """A validated config from a mapping; missing keys take their defaults.
+
+        :raises ValueError: unknown key or bad value, naming the key and ``source``
+        """
+        if not isinstance(data, Mapping):
+            raise ConfigError(f"{source}: top level must be a mapping of fields, got "
+                              f"{type(data).__name__}")
+        return cls(data, source)
+
+    def replace(self, source: str | None = None, **changes: Any) -> TrainConfig:
+        """Copy with some values changed (validated again), e.g. ``cfg.replace(seed=3)``.
+
+        Changing ``algo`` keeps the common keys and drops the old algorithm's.
+        """
+        values = dict(self._values)
+        if "algo" in changes and changes["algo"] != values["algo"]:
+            common = {f.name for f in dataclasses.fields(CommonSettings)}
+            new_defaults = {f.name for f in dataclasses.fields(SETTINGS.get(changes["algo"],
+                                                                            PPOSettings))
+                            if f.name in common and
+                            f.default != getattr(CommonSettings, f.name, f.default)}
+            values = {k: v for k, v in values.items() if k in common and k not in new_defaults}
+        values.update(changes)
+        return TrainConfig(values, source or self.source)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-YAML mapping of every key (loads back with :meth:`from_dict`)."""
+        return json.loads(json.dumps(self._values, default=_plain))
+
+
+#: the name of the earlier PPO-only configuration class
+PPOConfig = TrainConfig
+
+
+# ------------------------------------------------------------------------------ files
+def shipped_config_path(name: str) -> Path:
+    """Path of a configuration file shipped in the ``configs`` package (``ppo.yaml``)."""
+    from importlib import resources
+
+    return Path(str(resources.files("dss14_env.configs").joinpath(name)))
+
+
+def default_config_path(name: str = "ppo.yaml") -> Path:
+    """Path of a training configuration shipped in the ``configs`` package.
+
+    :param name: file name, default ``"ppo.yaml"`` (``"ppo_smoke.yaml"``: Pendulum-v1 smoke run)
+    """
+    return shipped_config_path(name)
+
+
+def shipped_training_configs() -> list[str]:
+    """Names of the shipped training configurations (``ppo``, ``ppo_plain``, ``sac``, ...)."""
+    return [n for n in shipped_configs() if n.split("_")[0] in ("ppo", "sac", "recurrent")]
+
+
+def load_config(path: str | Path | None = None) -> TrainConfig:
+    """Read and validate a training YAML file.
+
+    :param path: the file or a shipped config's name, default None: the shipped
+        ``configs/ppo.yaml``
+    :raises ConfigError: missing/unreadable file, YAML error, unknown key or bad value (one line
+        naming the file and the field)
+    """
+    data, source = read_config(path if path is not None else "ppo")
+    return TrainConfig.from_dict(data, source=source)
+
+
+def as_config(config: TrainConfig | Mapping[str, Any] | str | Path) -> TrainConfig:
+    """A :class:`TrainConfig` from a config, a mapping or a YAML path (or shipped name)."""
+    if isinstance(config, TrainConfig):
+        return config
+    if isinstance(config, Mapping):
+        return TrainConfig.from_dict(config)
+    if isinstance(config, (str, Path)):
+        return load_config(config)
+    raise ValueError(f"config must be a TrainConfig, a mapping or a YAML path, got "
+                     f"{type(config).__name__}")
+
+
+__all__ = ["ACTIVATIONS", "ALGOS", "CommonSettings", "PPOConfig", "PPOSettings",
+           "RecurrentPPOSettings", "SACSettings", "SETTINGS", "TrainConfig", "VEC_ENVS",
+           "as_config", "default_config_path", "keys_of", "load_config", "shipped_config_path",
+           "shipped_training_configs"]

@@ -1,0 +1,364 @@
+"""What sits between a policy and the DSS14 environment: observation features and action map.
+
+One :class:`PolicyInterface` (numpy over N rows = sub-environments) turns the environment's
+12 observations into the policy's observation and the policy's output ``u in [-1, 1]^2``
+into the environment's action, the same way for training (the Gymnasium wrapper
+:class:`InterfaceWrapper` with N = 1; the SB3 ``VecEnvWrapper`` :class:`InterfaceVecEnv` over
+a batched vector env) and for scoring (:class:`dss14_env.agents.policy.PolicyController`).
+:class:`InterfaceSpec` says what it does:
+
+* ``base``: a controller run alongside -- ``"pi"``: the report's PI ([R] Eqs. 57-58,
+  :class:`dss14_env.baselines.pi.PIController`); ``"lqg"``: the project's LQG
+  (:class:`dss14_env.baselines.lqg.LQGController`, one per row: steady-state Kalman filter +
+  LQR); None: no base controller.
+* ``action``: ``"absolute"`` -- the policy's output is the rate command (action units);
+  ``"residual"`` -- ``a = a_base + residual_scale * u`` (residual policy learning: Johannink et
+  al., *Residual Reinforcement Learning for Robot Control*, ICRA 2019; Silver et al.,
+  *Residual Policy Learning*, arXiv:1812.06298, 2018); at ``u = 0`` the loop is the base
+  controller's exactly.
+* observation: the environment's 12 entries, then the base controller's features -- PI: its
+  integral term ``ki I`` in action units (2; controller state a memoryless network cannot
+  rebuild); LQG (``estimate=True``, 12): its command (2), its input-disturbance estimate (2),
+  and its Kalman state estimate about the reference, ``dx = x^ - x_ref``, seen through the
+  encoder outputs (``C dx``, 2, error-scale units) and through the three terms of the LQR law
+  ``r = r_ss - Kx dx - Ki xi - Ku (r_prev - r_ss)`` (2 each; action units) -- features whose
+  meaning does not depend on the design the LQG picks per episode -- then, with ``history``
+  H > 0, the H previous values of the ``history_entries`` of the observation, newest first
+  (frame stacking; at an episode's first step the first observation repeated, the steady
+  state the episode starts in).
+
+Rows restart independently (:meth:`PolicyInterface.restart`), so a vector environment's
+auto-reset sub-environments start fresh while the others go on.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from dss14_env.baselines.lqg import LQGController
+from dss14_env.baselines.pi import PIController
+from dss14_env.core.units import DEG, MDEG
+
+#: bound of the extra observation entries (integral term, estimates), for the Box only
+FEATURE_BOUND = 1.0e3
+#: observation entries kept in the history by default: servo errors, previous applied rates
+HISTORY_ENTRIES = (0, 1, 10, 11)
+
+
+@dataclass(frozen=True)
+class InterfaceSpec:
+    """What the policy sees and how its output becomes the environment action (module doc).
+
+    :param base: ``None``, ``"pi"`` or ``"lqg"``
+    :param action: ``"absolute"`` or ``"residual"``
+    :param gains: PI gain set of ``configs/model.yaml`` or ``(kp, ki)``, default ``"kp1"``
+    :param residual_scale: action units per unit of policy output, default 0.05
+    :param history: previous steps in the observation, default 0
+    :param history_entries: observation entries kept in the history, default (0, 1, 10, 11)
+    :param estimate: LQG base: add its command, disturbance and LQR-state estimate, default True
+    """
+
+    base: str | None = None
+    action: str = "absolute"
+    gains: Any = "kp1"
+    residual_scale: float = 0.05
+    history: int = 0
+    history_entries: tuple[int, ...] = HISTORY_ENTRIES
+    estimate: bool = True
+
+    def __post_init__(self) -> None:
+        if self.base not in (None, "pi", "lqg"):
+            raise ValueError(f"base must be null, 'pi' or 'lqg', got {self.base!r}")
+        if self.action not in ("absolute", "residual"):
+            raise ValueError(f"action must be 'absolute' or 'residual', got {self.action!r}")
+        if self.action == "residual" and self.base is None:
+            raise ValueError("a residual action needs a base controller (base: pi or lqg)")
+        scale = self.residual_scale
+        if isinstance(scale, bool) or not isinstance(scale, (int, float)) or \
+                not (math.isfinite(scale) and scale > 0.0):
+            raise ValueError(f"residual_scale must be finite and > 0, got {scale!r}")
+        h = self.history
+        if isinstance(h, bool) or not isinstance(h, (int, np.integer)) or h < 0:
+            raise ValueError(f"history must be an integer >= 0, got {h!r}")
+        entries = tuple(int(i) for i in self.history_entries)
+        if not entries or not all(0 <= i < 12 for i in entries) or len(set(entries)) != len(entries):
+            raise ValueError(f"history_entries must be distinct observation indices 0-11, got "
+                             f"{list(self.history_entries)!r}")
+        object.__setattr__(self, "history_entries", entries)
+        object.__setattr__(self, "residual_scale", float(scale))
+        object.__setattr__(self, "history", int(h))
+        if isinstance(self.gains, list):
+            object.__setattr__(self, "gains", tuple(self.gains))
+
+    def to_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["history_entries"] = list(self.history_entries)
+        if isinstance(d["gains"], tuple):
+            d["gains"] = list(d["gains"])
+        return d
+
+
+class _RecordingLQG(LQGController):
+    """The baseline LQG, remembering the LQR state its law acted on (public ``law`` hook)."""
+
+    def law(self, z: np.ndarray, r_ss: np.ndarray, r_prev: np.ndarray) -> np.ndarray:
+        self.last_z, self.last_r_ss = z, r_ss
+        return super().law(z, r_ss, r_prev)
+
+
+#: number of LQG estimate features (:meth:`PolicyInterface.observe`)
+LQG_FEATURES = 12
+
+
+class PolicyInterface:
+    """Batched observation features and action map (see the module docstring).
+
+    :param spec: the :class:`InterfaceSpec`
+    :param env_config: the training environment's :class:`~dss14_env.envs.scenarios.EnvConfig`
+        (period, action scale, limits: what the base controllers are designed for)
+    :param n: number of rows (sub-environments), default 1
+    """
+
+    def __init__(self, spec: InterfaceSpec, env_config: Any, n: int = 1) -> None:
+        self.spec, self.env_config, self.n = spec, env_config, int(n)
+        self._inv_scale = 1.0 / (env_config.action_scale_deg_s * DEG)
+        self._err = env_config.error_scale_mdeg * MDEG
+        self.pi: PIController | None = None
+        self.lqg: list[_RecordingLQG] = []
+        n_feat = 0
+        if spec.base == "pi":
+            self.pi = PIController(env_config, spec.gains)
+            n_feat = 2
+        elif spec.base == "lqg":
+            self.lqg = [_RecordingLQG(env_config) for _ in range(self.n)]
+            n_feat = LQG_FEATURES if spec.estimate else 0
+        self.n_features = n_feat
+        self.obs_dim = 12 + n_feat + spec.history * len(spec.history_entries)
+        self.base_action = np.zeros((self.n, 2))
+        self._past = np.zeros((self.n, spec.history, len(spec.history_entries)), np.float32)
+        self._fresh = np.ones(self.n, bool)
+
+    # ------------------------------------------------------------------ state
+    def reset(self) -> None:
+        """Every row starts a new episode at its next :meth:`observe`."""
+        self.restart(np.ones(self.n, bool))
+        if self.pi is not None:
+            self.pi.reset()
+
+    def restart(self, mask: np.ndarray) -> None:
+        """Rows ``mask`` (bool ``(n,)``) start new episodes at their next :meth:`observe`."""
+        mask = np.asarray(mask, bool)
+        if mask.shape != (self.n,):
+            raise ValueError(f"restart mask must have shape ({self.n},), got {mask.shape}")
+        self._fresh |= mask
+        if self.pi is not None:
+            self.pi.restart(mask)
+        for i in np.flatnonzero(mask).tolist():
+            if self.lqg:
+                self.lqg[i].reset()
+
+    # ------------------------------------------------------------------ observation
+    def observe(self, obs: np.ndarray) -> np.ndarray:
+        """Advance every row on its environment observation; the policy's observations.
+
+        :param obs: ``(n, 12)``
+        :return: ``(n, obs_dim)`` float32
+        """
+        o = np.asarray(obs, np.float32)
+        if o.shape != (self.n, 12):
+            raise ValueError(f"observation must have shape ({self.n}, 12), got {o.shape}")
+        parts = [o]
+        if self.pi is not None:
+            self.base_action = self.pi.act(o).astype(np.float64)
+            parts.append(self._pi_features(self.pi))
+        elif self.lqg:
+            feats = []
+            for i, c in enumerate(self.lqg):
+                self.base_action[i] = c.act(o[i])
+                if self.spec.estimate:
+                    feats.append(self._lqg_features(c, self.base_action[i]))
+            if feats:
+                parts.append(np.clip(np.asarray(feats), -FEATURE_BOUND, FEATURE_BOUND)
+                             .astype(np.float32))
+        if self.spec.history:
+            now = o[:, list(self.spec.history_entries)]
+            parts.append(self._history(self._past, self._fresh, now))
+            self._past = np.roll(self._past, 1, axis=1)
+            self._past[:, 0] = now
+        self._fresh[:] = False
+        return np.concatenate(parts, axis=1)
+
+    def peek(self, obs: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """The policy's observations of rows ``rows`` for observations ``obs``
+        ``(len(rows), 12)``, without changing any state (a vector env's terminal
+        observations): what :meth:`observe` would return for them."""
+        rows = np.asarray(rows)
+        o = np.asarray(obs, np.float32).reshape(rows.size, 12)
+        parts = [o]
+        if self.pi is not None:
+            pi = copy.deepcopy(self.pi)
+            full = np.zeros((self.n, 12), np.float32)
+            full[rows] = o
+            pi.act(full)
+            parts.append(self._pi_features(pi)[rows])
+        elif self.lqg and self.spec.estimate:
+            feats = []
+            for k, i in enumerate(rows.tolist()):
+                c = copy.deepcopy(self.lqg[i])
+                feats.append(self._lqg_features(c, c.act(o[k])))
+            parts.append(np.clip(np.asarray(feats), -FEATURE_BOUND, FEATURE_BOUND)
+                         .astype(np.float32))
+        if self.spec.history:
+            now = o[:, list(self.spec.history_entries)]
+            parts.append(self._history(self._past[rows].copy(), self._fresh[rows], now))
+        return np.concatenate(parts, axis=1)
+
+    @staticmethod
+    def _history(past: np.ndarray, fresh: np.ndarray, now: np.ndarray) -> np.ndarray:
+        """The history part (rows starting an episode repeat their first observation)."""
+        if fresh.any():
+            past[fresh] = now[fresh][:, None, :]
+        return past.reshape(past.shape[0], -1).copy()
+
+    @staticmethod
+    def _pi_features(pi: PIController) -> np.ndarray:
+        return np.clip(pi.integral_action(), -FEATURE_BOUND, FEATURE_BOUND).astype(np.float32)
+
+    def _lqg_features(self, c: _RecordingLQG, action: np.ndarray) -> np.ndarray:
+        """12 features of the LQG's estimate whose meaning does not depend on its design (the
+        design, and with it the order of the Kalman filter, may change per episode)."""
+        n = c.design.dm.n
+        z = c.last_z
+        dx = z[:n]
+        terms = [c.Kx @ dx]
+        terms.append(c.Ki @ z[n:n + 2] if c.design.integral else np.zeros(2))
+        terms.append(c.Ku @ z[-2:])
+        parts = [action, c.disturbance() * self._inv_scale, (c.design.dm.C @ dx) / self._err]
+        parts += [t * self._inv_scale for t in terms]
+        return np.concatenate(parts)
+
+    # ------------------------------------------------------------------ action
+    def action(self, u: np.ndarray) -> np.ndarray:
+        """Environment actions ``(n, 2)`` for the policy outputs ``u`` ``(n, 2)`` at the last
+        observed step (training environment's action units), clipped to [-1, 1].
+
+        :raises ValueError: wrong shape or non-finite output
+        """
+        u = np.asarray(u, np.float64)
+        if u.shape != (self.n, 2) or not np.all(np.isfinite(u)):
+            raise ValueError(f"policy output must be finite with shape ({self.n}, 2), got "
+                             f"shape {u.shape}")
+        u = np.clip(u, -1.0, 1.0)
+        if self.spec.action == "absolute":
+            a = u
+        else:
+            a = self.base_action + self.spec.residual_scale * u
+        return np.clip(a, -1.0, 1.0).astype(np.float32)
+
+
+# ---------------------------------------------------------------------------- Gymnasium face
+class InterfaceWrapper(gym.Wrapper):
+    """A DSS14 environment seen through a :class:`PolicyInterface` (N = 1).
+
+    Action ``Box(-1, 1, (2,))`` (the policy output), observation ``Box((obs_dim,))``;
+    reward, termination and info are the environment's.
+
+    :param env: a DSS14 environment (``gymnasium.make("DSS14-Hold-v0")`` etc.)
+    :param spec: the interface
+    """
+
+    def __init__(self, env: gym.Env, spec: InterfaceSpec) -> None:
+        super().__init__(env)
+        cfg = env.unwrapped.config
+        self.interface = PolicyInterface(spec, cfg, 1)
+        self.observation_space = interface_observation_space(self.interface)
+        self.action_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
+        obs, info = self.env.reset(seed=seed, options=options)
+        self.interface.reset()
+        return self.interface.observe(obs[None])[0], info
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
+        a = self.interface.action(np.asarray(action, np.float64).reshape(1, 2))[0]
+        obs, reward, terminated, truncated, info = self.env.step(a)
+        return self.interface.observe(obs[None])[0], reward, terminated, truncated, info
+
+
+def interface_observation_space(interface: PolicyInterface) -> spaces.Box:
+    """The policy's observation space (bounds of the environment's entries, then features)."""
+    from dss14_env.envs.env import OBS_HIGH
+
+    s = interface.spec
+    high = np.concatenate([OBS_HIGH, np.full(interface.n_features, FEATURE_BOUND, np.float32),
+                           np.tile(OBS_HIGH[list(s.history_entries)], s.history)]).astype(np.float32)
+    return spaces.Box(-high, high, dtype=np.float32)
+
+
+# ---------------------------------------------------------------------------- SB3 face
+def _vec_env_wrapper() -> type:
+    from stable_baselines3.common.vec_env import VecEnvWrapper
+
+    return VecEnvWrapper
+
+
+class InterfaceVecEnv(_vec_env_wrapper()):
+    """An SB3 VecEnv of DSS14 environments (plain 12 observations) seen through a
+    :class:`PolicyInterface` with one row per sub-environment.
+
+    A done sub-environment's ``terminal_observation`` is turned into the policy's view of it
+    (:meth:`PolicyInterface.peek`), then its row restarts on the new episode's first
+    observation -- as :class:`InterfaceWrapper` inside a ``DummyVecEnv`` does.
+
+    :param venv: the vector environment (``num_envs`` rows)
+    :param spec: the interface
+    :param env_config: the environment configuration
+    """
+
+    def __init__(self, venv: Any, spec: InterfaceSpec, env_config: Any) -> None:
+        self.interface = PolicyInterface(spec, env_config, venv.num_envs)
+        super().__init__(venv, observation_space=interface_observation_space(self.interface),
+                         action_space=spaces.Box(-1.0, 1.0, (2,), np.float32))
+
+    def reset(self) -> np.ndarray:
+        obs = self.venv.reset()
+        self.interface.reset()
+        return self.interface.observe(obs)
+
+    def step_async(self, actions: np.ndarray) -> None:
+        self.venv.step_async(self.interface.action(actions))
+
+    def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict]]:
+        obs, rew, dones, infos = self.venv.step_wait()
+        if dones.any():
+            idx = np.flatnonzero(dones)
+            term = np.stack([infos[i]["terminal_observation"] for i in idx.tolist()])
+            feats = self.interface.peek(term, idx)
+            for k, i in enumerate(idx.tolist()):
+                infos[i]["terminal_observation"] = feats[k]
+            self.interface.restart(dones)
+        return self.interface.observe(obs), rew, dones, infos
+
+
+def spec_from_kwargs(kwargs: dict[str, Any], defaults: InterfaceSpec) -> tuple[InterfaceSpec, dict]:
+    """``(spec, remaining env kwargs)``: interface keys taken out of wrapper-id kwargs."""
+    kw = dict(kwargs)
+    fields = {"base", "action", "gains", "residual_scale", "history", "history_entries",
+              "estimate"}
+    given = {k: kw.pop(k) for k in list(kw) if k in fields}
+    d = defaults.to_dict()
+    d.update(given)
+    return InterfaceSpec(**d), kw
+
+
+__all__ = ["FEATURE_BOUND", "HISTORY_ENTRIES", "InterfaceSpec", "InterfaceVecEnv",
+           "InterfaceWrapper", "PolicyInterface", "interface_observation_space",
+           "LQG_FEATURES", "spec_from_kwargs"]
+

@@ -1,0 +1,538 @@
+"""Training (stable-baselines3 PPO, sb3-contrib RecurrentPPO, SAC) into one run folder.
+
+:func:`train` writes everything of one run into one folder (default
+``runs/<algo>-<timestamp>/``); nothing in it needs unpickling to be read back
+(:mod:`dss14_env.agents.storage`)::
+
+    config.yaml                  resolved configuration (every key; loads back with load_config)
+    policy.pt, normalization.npz the final policy (the run folder is a policy folder)
+    optimizer.pt, counters.json  what resuming from the final policy needs
+    checkpoints/<N>_steps/       policy folder + optimizer.pt + counters.json (+ SAC's
+                                 replay_buffer.npz) every checkpoint_freq steps
+    eval/evaluations.npz         every periodic evaluation (validation seeds)
+    eval/best/                   policy folder of the best evaluation so far
+    tb/                          TensorBoard event files (if tensorboard is installed)
+    monitor/                     training episode CSVs (SB3 Monitor / VecMonitor)
+    train_summary.json           timesteps, wall time, throughput, run id, versions
+
+A new run refuses a folder that already holds a run (finished or interrupted) unless
+``overwrite`` (which removes exactly what training owns there); an ``--out`` that is a file
+or cannot be written fails before any work.  Ctrl-C raises :class:`TrainingInterrupted`
+naming the last checkpoint and the command that resumes from it.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import shlex
+import time
+from collections.abc import Mapping
+from datetime import datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from dss14_env.agents.algos import algo_class, algo_kwargs, is_recurrent, policy_kwargs
+from dss14_env.agents.config import TrainConfig, as_config, load_config
+from dss14_env.agents.envs import EnvPlan, check_env, make_train_vec_env, vec_env_kind
+from dss14_env.agents.evaluation import DSS14_TASKS, EvalTask, check_seed_protocol, dss14_tasks, run_task
+from dss14_env.agents.policy import PolicyController
+from dss14_env.agents.storage import (
+    CONFIG,
+    COUNTERS,
+    OPTIMIZER,
+    REPLAY,
+    STATS,
+    WEIGHTS,
+    NormStats,
+    PolicyFileError,
+    find_policy_files,
+    load_optimizers,
+    load_replay_buffer,
+    load_sb3_model,
+    load_stats,
+    load_weights,
+    new_run_id,
+    save_optimizers,
+    save_replay_buffer,
+    write_policy_folder,
+)
+from dss14_env.core.outdir import atomic_write_bytes, atomic_write_text, prepare_output_dir
+
+#: what a training run owns in its folder (removed by ``overwrite``)
+RUN_FILES = (CONFIG, WEIGHTS, STATS, OPTIMIZER, COUNTERS, REPLAY, "return_normalization.npz",
+             "checkpoints", "eval", "tb",
+             "monitor", "train_summary.json", "model.zip", "vecnormalize.pkl")
+_CKPT_RE = re.compile(r"^(?P<steps>\d+)_steps$")
+
+
+class TrainingInterrupted(KeyboardInterrupt):
+    """Ctrl-C during training; :attr:`message` is one line with the resume command.
+
+    :param run: the run folder
+    :param steps: environment steps done
+    :param checkpoint: the last checkpoint folder, or None
+    :param command: the command that resumes from it, or None
+    """
+
+    def __init__(self, run: Path, steps: int, checkpoint: Path | None, command: str | None) -> None:
+        self.run, self.steps, self.checkpoint, self.command = run, steps, checkpoint, command
+        if checkpoint is not None:
+            self.message = (f"training interrupted at {steps} steps; last checkpoint {checkpoint}; "
+                            f"resume with: {command}")
+        else:
+            self.message = (f"training interrupted at {steps} steps; no checkpoint was written yet "
+                            f"(checkpoint_freq); start again with --overwrite")
+        super().__init__(self.message)
+
+
+# ------------------------------------------------------------------------------ resume sources
+class _Resume:
+    """What a run resumes from: a checkpoint folder (safe) or a foreign SB3 zip (opt-in)."""
+
+    def __init__(self, path: Path, trust_pickle: bool) -> None:
+        self.path = path
+        self.files = find_policy_files(path)
+        self.foreign = self.files.foreign
+        if self.foreign:
+            if not trust_pickle:
+                from dss14_env.agents.storage import refuse_pickle_message
+
+                raise PolicyFileError(refuse_pickle_message(self.files.sb3_zip))
+            self.steps = -1  # read on load
+            self.run_id = new_run_id()
+        else:
+            folder = self.files.folder
+            for f in (OPTIMIZER, COUNTERS):
+                if not (folder / f).is_file():
+                    raise PolicyFileError(f"{folder}: not a training checkpoint ({f} is missing)")
+            try:
+                counters = json.loads((folder / COUNTERS).read_text())
+                self.steps = int(counters["num_timesteps"])
+                self.run_id = str(counters["run_id"])
+            except (ValueError, KeyError, TypeError) as exc:
+                raise PolicyFileError(f"{folder / COUNTERS}: not a readable counters file "
+                                      f"({type(exc).__name__}: {exc})") from None
+
+    @property
+    def run_folder(self) -> Path:
+        """The run folder the checkpoint belongs to."""
+        f = self.files.folder if not self.foreign else self.files.sb3_zip.parent
+        return f.parent.parent if f.parent.name == "checkpoints" else f
+
+
+def resume_config_path(resume: str | Path) -> Path | None:
+    """The ``config.yaml`` a resume source carries (checkpoint folder or its run), or None."""
+    p = Path(resume)
+    for cand in (p / CONFIG, p.parent / CONFIG, p.parent.parent / CONFIG):
+        if cand.is_file():
+            return cand
+    return None
+
+
+# ------------------------------------------------------------------------------ helpers
+def _new_run_dir(algo: str, root: Path = Path("runs")) -> Path:
+    stamp = datetime.now().strftime("%Y%m%d-%H%M%S")
+    run = root / f"{algo}-{stamp}"
+    i = 1
+    while run.exists():
+        i += 1
+        run = root / f"{algo}-{stamp}-{i}"
+    return run
+
+
+def _installed(*modules: str) -> bool:
+    import importlib.util
+
+    return all(importlib.util.find_spec(m) is not None for m in modules)
+
+
+def _config_text(cfg: TrainConfig, run_id: str) -> str:
+    return (f"# resolved {cfg.algo} configuration of run {run_id} (from {cfg.source})\n"
+            + yaml.safe_dump(cfg.to_dict(), sort_keys=False))
+
+
+def _fingerprint(cfg: TrainConfig, run_id: str, model: Any) -> dict[str, Any]:
+    space = model.action_space
+    return {"algo": cfg.algo, "run_id": run_id,
+            "obs_dim": int(np.prod(model.observation_space.shape)),
+            "act_dim": int(np.prod(space.shape)),
+            "action_low": [float(x) for x in np.ravel(space.low)],
+            "action_high": [float(x) for x in np.ravel(space.high)],
+            "num_timesteps": int(model.num_timesteps)}
+
+
+def _stats(cfg: TrainConfig, venv: Any) -> NormStats | None:
+    return NormStats.from_vec_normalize(venv) if cfg.normalize_obs else None
+
+
+def save_checkpoint(folder: Path, cfg: TrainConfig, run_id: str, model: Any, venv: Any,
+                    config_text: str) -> None:
+    """A resumable policy folder: weights, statistics, config, optimisers, counters."""
+    fp = _fingerprint(cfg, run_id, model)
+    stats = NormStats.from_vec_normalize(venv)  # return statistics too, for resuming
+    write_policy_folder(folder, model.policy, stats if cfg.normalize_obs else None, fp, config_text)
+    if not cfg.normalize_obs:  # return statistics still matter when only rewards are normalised
+        from dss14_env.agents.storage import save_stats
+
+        save_stats(folder / "return_normalization.npz", stats, fp)
+    save_optimizers(folder / OPTIMIZER, model)
+    if cfg.algo == "sac" and cfg.save_replay_buffer and getattr(model, "replay_buffer", None) is not None:
+        save_replay_buffer(folder / REPLAY, model.replay_buffer)
+    atomic_write_text(folder / COUNTERS, json.dumps(
+        {"num_timesteps": int(model.num_timesteps), "run_id": run_id,
+         "episode_num": int(getattr(model, "_episode_num", 0))}, indent=2) + "\n")
+
+
+def _restore(model: Any, venv: Any, src: _Resume, cfg: TrainConfig) -> int:
+    """Load a resume source into a freshly built model and VecNormalize; its step count."""
+    if src.foreign:
+        old, vn = load_sb3_model(src.files, algo_class(cfg.algo), True)
+        try:
+            model.set_parameters(old.get_parameters(), exact_match=True)
+        except (ValueError, RuntimeError) as exc:
+            raise ValueError(f"{cfg.source}: keys 'net_arch'/'activation_fn'/'log_std_init' do "
+                             f"not match checkpoint {src.path}: {str(exc)[:160]}") from None
+        if vn is not None:
+            NormStats.from_vec_normalize(vn).apply_to(venv)
+        return int(old.num_timesteps)
+    folder = src.files.folder
+    _, state = load_weights(folder / WEIGHTS)
+    optim, tensors = load_optimizers(folder / OPTIMIZER)
+    try:
+        model.set_parameters({"policy": state, **optim}, exact_match=True)
+    except (ValueError, RuntimeError, KeyError) as exc:
+        raise ValueError(f"{cfg.source}: keys 'net_arch'/'activation_fn'/'log_std_init' do not "
+                         f"match checkpoint {folder}: {str(exc).splitlines()[0][:160]}") from None
+    if "log_ent_coef" in tensors and getattr(model, "log_ent_coef", None) is not None:
+        import torch
+
+        with torch.no_grad():
+            model.log_ent_coef.copy_(tensors["log_ent_coef"])
+    stats_file = folder / (STATS if (folder / STATS).is_file() else "return_normalization.npz")
+    if stats_file.is_file():
+        load_stats(stats_file)[1].apply_to(venv)
+    if (folder / REPLAY).is_file() and getattr(model, "replay_buffer", None) is not None:
+        load_replay_buffer(folder / REPLAY, model.replay_buffer)
+    return src.steps
+
+
+def _eval_tasks(cfg: TrainConfig, plan: EnvPlan) -> list[EvalTask]:
+    if plan.dss14:
+        return dss14_tasks(cfg.eval_env_kwargs) if cfg.eval_env_kwargs else list(DSS14_TASKS)
+    return [EvalTask("eval", cfg.env_id, {**cfg.env_kwargs, **cfg.eval_env_kwargs})]
+
+
+# ------------------------------------------------------------------------------ callbacks
+def _checkpoint_callback(cfg: TrainConfig, run: Path, run_id: str, config_text: str, venv: Any,
+                         start: int, ckpts: list[Path]) -> Any:
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class Checkpoints(BaseCallback):
+        """A resumable checkpoint folder every ``checkpoint_freq`` environment steps."""
+
+        def __init__(self) -> None:
+            super().__init__()
+            self.next = (start // cfg.checkpoint_freq + 1) * cfg.checkpoint_freq
+
+        def _on_step(self) -> bool:
+            if self.num_timesteps >= self.next:
+                folder = run / "checkpoints" / f"{self.num_timesteps}_steps"
+                save_checkpoint(folder, cfg, run_id, self.model, venv, config_text)
+                ckpts.append(folder)
+                self.next = (self.num_timesteps // cfg.checkpoint_freq + 1) * cfg.checkpoint_freq
+            return True
+
+    return Checkpoints()
+
+
+class _Evaluator:
+    """The periodic evaluation: the deterministic policy on the validation seeds; keeps
+    ``eval/best`` (highest mean return) and ``eval/evaluations.npz``."""
+
+    def __init__(self, cfg: TrainConfig, plan: EnvPlan, run: Path, run_id: str, config_text: str,
+                 venv: Any, start: int) -> None:
+        self.cfg, self.plan, self.run, self.run_id = cfg, plan, run, run_id
+        self.config_text, self.venv = config_text, venv
+        self.tasks = _eval_tasks(cfg, plan)
+        self.history: dict[str, list] = _load_history(run / "eval" / "evaluations.npz", start)
+        self.best = max((float(np.mean(r)) for r in self.history["results"]), default=-np.inf)
+        self.ctrl: PolicyController | None = None
+
+    def __call__(self, model: Any, logger: Any) -> None:
+        cfg = self.cfg
+        if self.ctrl is None:
+            self.ctrl = PolicyController(model.policy, cfg, None, "eval", None, None)
+        self.ctrl.stats = _stats(cfg, self.venv)
+        steps = cfg.eval_episode_steps if self.plan.dss14 else None
+        res = {t.name: run_task(self.ctrl, t, cfg.eval_seeds, steps, cfg.n_eval_episodes)
+               for t in self.tasks}
+        h = self.history
+        h["timesteps"].append(int(model.num_timesteps))
+        h["results"].append(np.concatenate([r["returns"] for r in res.values()]))
+        h["ep_lengths"].append(np.concatenate([r["lengths"] for r in res.values()]))
+        for t in self.tasks:
+            h.setdefault(f"returns_{t.name}", []).append(res[t.name]["returns"])
+            if t.axis is not None:
+                h.setdefault(f"three_sigma_mdeg_{t.name}", []).append(res[t.name]["three_sigma_mdeg"])
+        _save_history(self.run / "eval" / "evaluations.npz", h)
+        mean = float(np.mean(h["results"][-1]))
+        logger.record("eval/mean_return", mean)
+        sig = {n: float(np.nanmean(r["three_sigma_mdeg"])) for n, r in res.items()
+               if np.isfinite(r["three_sigma_mdeg"]).any()}
+        for n, v in sig.items():
+            logger.record(f"eval/three_sigma_mdeg_{n}", v)
+        if mean > self.best:
+            self.best = mean
+            write_policy_folder(self.run / "eval" / "best", model.policy, _stats(cfg, self.venv),
+                                _fingerprint(cfg, self.run_id, model), self.config_text)
+        if cfg.verbose:
+            print(f"eval at {model.num_timesteps} steps: mean return {mean:.4g}"
+                  + "".join(f", {n} 3-sigma {v:.3g} mdeg" for n, v in sig.items()))
+
+
+def _eval_callback(evaluator: _Evaluator, every: int, start: int) -> Any:
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class PeriodicEvaluation(BaseCallback):
+        """Calls the evaluator every ``every`` environment steps."""
+
+        def __init__(self) -> None:
+            super().__init__()
+            self.next = (start // every + 1) * every
+
+        def _on_step(self) -> bool:
+            if self.num_timesteps >= self.next:
+                self.next = (self.num_timesteps // every + 1) * every
+                evaluator(self.model, self.logger)
+            return True
+
+    return PeriodicEvaluation()
+
+
+def _callbacks(cfg: TrainConfig, plan: EnvPlan, run: Path, run_id: str, config_text: str,
+               venv: Any, start: int, ckpts: list[Path]) -> list[Any]:
+    out: list[Any] = []
+    if cfg.checkpoint_freq > 0:
+        out.append(_checkpoint_callback(cfg, run, run_id, config_text, venv, start, ckpts))
+    if cfg.eval_freq > 0:
+        ev = _Evaluator(cfg, plan, run, run_id, config_text, venv, start)
+        out.append(_eval_callback(ev, cfg.eval_freq, start))
+    return out
+
+
+def _load_history(path: Path, start: int) -> dict[str, list]:
+    """The evaluation history of a run up to ``start`` steps (resume), or an empty one."""
+    h: dict[str, list] = {"timesteps": [], "results": [], "ep_lengths": []}
+    if start <= 0 or not path.is_file():
+        return h
+    with np.load(path, allow_pickle=False) as d:
+        keep = d["timesteps"] <= start
+        for k in d.files:
+            h[k] = [x for x in d[k][keep]]
+        h["timesteps"] = [int(t) for t in h["timesteps"]]
+    return h
+
+
+def _save_history(path: Path, h: dict[str, list]) -> None:
+    import io
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    buf = io.BytesIO()
+    np.savez(buf, **{k: np.asarray(v) for k, v in h.items()})
+    atomic_write_bytes(path, buf.getvalue())
+
+
+def _resume_command(cfg: TrainConfig, run: Path, ckpt: Path) -> str:
+    return shlex.join(["dss14", "train", cfg.algo, "--config", str(run / CONFIG), "--resume",
+                       str(ckpt), "--out", str(run)])
+
+
+# ------------------------------------------------------------------------------ training
+def prepare_run(cfg: TrainConfig, run_dir: str | Path | None, resume: str | Path | None,
+                overwrite: bool = False, trust_pickle: bool = False) -> tuple[Path, Any]:
+    """The run folder (checked, created) and the resume source, before any work.
+
+    :raises ValueError: an unusable folder (one line, naming it), a folder holding another run
+        without ``overwrite``, a missing or refused resume source
+    """
+    src = None
+    if resume is not None:
+        p = Path(resume)
+        if not p.exists():
+            raise ValueError(f"resume checkpoint not found: {p}")
+        src = _Resume(p, trust_pickle)
+    if run_dir is not None:
+        run = Path(run_dir)
+    elif src is not None:
+        run = src.run_folder
+    else:
+        run = _new_run_dir(cfg.algo)
+    if src is not None and run.resolve() == src.run_folder.resolve():
+        prepare_output_dir(run, owned=(), option="--out")  # continue the run in place
+        later = [d for d in (run / "checkpoints").glob("*_steps")
+                 if _CKPT_RE.match(d.name) and src.steps >= 0 and int(d.name[:-6]) > src.steps]
+        import shutil
+
+        for d in later:  # checkpoints past the resume point belong to the abandoned branch
+            shutil.rmtree(d)
+    else:
+        prepare_output_dir(run, owned=RUN_FILES, overwrite=overwrite, option="--out")
+    return run, src
+
+
+def train(config: TrainConfig | Mapping[str, Any] | str | Path, run_dir: str | Path | None = None,
+          resume: str | Path | None = None, overwrite: bool = False,
+          trust_pickle: bool = False) -> Path:
+    """Train the configured algorithm (CPU) and write the run folder (see the module doc).
+
+    :param config: a :class:`TrainConfig`, a mapping of its keys, a YAML path or a shipped name
+    :param run_dir: output folder, default None: ``runs/<algo>-<timestamp>/`` for a new run,
+        the checkpoint's run folder on resume
+    :param resume: a checkpoint folder (``<run>/checkpoints/<N>_steps``, or a finished run
+        folder) to continue from; a foreign SB3 ``.zip`` only with ``trust_pickle``
+    :param overwrite: a new run may replace the run files in ``run_dir``
+    :param trust_pickle: allow a foreign (pickled) resume source
+    :return: the run folder
+    :raises ValueError: bad config, unusable folder, unmakeable environment, missing or refused
+        checkpoint, budget already reached, or an architecture that differs from the checkpoint's
+    :raises TrainingInterrupted: on Ctrl-C (a KeyboardInterrupt with the resume command)
+    """
+    import stable_baselines3
+    import torch
+    from stable_baselines3.common.vec_env import VecNormalize
+    from threadpoolctl import threadpool_limits
+
+    cfg = as_config(config)
+    run, src = prepare_run(cfg, run_dir, resume, overwrite, trust_pickle)
+    plan, obs_space, act_space, env_config = check_env(cfg)
+    if plan.dss14:
+        check_seed_protocol(cfg.seed, cfg.n_envs, cfg.eval_seeds, cfg.source)
+        warm = max(t.warmup_steps for t in _eval_tasks(cfg, plan))
+        if cfg.eval_freq and cfg.eval_episode_steps <= warm + 1:
+            raise ValueError(f"{cfg.source}: key 'eval_episode_steps': the validation episodes "
+                             f"must be longer than the {warm}-step warm-up the 3-sigma leaves "
+                             f"out, got {cfg.eval_episode_steps}")
+    if src is not None and not src.foreign and src.steps >= cfg.total_timesteps:
+        raise ValueError(f"checkpoint {src.path} is at {src.steps} steps, total_timesteps is "
+                         f"{cfg.total_timesteps}: raise total_timesteps (--timesteps)")
+    say = print if cfg.verbose else (lambda *a, **k: None)
+    run_id = src.run_id if src is not None else new_run_id()
+    config_text = _config_text(cfg, run_id)
+    atomic_write_text(run / CONFIG, config_text)
+    tb = None
+    if _installed("tensorboard"):
+        tb = str(run / "tb")
+    else:
+        print("note: tensorboard is not installed; training curves go to monitor/ and "
+              "eval/evaluations.npz only (pip install tensorboard)")
+    progress = cfg.progress_bar
+    if progress and not _installed("tqdm", "rich"):
+        print("note: tqdm and rich are not installed; no progress bar (pip install tqdm rich)")
+        progress = False
+
+    torch.set_num_threads(cfg.torch_threads)
+    monitor = run / "monitor" / (f"resume_{max(src.steps, 0)}_steps" if src is not None else "")
+    venv = make_train_vec_env(cfg, plan, env_config, monitor)
+    venv = VecNormalize(venv, norm_obs=cfg.normalize_obs, norm_reward=cfg.normalize_reward,
+                        gamma=cfg.gamma)
+    cls = algo_class(cfg.algo)
+    policy_name = "MlpLstmPolicy" if is_recurrent(cfg.algo) else "MlpPolicy"
+    ckpts: list[Path] = []
+    model = None
+    try:
+        model = cls(policy_name, venv, policy_kwargs=policy_kwargs(cfg), seed=cfg.seed,
+                    device="cpu", tensorboard_log=tb, verbose=cfg.verbose, **algo_kwargs(cfg))
+        start = 0
+        if src is not None:
+            start = _restore(model, venv, src, cfg)
+            if start >= cfg.total_timesteps:
+                raise ValueError(f"checkpoint {src.path} is at {start} steps, total_timesteps is "
+                                 f"{cfg.total_timesteps}: raise total_timesteps (--timesteps)")
+            model.num_timesteps = start
+            say(f"resuming {src.path} at {start} steps")
+        callbacks = _callbacks(cfg, plan, run, run_id, config_text, venv, start, ckpts)
+        say(f"{cfg.algo} on {cfg.env_id}: {cfg.n_envs} envs ({vec_env_kind(cfg, plan)}), "
+            f"obs {obs_space.shape}, action {act_space.shape}, {cfg.total_timesteps - start} "
+            f"steps -> {run}")
+        t0 = time.perf_counter()
+        try:
+            with threadpool_limits(limits=1):
+                model.learn(total_timesteps=cfg.total_timesteps - start, callback=callbacks,
+                            tb_log_name=cfg.algo, reset_num_timesteps=src is None,
+                            progress_bar=progress)
+        except KeyboardInterrupt:
+            last = ckpts[-1] if ckpts else _last_checkpoint(run)
+            cmd = _resume_command(cfg, run, last) if last is not None else None
+            raise TrainingInterrupted(run, int(model.num_timesteps), last, cmd) from None
+        wall = time.perf_counter() - t0
+        save_checkpoint(run, cfg, run_id, model, venv, config_text)
+    finally:
+        venv.close()
+    summary = {
+        "algo": cfg.algo, "env_id": cfg.env_id, "run_id": run_id,
+        "num_timesteps": int(model.num_timesteps), "start_timesteps": start,
+        "wall_s": round(wall, 3), "steps_per_s": round((model.num_timesteps - start) / wall, 1),
+        "resumed_from": None if src is None else str(src.path), "seed": cfg.seed,
+        "n_envs": cfg.n_envs, "vec_env": vec_env_kind(cfg, plan),
+        "torch_threads": cfg.torch_threads,
+        "versions": {"stable_baselines3": stable_baselines3.__version__,
+                     "torch": torch.__version__, "numpy": np.__version__},
+    }
+    atomic_write_text(run / "train_summary.json", json.dumps(summary, indent=2) + "\n")
+    say(f"{model.num_timesteps} steps in {wall:.1f} s ({summary['steps_per_s']} steps/s); "
+        f"run folder {run}")
+    return run
+
+
+def _last_checkpoint(run: Path) -> Path | None:
+    found = [(int(d.name[:-6]), d) for d in (run / "checkpoints").glob("*_steps")
+             if _CKPT_RE.match(d.name) and (d / COUNTERS).is_file()]
+    return max(found)[1] if found else None
+
+
+def config_for_command(algo: str, config: str | Path | None = None, env_id: str | None = None,
+                       resume: str | Path | None = None, timesteps: int | None = None,
+                       seed: int | None = None) -> TrainConfig:
+    """The configuration ``dss14 train <algo>`` runs with.
+
+    ``--config`` (a path or a shipped name) wins; else ``--env`` takes the entry of the
+    shipped hyperparameter file of ``algo``; else, with ``--resume``, the checkpoint's
+    ``config.yaml``; else the shipped ``configs/<algo>.yaml``.  ``--timesteps`` and ``--seed``
+    override.
+
+    :raises ValueError: both ``--config`` and ``--env``, or a config of another algorithm
+    """
+    from dss14_env.agents.config import shipped_config_path
+    from dss14_env.agents.hyperparams import load_hyperparams
+
+    if config is not None and env_id is not None:
+        raise ValueError("give --config or --env, not both (--env picks the shipped "
+                         "hyperparameters of that environment id)")
+    if config is not None:
+        cfg = load_config(config)
+    elif env_id is not None:
+        cfg = load_hyperparams(algo, env_id)
+    elif resume is not None and resume_config_path(resume) is not None:
+        cfg = load_config(resume_config_path(resume))
+    else:
+        cfg = load_config(shipped_config_path(f"{algo}.yaml"))
+    if cfg.algo != algo:
+        raise ValueError(f"{cfg.source}: key 'algo': the config is for {cfg.algo!r}, the command "
+                         f"trains {algo!r}")
+    changes = {k: v for k, v in (("total_timesteps", timesteps), ("seed", seed)) if v is not None}
+    if changes:
+        cfg = cfg.replace(source=f"{cfg.source} (command line)", **changes)
+    return cfg
+
+
+def load_run_config(run: str | Path) -> TrainConfig:
+    """The configuration of a run folder (or policy folder)."""
+    return load_config(Path(run) / CONFIG)
+
+
+__all__ = ["RUN_FILES", "TrainingInterrupted", "config_for_command", "load_run_config", "prepare_run",
+           "resume_config_path", "save_checkpoint", "train"]

@@ -1,0 +1,85 @@
+"""The cvxpy adapter of baselines/qp.py: its structural check on a known problem (fails loudly
+when a cvxpy release moves the internals it reads), and Problem.solve as the automatic fallback."""
+
+from __future__ import annotations
+
+import cvxpy as cp
+import numpy as np
+import pytest
+
+from dss14_env.baselines import qp as qp_module
+from dss14_env.baselines.qp import AdapterError, CanonicalQP, ParametricQP
+
+SETTINGS = {"eps_abs": 1e-9, "eps_rel": 1e-9, "max_iter": 20000, "polishing": True}
+
+
+def _known_problem() -> tuple[cp.Problem, list[cp.Parameter], cp.Variable]:
+    """min |x|^2 - p'x  s.t.  -1 <= x <= 1,  x_0 + x_1 <= b: parameters in q and u only."""
+    x = cp.Variable(3, name="x")
+    p, b = cp.Parameter(3, name="p"), cp.Parameter(name="b")
+    prob = cp.Problem(cp.Minimize(cp.sum_squares(x) - p @ x), [x <= 1.0, -x <= 1.0, x[0] + x[1] <= b])
+    return prob, [p, b], x
+
+
+def _solution(p: np.ndarray, b: float) -> np.ndarray:
+    """The problem's solution, by hand: x = clip(p/2, -1, 1), then the coupling constraint."""
+    x = np.clip(p / 2, -1.0, 1.0)
+    if x[0] + x[1] > b:  # KKT with the coupling active (here the box stays inactive)
+        lam = x[0] + x[1] - b
+        x[:2] -= lam / 2
+    return x
+
+
+def test_adapter_structure_on_a_known_problem() -> None:
+    """cvxpy's OSQP data of the known problem has the layout the adapter reads: 3 variables,
+    3 + 3 + 1 inequality rows, data affine in the parameters.  A cvxpy release that changes it
+    fails here (AdapterError names what moved)."""
+    prob, params, x = _known_problem()
+    fast = CanonicalQP(prob, params, x, SETTINGS)
+    assert (fast.n_variables, fast.n_constraints) == (3, 7)
+    assert fast.Mq.shape == (3, 4) and fast.Mu.shape == (7, 4)
+    assert qp_module.osqp_status_map()[1] == cp.OPTIMAL
+
+
+@pytest.mark.parametrize("p, b", [([1.0, 0.5, -4.0], 10.0), ([1.0, 0.5, -4.0], 0.2), ([3.0, 3.0, 0.0], -0.5)])
+def test_fast_path_solves_the_known_problem(p: list, b: float) -> None:
+    prob, params, x = _known_problem()
+    qp = ParametricQP(prob, params, x, SETTINGS)
+    params[0].value, params[1].value = np.array(p), b
+    res = qp.solve()
+    assert (res.status, res.path) == (cp.OPTIMAL, "osqp")
+    np.testing.assert_allclose(res.x, _solution(np.array(p), b), atol=1e-7)
+
+
+def test_adapter_that_cannot_be_built_falls_back_to_problem_solve(monkeypatch) -> None:
+    def moved(problem, variable):
+        raise AdapterError("cvxpy's OSQP problem data has changed layout (KeyError: 'param_prob')")
+    monkeypatch.setattr(qp_module, "osqp_data", moved)
+    prob, params, x = _known_problem()
+    qp = ParametricQP(prob, params, x, SETTINGS)
+    assert qp.fast is None and "changed layout" in qp.adapter_error
+    params[0].value, params[1].value = np.array([1.0, 0.5, -4.0]), 0.2
+    res = qp.solve()
+    assert (res.status, res.path) == (cp.OPTIMAL, "cvxpy")
+    np.testing.assert_allclose(res.x, _solution(np.array([1.0, 0.5, -4.0]), 0.2), atol=1e-7)
+
+
+def test_parameter_in_the_quadratic_term_is_refused() -> None:
+    """P must not depend on the parameters (the fast path updates q and u only)."""
+    x = cp.Variable(2)
+    w = cp.Parameter(nonneg=True)
+    prob = cp.Problem(cp.Minimize(w * cp.sum_squares(x) - cp.sum(x)), [x <= 1.0])
+    with pytest.raises(AdapterError, match="depends on the parameters"):
+        CanonicalQP(prob, [w], x, SETTINGS)
+    w.value = 2.0
+    res = ParametricQP(prob, [w], x, SETTINGS).solve()  # falls back, same problem solved
+    assert res.path == "cvxpy"
+    np.testing.assert_allclose(res.x, [0.25, 0.25], atol=1e-7)
+
+
+def test_equality_constraints_are_refused() -> None:
+    x = cp.Variable(2)
+    p = cp.Parameter(2)
+    prob = cp.Problem(cp.Minimize(cp.sum_squares(x) - p @ x), [cp.sum(x) == 1.0])
+    with pytest.raises(AdapterError, match="equality"):
+        CanonicalQP(prob, [p], x, SETTINGS)
