@@ -76,10 +76,16 @@ PRESETS: Mapping[str, Preset] = MappingProxyType({
                    "large moves under the rate and acceleration limits"),
 })
 
-#: ids registered on top of the presets (by ``import dss14_env``), with what they are for
+#: the learning agents' wrapper ids, registered on top of the presets by ``import dss14_env``
+#: (:data:`dss14_env.agents.AGENT_ENV_IDS`), with what they are for (for the manual's table;
+#: ``tests/test_env_docs.py`` fails when a registered id is missing here)
 WRAPPED_IDS: Mapping[str, str] = MappingProxyType({
-    "DSS14-Residual-v0": "PPO residual on the report's PI: a policy learns a small correction to "
-                         "the PI's rate command (dss14_env.agents.residual; base DSS14-Hold-v0)",
+    "DSS14-Residual-v0": "PPO residual on the report's PI: a policy adds a small correction to the "
+                         "PI's rate command and sees the PI's integral (dss14_env.agents.residual)",
+    "DSS14-ResidualLQG-v0": "residual on the LQG: a policy corrects the LQG's rate command and sees "
+                            "its command, disturbance and state estimate (dss14_env.agents.envs)",
+    "DSS14-KalmanObs-v0": "a policy sets the rate command itself, seeing the LQG's command, "
+                          "disturbance and state estimate (dss14_env.agents.envs)",
 })
 
 ENTRY_POINT = "dss14_env.envs.env:DSS14Env"
@@ -115,7 +121,8 @@ def registered_ids_table() -> str:
         lines.append(f"| `{p.env_id}` | {kw.get('scenario', 'track')} | {_wind(kw)} | "
                      f"{p.max_episode_steps} ({p.max_episode_steps // 50} s) | {p.purpose} |")
     for env_id, what in WRAPPED_IDS.items():
-        lines.append(f"| `{env_id}` | hold | as its base | 3000 (60 s) | {what} |")
+        lines.append(f"| `{env_id}` | of its base (`DSS14-Hold-v0` by default) | of its base | of its base "
+                     f"| {what} |")
     return "\n".join(lines)
 
 

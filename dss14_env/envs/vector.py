@@ -260,6 +260,10 @@ class DSS14VectorEnv(VectorEnv):
                          np.zeros(idx.size, bool), self._hits[idx])
         return obs, {key: info[key] for key in _RESET_KEYS}
 
+    def _reset_obs(self, idx: np.ndarray) -> np.ndarray:
+        """Observation rows of freshly reset sub-environments ``idx`` (:meth:`_reset_rows`)."""
+        return self._reset_rows(idx)[0]
+
     @property
     def n_rate_limited(self) -> np.ndarray:
         """Steps of the current episodes in which the rate clip acted, per sub-environment."""
