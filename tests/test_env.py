@@ -12,6 +12,7 @@ import pytest
 import dss14_env  # noqa: F401  (registers the ids)
 from dss14_env.envs.config import EPISODE_KEYS, load_env_config
 from dss14_env.envs.env import OBS_NAMES, DSS14Env
+from dss14_env.envs.vector import DSS14VectorEnv
 from dss14_env.model.assembly import default_model
 from dss14_env.model.uncertainty import SWEEP_PARAMS, draw_stable_params, pi_loop_abscissa, rate_loop_stable
 
@@ -140,6 +141,56 @@ def test_step_before_reset_raises() -> None:
 def test_bad_config_value_raises_naming_the_key(key: str, value) -> None:
     with pytest.raises(ValueError, match=key):
         DSS14Env(**{key: value})
+
+
+@pytest.mark.parametrize("key, value", [
+    ("wind_speed_kmh", 1e5),            # once NaN observations forever (vector) / a crash (single)
+    ("wind_speed_kmh", 3000.0),         # once blamed on dt
+    ("wind_speed_kmh", 90.5),           # beyond the operating range the model is meant for
+    ("wind_speed_grid_kmh", [30.0, 1e5]),
+    ("error_scale_mdeg", 1e-300),       # once an infinite reward
+    ("dt", 1e-300),
+    ("action_scale_deg_s", 1e-300),
+    ("rate_limit_deg_s", 1e300),
+    ("accel_limit_deg_s2", 1e300),
+    ("encoder_noise_mdeg", 1e300),
+    ("action_change_weight", 1e308),
+    ("termination_penalty", 1e308),
+    ("track_period_range_s", [1e-320, 600.0]),
+    ("slew_accel_deg_s2", 1e-320),
+    ("slew_rate_deg_s", 1e-320),
+    ("step_deg", 1e200),
+    ("az_wrap_centre_deg", 1e300),
+    ("start_az_deg", 300.0),
+    ("start_el_range_deg", [1.0, 50.0]),
+    ("render_window_s", 1e300),
+])
+def test_unphysical_values_are_refused_by_both_envs(key: str, value) -> None:
+    with pytest.raises(ValueError, match=f"field '{key}'"):
+        DSS14Env(**{key: value})
+    with pytest.raises(ValueError, match=f"field '{key}'"):
+        DSS14VectorEnv(num_envs=2, **{key: value})
+    if key in EPISODE_KEYS:
+        env = DSS14Env()
+        with pytest.raises(ValueError, match=f"reset options: field '{key}'"):
+            env.reset(seed=0, options={key: value})
+
+
+def test_scientific_notation_is_accepted_in_files_and_arguments(tmp_path) -> None:
+    path = tmp_path / "env.yaml"
+    path.write_text("dt: 1e-2\nerror_scale_mdeg: 1e1\n")  # YAML 1.1 reads 1e-2 as a string
+    cfg = load_env_config(path, encoder_noise_mdeg="5e-2")
+    assert (cfg.dt, cfg.error_scale_mdeg, cfg.encoder_noise_mdeg) == (0.01, 10.0, 0.05)
+
+
+def test_config_file_errors_name_the_file_and_the_key(tmp_path) -> None:
+    path = tmp_path / "env.yaml"
+    path.write_text("dt: fast\n")
+    with pytest.raises(ValueError, match=f"{path}: field 'dt': must be a number"):
+        DSS14Env(config=path)
+    path.write_text("dt: [0.02\n")
+    with pytest.raises(ValueError, match=f"{path}: not valid YAML"):
+        DSS14Env(config=path)
 
 
 def test_unknown_config_key_raises_naming_it() -> None:

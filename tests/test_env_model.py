@@ -107,6 +107,9 @@ def test_a_shared_factory_is_used_as_given() -> None:
     env = DSS14Env(model_config=factory, scenario="hold")
     env.reset(seed=0)
     assert env.plants is factory and len(factory) == 1
+    with pytest.raises(TypeError, match="model file"):  # no file to find it again by
+        pickle.dumps(env)
+    assert pickle.loads(pickle.dumps(DSS14Env())).plants is default_plant_factory()
 
 
 @pytest.mark.parametrize("params, match", [

@@ -396,7 +396,7 @@ _F32, _F64 = np.dtype(np.float32), np.dtype(np.float64)
 def step_1(action: Any, st: tuple, M: np.ndarray, row: list, sc: tuple) -> tuple:
     """One step of one environment on floats: :func:`as_actions` (a fast path for float32 and
     float64 arrays of shape (2,), the same rule), :func:`limit_commands`, the plant map
-    (:func:`dss14_env.envs.plant.advance`), :func:`read_encoders`, :func:`servo_errors`,
+    (:meth:`dss14_env.envs.plant.Plant.episode_map`), :func:`read_encoders`, :func:`servo_errors`,
     :func:`terminated`, :func:`reward`, :func:`observation` and :func:`step_info` (with
     :func:`pointing_errors`).
 
@@ -454,7 +454,7 @@ def step_1(action: Any, st: tuple, M: np.ndarray, row: list, sc: tuple) -> tuple
             r1, acc_hit = b, True
     if acc_hit:
         n_acc += 1
-    # the plant map: [u+, y+] = M [r, 1, xi, u] (dss14_env.envs.plant.advance)
+    # the plant map: [u+, y+] = M [r, 1, xi, u], the exact discretisation (Plant.episode_map)
     z = cur[0]
     z[0] = r0
     z[1] = r1

@@ -343,7 +343,8 @@ class Plant:
 def step_buffers(M: np.ndarray, x0: np.ndarray, y0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The two step buffers ``z = [r_a, r_e, 1, xi, u, y]`` of an episode map ``M``
     (:meth:`Plant.episode_map`), the first holding the one-copy start state ``x0`` and its
-    outputs ``y0``; :func:`buffer_views` makes the views :func:`advance` reads and writes."""
+    outputs ``y0``; :func:`buffer_views` makes the views the step reads and writes
+    (:func:`dss14_env.envs.core.step_1`)."""
     n_in = M.shape[1]
     z0, z1 = np.zeros(n_in + N_STEP_OUTPUTS), np.zeros(n_in + N_STEP_OUTPUTS)
     z0[2] = z1[2] = 1.0
@@ -354,30 +355,10 @@ def step_buffers(M: np.ndarray, x0: np.ndarray, y0: np.ndarray) -> tuple[np.ndar
 
 def buffer_views(z: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``(z, input [r, 1, xi, u], state and outputs [u, y], outputs y)`` of one step buffer of
-    an episode with ``m`` one-copy states (views, so :func:`advance` writes in place)."""
+    an episode with ``m`` one-copy states (views, so that ``M @ input`` is written in place into
+    the other buffer's ``[u, y]``: one matrix-vector product per step, no copies)."""
     n_in = z.shape[0] - N_STEP_OUTPUTS
     return z, z[:n_in], z[n_in - m:], z[n_in:]
-
-
-def advance(M: np.ndarray, cur: tuple, nxt: tuple, r_az: float, r_el: float, xi: tuple) -> list[float]:
-    """One exact step of an episode: ``[u+, y+] = M [r, 1, xi, u]`` (:meth:`Plant.episode_map`).
-
-    :param cur: :func:`buffer_views` of the buffer holding the current state
-    :param nxt: those of the other buffer, which receives the next state and outputs
-    :param r_az: held rate command, rad/s; ``r_el`` likewise
-    :param xi: the step's standard normals (noise rank entries)
-    :return: the outputs at the step's end (:data:`OUTPUTS` up to :data:`N_STEP_OUTPUTS`)
-    """
-    z = cur[0]
-    z[0] = r_az
-    z[1] = r_el
-    if len(xi) == 4:  # item by item: a slice assignment from a list costs more than the product
-        z[3], z[4], z[5], z[6] = xi
-    else:
-        for i, v in enumerate(xi, 3):
-            z[i] = v
-    np.dot(M, cur[1], nxt[2])
-    return nxt[3].tolist()
 
 
 # ---------------------------------------------------------------------- plants of one model
@@ -472,8 +453,13 @@ class PlantFactory:
         return self  # the model and loads never change; its plants are immutable
 
     def __reduce__(self) -> tuple:
-        if self.source is None:
+        """Pickled by reference: the shipped model's factory, or the one of a model file (built
+        again, or found in :data:`PLANT_FACTORIES`, on loading)."""
+        if self is default_plant_factory():
             return (default_plant_factory, ())
+        if self.source is None:
+            raise TypeError("a PlantFactory built from model objects cannot be pickled; build it from a "
+                            "model file (PlantFactory.from_model_config) to pickle environments on it")
         return (_factory_of_file, (self.source,))
 
 
