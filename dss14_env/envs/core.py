@@ -22,7 +22,8 @@ The pieces, in the order of a step (SI inside; mdeg and deg at the interface)::
     pointing error = [c_el - point_el, c_az cos(E) - point_xel] * R2MD
 
 >>> import numpy as np
->>> k = StepConstants.from_config(__import__("dss14_env.envs.config", fromlist=["x"]).load_env_config())
+>>> from dss14_env.envs.config import load_env_config
+>>> k = StepConstants.from_config(load_env_config())
 >>> a, r, rate_hit, acc_hit = limit_commands(np.array([[2.0, -0.01]]), np.zeros((1, 2)), k)
 >>> a.tolist(), (r * R2D).round(6).tolist(), acc_hit.tolist()
 ([[1.0, -0.01]], [[0.004, -0.0025]], [True])
