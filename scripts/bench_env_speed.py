@@ -15,9 +15,10 @@ a 95 % bootstrap interval over the rounds (:func:`dss14_env.core.stats.bootstrap
 vector env's rate is summarised the same way over its repeats.  ``--clock cpu`` times with the
 process's CPU time instead of the wall clock: on a machine shared with other jobs it is much
 less disturbed (the single environments are single-threaded; the vector env's BLAS threads are
-counted too, so its CPU-time rate is a lower bound of its wall-clock throughput).  The result
-file records the clock, the settings, the machine (CPU count, load average) and the package
-versions with the figures.
+counted too -- OpenBLAS threads spin while they wait, so with several BLAS threads on a busy
+machine its CPU-time rate says little: use ``--blas-threads 1`` with ``--clock cpu``).  The
+result file records the clock, the settings, the machine (CPU count, load average) and the
+package versions with the figures.
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository's dss14_env first
 import dss14_env  # noqa: E402,F401  (registers DSS14-v0)
@@ -120,11 +122,12 @@ def run(args: argparse.Namespace) -> dict:
         s["target"] = TARGET_RATIO
         s["meets_target"] = None if s["ci95"] is None else bool(s["ci95"][0] >= TARGET_RATIO)
         out["ratio_to_pendulum"][env_id] = s
-    for env_id in VECTOR_IDS:
-        out["vector"][env_id] = summary(vector_env_rates(env_id, args.num_envs, args.vec_steps, args.repeats,
-                                                         clock))
+    with threadpool_limits(limits=args.blas_threads, user_api="blas"):
+        for env_id in VECTOR_IDS:
+            out["vector"][env_id] = summary(vector_env_rates(env_id, args.num_envs, args.vec_steps,
+                                                             args.repeats, clock))
     out["settings"] = {"clock": args.clock, "steps": args.steps, "vec_steps": args.vec_steps,
-                       "num_envs": args.num_envs, "repeats": args.repeats}
+                       "num_envs": args.num_envs, "repeats": args.repeats, "blas_threads": args.blas_threads}
     out["machine"] = {"cpus": os.cpu_count(), "load_average_1_5_15": list(os.getloadavg()),
                       "platform": platform.platform(), "python": platform.python_version(),
                       "numpy": np.__version__, "gymnasium": gym.__version__,
@@ -141,8 +144,10 @@ def _fmt_ci(s: dict, fmt: str) -> str:
 
 def report(res: dict) -> str:
     """The results as text lines."""
-    lines = [f"clock: {res['settings']['clock']}, {res['settings']['repeats']} rounds, "
-             f"load average {res['machine']['load_average_1_5_15'][0]:.1f} on {res['machine']['cpus']} CPUs"]
+    st, m = res["settings"], res["machine"]
+    lines = [f"clock: {st['clock']}, {st['repeats']} rounds, BLAS threads of the vector env: "
+             f"{st.get('blas_threads') or 'as is'}, load average {m['load_average_1_5_15'][0]:.1f} on "
+             f"{m['cpus']} CPUs"]
     for env_id, s in res["single"].items():
         lines.append(f"{env_id:15s} single env: median {s['median']:12,.0f} steps/s{_fmt_ci(s, ',.0f')}, "
                      f"best {s['best']:,.0f}")
@@ -165,10 +170,13 @@ def main() -> None:
     ap.add_argument("--num-envs", type=int, default=1024)
     ap.add_argument("--repeats", type=int, default=9, help="rounds (at least 3 for an interval)")
     ap.add_argument("--clock", choices=sorted(CLOCKS), default="wall")
+    ap.add_argument("--blas-threads", type=int, default=None,
+                    help="limit the BLAS threads of the vector env's matrix products (default: as is)")
     ap.add_argument("--json", type=Path, default=None, help="write the results to this JSON file")
     args = ap.parse_args()
-    if args.repeats < 1 or args.steps < 1 or args.vec_steps < 1 or args.num_envs < 1:
-        ap.error("--repeats, --steps, --vec-steps and --num-envs must be positive")
+    if args.repeats < 1 or args.steps < 1 or args.vec_steps < 1 or args.num_envs < 1 or (
+            args.blas_threads is not None and args.blas_threads < 1):
+        ap.error("--repeats, --steps, --vec-steps, --num-envs and --blas-threads must be positive")
     if args.json is not None and not (args.json.parent.is_dir() and os.access(args.json.parent, os.W_OK)):
         ap.error(f"--json: folder {args.json.parent} does not exist or is not writable")
     if args.json is not None and args.json.is_dir():

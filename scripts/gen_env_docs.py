@@ -66,7 +66,8 @@ def speed_table(path: Path = SPEED) -> str:
     lines += ["", f"| vector env, N = {st['num_envs']} | env-steps/s, median (95 % CI) |", "|---|---|"]
     for env_id, s in res["vector"].items():
         lines.append(f"| `{env_id}` | {s['median']:,.0f}{ci(s, ',.0f')} |")
-    lines += ["", f"Measured {res['when']} with the {st['clock']} clock, {st['repeats']} rounds of "
+    blas = f", BLAS threads limited to {st['blas_threads']}" if st.get("blas_threads") else ""
+    lines += ["", f"Measured {res['when']} with the {st['clock']} clock{blas}, {st['repeats']} rounds of "
               f"{st['steps']:,} single-env and {st['vec_steps']:,} vector-env steps, on {m['cpus']} CPUs at "
               f"load average {m['load_average_1_5_15'][0]:.1f} (Python {m['python']}, numpy {m['numpy']}, "
               f"gymnasium {m['gymnasium']}); intervals are bootstrap intervals of the median over the "

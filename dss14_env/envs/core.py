@@ -153,10 +153,12 @@ def as_actions(actions: Any, shape: tuple[int, ...]) -> np.ndarray:
                          f"{a.dtype}: {_describe(actions)}")
     if a.shape != shape:
         raise ValueError(f"action must have shape {shape}, got shape {a.shape}")
-    with np.errstate(over="ignore", invalid="ignore"):
+    if a.dtype.itemsize > 8:  # longdouble: may overflow float64
+        with np.errstate(over="ignore"):
+            a = a.astype(np.float64)
+    else:
         a = a.astype(np.float64)
-        finite = bool(np.isfinite(a.sum())) or bool(np.isfinite(a).all())
-    if not finite:
+    if not np.isfinite(a).all():
         bad = np.flatnonzero(~np.isfinite(a).reshape(a.shape[0] if a.ndim > 1 else 1, -1).all(axis=1))
         where = f" (sub-environment(s) {bad.tolist()})" if a.ndim > 1 else ""
         raise ValueError(f"action must be finite, got {_describe(a.tolist())}{where}")
@@ -206,15 +208,19 @@ def limit_commands(a: np.ndarray, r_prev: np.ndarray, k: StepConstants
     :return: ``(a_clipped, r, rate_hit, acc_hit)``: the actions clipped to [-1, 1], the applied
         rate commands (rad/s), and per row whether the rate clip / acceleration limit acted
     """
-    c = np.clip(a, -1.0, 1.0)
+    # clip(x, lo, hi) = minimum(maximum(x, lo), hi), as np.clip, without its Python wrapper
+    c = np.maximum(a, -1.0)
+    np.minimum(c, 1.0, out=c)
     q = c * k.action_scale
     if k.rate_clip:
         hit = np.abs(q) > k.rate_limit
         rate_hit = hit[:, 0] | hit[:, 1]
-        np.clip(q, -k.rate_limit, k.rate_limit, out=q)
+        np.maximum(q, -k.rate_limit, out=q)
+        np.minimum(q, k.rate_limit, out=q)
     else:
         rate_hit = np.zeros(a.shape[0], bool)
-    r = np.clip(q, r_prev - k.rate_step, r_prev + k.rate_step)
+    r = np.maximum(q, r_prev - k.rate_step)
+    np.minimum(r, r_prev + k.rate_step, out=r)
     hit = r != q
     return c, r, rate_hit, hit[:, 0] | hit[:, 1]
 
@@ -229,7 +235,11 @@ def quantise(angle: np.ndarray, quantum: float) -> np.ndarray:
     """Round absolute angles (rad) to the nearest encoder count (``quantum`` 0: unchanged)."""
     if not quantum:
         return np.array(angle, float)
-    return quantum * np.floor(angle * (1.0 / quantum) + 0.5)
+    x = angle * (1.0 / quantum)
+    x += 0.5
+    np.floor(x, out=x)
+    x *= quantum
+    return x
 
 
 def read_encoders(theta: np.ndarray, start: np.ndarray, noise: np.ndarray | None, k: StepConstants
@@ -243,13 +253,17 @@ def read_encoders(theta: np.ndarray, start: np.ndarray, noise: np.ndarray | None
     """
     a = start + theta
     if k.encoder_sigma:
-        a = a + noise
-    return quantise(a, k.quantum) - start
+        a += noise
+    a = quantise(a, k.quantum) if k.quantum else a
+    a -= start
+    return a
 
 
 def servo_errors(c: np.ndarray, theta: np.ndarray) -> np.ndarray:
     """Servo errors ``c - theta`` in mdeg (true with plant angles, measured with readings)."""
-    return (c - theta) * R2MD
+    d = c - theta
+    d *= R2MD
+    return d
 
 
 def terminated(e: np.ndarray, theta: np.ndarray, start: np.ndarray, max_error: np.ndarray | float,
@@ -304,7 +318,8 @@ def observation(em: np.ndarray, em_prev: np.ndarray | None, c_deg: np.ndarray, c
             o[:, 2:4] = 0.0
         else:
             np.multiply(em - em_prev, k.error_rate_scale, out=o[:, 2:4])
-        np.clip(o, _LOW4, _HIGH4, out=o)
+        np.maximum(o, _LOW4, out=o)
+        np.minimum(o, _HIGH4, out=o)
         out[:, 0:4] = o
     else:
         np.multiply(em, 1.0 / k.error_scale, out=out[:, 0:2], casting="same_kind")
