@@ -27,6 +27,7 @@ import argparse
 import json
 import os
 import platform
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -35,7 +36,8 @@ import gymnasium as gym
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository's dss14_env first
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))  # the repository's dss14_env first
 import dss14_env  # noqa: E402,F401  (registers DSS14-v0)
 from dss14_env.core.outdir import atomic_write_text  # noqa: E402
 from dss14_env.core.stats import bootstrap_ci  # noqa: E402
@@ -131,9 +133,19 @@ def run(args: argparse.Namespace) -> dict:
     out["machine"] = {"cpus": os.cpu_count(), "load_average_1_5_15": list(os.getloadavg()),
                       "platform": platform.platform(), "python": platform.python_version(),
                       "numpy": np.__version__, "gymnasium": gym.__version__,
-                      "dss14_env": str(Path(dss14_env.__file__).resolve().parent)}
+                      "dss14_env": dss14_env.__version__, "git_revision": _git_revision()}
     out["when"] = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
     return out
+
+
+def _git_revision() -> str | None:
+    """The repository's commit (with ``-dirty`` for uncommitted changes), None outside git."""
+    try:
+        rev = subprocess.run(["git", "describe", "--always", "--dirty"], cwd=ROOT, capture_output=True,
+                             text=True, timeout=10, check=True).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return rev or None
 
 
 def _fmt_ci(s: dict, fmt: str) -> str:

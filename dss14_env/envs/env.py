@@ -228,7 +228,8 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
 
     {registered_ids}
 
-    Vector version of each: ``gymnasium.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")``
+    Vector version of each preset id:
+    ``gymnasium.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")``
     (:class:`dss14_env.envs.vector.DSS14VectorEnv`).
 
     ## Version history
