@@ -44,6 +44,7 @@ import numpy as np
 from scipy import linalg, optimize, signal
 
 from dss14_env.core.schema import ConfigError, Param, load_section, read_config, spec
+from dss14_env.core.threads import single_threaded
 from dss14_env.core.units import rad_to_mdeg
 from dss14_env.model.assembly import DSS14Model, default_model
 from dss14_env.model.linsys import balance, discretize, noise_factor
@@ -287,6 +288,7 @@ class WindCalibrationError(RuntimeError):
     """The wind-load coefficients cannot reproduce Table 4 within its accepted ranges."""
 
 
+@single_threaded
 def calibrate_wind_loads(model: DSS14Model | None = None, wcfg: WindConfig | None = None,
                          gain_set: str = "kp1") -> WindLoads:
     """Solve the four moment coefficients so the PI loop reproduces [R] Table 4.
