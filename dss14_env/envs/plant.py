@@ -57,6 +57,7 @@ import numpy as np
 from scipy import linalg
 
 from dss14_env.core.schema import config_path
+from dss14_env.core.threads import single_threaded
 from dss14_env.model.assembly import build_model, default_model
 from dss14_env.model.config import load_model_config
 from dss14_env.model.linsys import balance, discretize, noise_factor
@@ -301,6 +302,7 @@ class Plant:
         """Noise factor ``L = kappa_az L_a + kappa_el L_e`` ``(n, 4)`` of one direction."""
         return kappa[0] * self.L_a + kappa[1] * self.L_e
 
+    @single_threaded
     def episode_map(self, kappa: np.ndarray, t_mean: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The fused one-step map of one episode in the 64-state one-copy form (the single env).
 
@@ -308,7 +310,9 @@ class Plant:
         (:meth:`one_copy_projection`), ``r`` the held rate command, ``xi`` the step's standard
         normals, ``y`` the first :data:`N_STEP_OUTPUTS` outputs at the step's end; the constant
         input carries the held mean torque.  Exact: the same discretisation as
-        :attr:`batch_step_matrix` restricted to the episode's direction.
+        :attr:`batch_step_matrix` restricted to the episode's direction.  Computed with one BLAS
+        thread (:func:`dss14_env.core.threads.single_threaded`): the same bits whatever the
+        caller's threads.
 
         :param kappa: direction factors (:meth:`kappa`)
         :param t_mean: mean wind torques, N*m (:meth:`mean_torque`)
@@ -329,14 +333,19 @@ class Plant:
 
     @cached_property
     def batch_step_matrix(self) -> np.ndarray:
-        """Transposed fused map of the vector env (computed once):
+        """Transposed fused map of the vector env (computed once, with one BLAS thread):
         ``[x+, y+] = [x, r, T_mean, kappa_az xi, kappa_el xi] @ M^T``."""
-        top = np.hstack([self.Ad, self.Bd_r, self.Bd_T, self.L_a, self.L_e])
-        return np.vstack([top, self.C @ top]).T.copy()
+        return _batch_step_matrix(self)
 
     def __repr__(self) -> str:
         return (f"Plant(U={self.wind_speed:.3g} m/s, dt={self.dt:g} s, n={self.n}, "
                 f"params={self.params or 'nominal'})")
+
+
+@single_threaded
+def _batch_step_matrix(p: Plant) -> np.ndarray:
+    top = np.hstack([p.Ad, p.Bd_r, p.Bd_T, p.L_a, p.L_e])
+    return np.vstack([top, p.C @ top]).T.copy()
 
 
 # ---------------------------------------------------------------------- one episode's step
@@ -411,8 +420,7 @@ class PlantFactory:
         if plant is not None:
             self._plants.move_to_end(key)
             return plant
-        rl = perturbed_rate_loop(self.model, dict(params)) if params else self.model.rate_loop
-        plant = Plant(rl, self.loads, float(wind_speed), float(dt), params, xel_scale=self.xel_scale)
+        plant = _build_plant(self, float(wind_speed), float(dt), params)
         self._plants[key] = plant
         if len(self._plants) > self.cache_size:
             self._plants.popitem(last=False)
@@ -493,6 +501,14 @@ class PlantFactories:
 
     def __len__(self) -> int:
         return len(self._factories)
+
+
+@single_threaded
+def _build_plant(f: PlantFactory, wind_speed: float, dt: float, params: Mapping[str, float] | None) -> Plant:
+    """A plant of ``f``'s model, built with one BLAS thread (the same bits whatever the caller's
+    threads, :mod:`dss14_env.core.threads`)."""
+    rl = perturbed_rate_loop(f.model, dict(params)) if params else f.model.rate_loop
+    return Plant(rl, f.loads, wind_speed, dt, params, xel_scale=f.xel_scale)
 
 
 #: the plant factories of this process, per model configuration file
