@@ -118,3 +118,17 @@ def test_vector_state_restores_into_a_copy() -> None:
     _run(other, acts[:10])
     other.set_state(state)
     _same(_run(other, acts), ref)
+
+
+def test_copies_of_a_rendering_env_draw_the_same_picture() -> None:
+    env = DSS14Env(render_mode="rgb_array", scenario="hold")
+    env.reset(seed=0)
+    for _ in range(20):
+        env.step(np.full(2, 0.01))
+    frame = env.render()  # the figure exists now; copies draw their own
+    for c in (copy.deepcopy(env), pickle.loads(pickle.dumps(env))):
+        np.testing.assert_array_equal(c.render(), frame)
+        c.step(np.zeros(2))
+        env_next = copy.deepcopy(env)
+        env_next.step(np.zeros(2))
+        np.testing.assert_array_equal(c.render(), env_next.render())

@@ -32,6 +32,14 @@ class Renderer:
         self._fig = None
         self._lines = None
 
+    def __getstate__(self) -> dict:
+        """The history and settings; the figure is drawn again by the copy when it renders."""
+        state = self.__dict__.copy()
+        for key in ("_fig", "_axs", "_lines", "_suptitle"):
+            state.pop(key, None)
+        state["_fig"] = state["_lines"] = None
+        return state
+
     def reset(self, title: str) -> None:
         """Forget the history; ``title`` labels the figure (scenario, wind)."""
         for d in self.hist.values():
