@@ -33,7 +33,11 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("results", help="results.json of a bench run")
     args = ap.parse_args(argv)
-    r = json.loads(Path(args.results).read_text())
+    try:
+        r = json.loads(Path(args.results).read_text())
+    except (OSError, ValueError) as exc:
+        print(f"bench_targets: cannot read {args.results}: {exc}", file=sys.stderr)
+        return 2
     b = r["bench"]
     quick = bool(b["config"]["quick"])
     wall, cpu = b["wall_time_s"]["total"], b.get("cpu_time_s")

@@ -100,7 +100,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("a", help="results.json of the first run")
     ap.add_argument("b", help="results.json of the second run")
     args = ap.parse_args(argv)
-    a, b = (json.loads(Path(p).read_text()) for p in (args.a, args.b))
+    try:
+        a, b = (json.loads(Path(p).read_text()) for p in (args.a, args.b))
+    except (OSError, ValueError) as exc:
+        print(f"compare_bench_runs: cannot read a results.json: {exc}", file=sys.stderr)
+        return 2
     keys = ("controllers", "runs", "sweep", "wind_speeds_kmh", "env_kwargs")
     differ = [k for k in keys if a["bench"]["config"].get(k) != b["bench"]["config"].get(k)]
     if differ:

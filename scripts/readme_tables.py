@@ -41,8 +41,12 @@ def main(argv: list[str] | None = None) -> int:
                     help="exit 1 if the README's table is not the rendered one")
     args = ap.parse_args(argv)
     readme = Path(args.readme)
-    text = readme.read_text()
-    new = render(text, json.loads(Path(args.results).read_text()))
+    try:
+        text = readme.read_text()
+        new = render(text, json.loads(Path(args.results).read_text()))
+    except (OSError, ValueError) as exc:
+        print(f"readme_tables: {exc}", file=sys.stderr)
+        return 2
     if args.check:
         if new != text:
             print(f"{readme}: the bench table differs from {args.results}; run {Path(__file__).name}",

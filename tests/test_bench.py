@@ -465,6 +465,16 @@ def test_two_runs_are_compared_within_their_intervals(tiny, tmp_path) -> None:
     assert _script("compare_bench_runs.py", str(a), str(b)).returncode == 2
 
 
+@pytest.mark.parametrize("script,args", [
+    ("compare_bench_runs.py", ["/nonexistent/a.json", "/nonexistent/b.json"]),
+    ("bench_targets.py", ["/nonexistent/results.json"]),
+    ("readme_tables.py", ["--check", "--results", "/nonexistent/r.json"])])
+def test_scripts_name_a_missing_file_in_one_line(script, args) -> None:
+    done = _script(script, *args)
+    assert done.returncode == 2 and "/nonexistent/" in done.stderr and "Traceback" not in done.stderr
+    assert done.stderr.strip().count("\n") == 0
+
+
 def test_targets_script_reads_a_run(tiny) -> None:
     done = _script("bench_targets.py", str(tiny["out"] / "results.json"))
     assert "wall time" in done.stdout and "of 300 s" in done.stdout
