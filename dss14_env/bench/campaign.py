@@ -296,7 +296,7 @@ def parse_wind_speeds(values: Iterable[str | float] | None) -> tuple[float, ...]
 # ---------------------------------------------------------------------------- one chunk
 def _factory(name: str, ppo_model: str | None) -> Callable[[Any], Any]:
     if name == "ppo":
-        from dss14_env.bench.bench import ppo_factory
+        from dss14_env.bench.run import ppo_factory
         return ppo_factory(ppo_model)
     return runner.CONTROLLERS[name]
 

@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from dss14_env.bench.bench import fmt, package_versions
+from dss14_env.bench.report import fmt, package_versions
 from dss14_env.core.stats import bootstrap_ci
 from dss14_env.core.units import AXES
 
