@@ -1,6 +1,7 @@
 """Many training seeds, one folder, honest statistics.
 
-:func:`train_seeds` trains one run per seed index ``k`` (sequentially, in this process) into
+:func:`train_seeds` trains one run per seed index ``k`` (one after another in this process, or
+as Ray tasks through an executor of :mod:`dss14_env.core.parallel`) into
 ``<out>/seed_<k>/`` with the training seed ``config.seed + 1000 k`` (so the sub-environments
 of different runs never share a seed), then scores every run's final and best
 (``eval/best``) policy, loaded back from disk, on the test seeds (never seen in training,
@@ -35,6 +36,7 @@ from dss14_env.agents.evaluation import DSS14_TASKS, TEST_SEEDS, TEST_STEPS, Eva
 from dss14_env.agents.policy import load_policy
 from dss14_env.agents.train import train
 from dss14_env.core.outdir import atomic_write_bytes, atomic_write_text, prepare_output_dir
+from dss14_env.core.parallel import Executor, SerialExecutor
 from dss14_env.core.stats import iqm_ci
 
 #: distance between the training seeds of two seed indices
@@ -104,9 +106,30 @@ def _aggregate(values: list[float]) -> dict[str, Any]:
             "max": float(np.max(values)), "per_seed": [float(v) for v in values]}
 
 
+def train_one_seed(item: Mapping[str, Any]) -> dict[str, Any]:
+    """One seed index of :func:`train_seeds`: train into ``<folder>/seed_<k>/``, then score the
+    final and best policies -- one work item of an executor (:mod:`dss14_env.core.parallel`).
+
+    :param item: ``config`` (:class:`TrainConfig`), ``k``, ``folder``, ``test_seeds``, ``test_steps``
+    :return: the seed's entry of ``summary.json``'s ``per_seed``
+    """
+    cfg, k = as_config(item["config"]), int(item["k"])
+    tasks, test_seeds, test_steps = _tasks(cfg), item["test_seeds"], item["test_steps"]
+    run = train(cfg.replace(seed=training_seed(cfg, k)), run_dir=Path(item["folder"]) / f"seed_{k}")
+    ts = json.loads((run / "train_summary.json").read_text())
+    entry: dict[str, Any] = {"seed_index": k, "training_seed": training_seed(cfg, k),
+                             "run": run.name, "wall_s": ts["wall_s"],
+                             "env_steps": ts["num_timesteps"]}
+    entry["final"] = _score(run, tasks, test_seeds, test_steps)
+    best = run / "eval" / "best"
+    entry["best"] = _score(best, tasks, test_seeds, test_steps) if best.is_dir() else None
+    return entry
+
+
 def train_seeds(config: TrainConfig | Mapping[str, Any] | str | Path, seeds: Sequence[int],
                 out: str | Path, overwrite: bool = False, test_seeds: Sequence[int] = TEST_SEEDS,
-                test_steps: int = TEST_STEPS, figures: bool = True) -> Path:
+                test_steps: int = TEST_STEPS, figures: bool = True,
+                executor: Executor | None = None) -> Path:
     """Train one run per seed index and score them (see the module doc).
 
     :param config: the shared configuration (its ``seed`` is the base seed)
@@ -116,6 +139,10 @@ def train_seeds(config: TrainConfig | Mapping[str, Any] | str | Path, seeds: Seq
     :param test_seeds: evaluation seeds, default 0-9 (never used in training)
     :param test_steps: episode length of the test episodes, default 3000 (60 s)
     :param figures: draw the learning curves
+    :param executor: where the seeds run (:mod:`dss14_env.core.parallel`): default one after
+        another in this process; a Ray executor runs them as Ray tasks (the same numbers: every
+        seed runs with one BLAS thread either way); ``out`` must then be a folder every Ray node
+        can write
     :return: the campaign folder
     """
     cfg = as_config(config)
@@ -125,17 +152,11 @@ def train_seeds(config: TrainConfig | Mapping[str, Any] | str | Path, seeds: Seq
                       f"{cfg.source}); run k trains with seed {cfg.seed} + {SEED_STRIDE} k\n"
                       + yaml.safe_dump(cfg.to_dict(), sort_keys=False))
     tasks = _tasks(cfg)
-    per_seed = []
-    for k in seeds:
-        run = train(cfg.replace(seed=training_seed(cfg, k)), run_dir=folder / f"seed_{k}")
-        ts = json.loads((run / "train_summary.json").read_text())
-        entry: dict[str, Any] = {"seed_index": k, "training_seed": training_seed(cfg, k),
-                                 "run": run.name, "wall_s": ts["wall_s"],
-                                 "env_steps": ts["num_timesteps"]}
-        entry["final"] = _score(run, tasks, test_seeds, test_steps)
-        best = run / "eval" / "best"
-        entry["best"] = _score(best, tasks, test_seeds, test_steps) if best.is_dir() else None
-        per_seed.append(entry)
+    items = [{"config": cfg, "k": k, "folder": str(folder), "test_seeds": [int(s) for s in test_seeds],
+              "test_steps": int(test_steps)} for k in seeds]
+    ex = executor if executor is not None else SerialExecutor()
+    done = dict(ex.map_unordered(train_one_seed, items, labels=[f"seed {k}" for k in seeds]))
+    per_seed = [done[i] for i in range(len(seeds))]
     aggregate: dict[str, Any] = {}
     for which in ("final", "best"):
         rows = [e[which] for e in per_seed if e[which] is not None]
@@ -236,5 +257,5 @@ def write_curves(folder: Path, runs: Sequence[Path], tasks: Sequence[EvalTask]) 
     return written
 
 
-__all__ = ["CAMPAIGN_FILES", "SEED_STRIDE", "learning_curves", "parse_seeds", "train_seeds",
-           "training_seed", "write_curves"]
+__all__ = ["CAMPAIGN_FILES", "SEED_STRIDE", "learning_curves", "parse_seeds", "train_one_seed",
+           "train_seeds", "training_seed", "write_curves"]

@@ -54,6 +54,7 @@ import numpy as np
 from scipy import linalg
 
 from dss14_env.core.schema import ConfigError, Param, load_section, read_config, spec
+from dss14_env.core.threads import single_threaded
 from dss14_env.core.units import MDEG, WIND_DIRECTIONS
 from dss14_env.model.assembly import DSS14Model, default_model
 from dss14_env.model.linsys import balance, discretize, noise_factor
@@ -501,6 +502,7 @@ def build_design_model(dt: float, order: int | None | str = "config", wind: Any 
                    lambda: _build(float(dt), order, wind, float(encoder_noise), bits, model, loads))
 
 
+@single_threaded
 def _build(dt, order, wind, encoder_noise, bits, model, loads) -> DesignModel:
     red = reduce_rate_loop(order, model, loads)
     A_w, G_w, C_w = _wind_model(loads, wind)

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from dss14_env.core.units import DEG, MDEG
-from dss14_env.envs.scenarios import load_env_config
+from dss14_env.envs.config import load_env_config
 
 
 @dataclass(frozen=True)

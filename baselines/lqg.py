@@ -53,6 +53,7 @@ from dss14_env.baselines.design import (
 )
 from dss14_env.baselines.interface import ControlInterface, ObservationReader, Weights, as_interface
 from dss14_env.baselines.shaping import CommandShaper, ReferenceGenerator
+from dss14_env.core.threads import single_threaded
 
 
 # ------------------------------------------------------------------------- design
@@ -126,6 +127,7 @@ def augmented_lqr_problem(dm: DesignModel, weights: Weights, w_e: float, w_a: fl
     return Az, Bz, Qz, Rz, Sz
 
 
+@single_threaded
 def design_lqg(dm: DesignModel, weights: Weights, w_e: float = 1.0, w_a: float = 1.0,
                w_i: float | None = 1e-3, input_noise: float = 0.0, disturbance_drift: float | None = 0.0,
                rate_limit: float | None = None) -> LQGDesign:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from typing import Any
 
 
 def _reproduce(args: argparse.Namespace) -> int:
@@ -37,18 +38,30 @@ def _reproduce(args: argparse.Namespace) -> int:
 
 
 def _train(args: argparse.Namespace) -> int:
-    from dss14_env.agents.campaign import parse_seeds, train_seeds
+    from dss14_env.agents.campaign import CAMPAIGN_FILES, parse_seeds, train_seeds
     from dss14_env.agents.train import TrainingInterrupted, config_for_command, train
+    from dss14_env.core.outdir import prepare_output_dir
+    from dss14_env.core.parallel import check_ray_options, make_executor, require_ray
 
+    use_ray = args.ray or args.address is not None or args.num_cpus is not None
     cfg = config_for_command(args.algo, args.config, args.env, args.resume, args.timesteps,
                              args.seed)
+    if use_ray:  # before Ray starts: bad options, an unusable --out, or no Ray (how to install it)
+        if args.seeds is None or args.out is None:
+            raise ValueError("--ray runs the runs of --seeds as Ray tasks: give --seeds and --out")
+        parse_seeds(args.seeds)
+        check_ray_options(args.address, args.num_cpus)
+        require_ray()
+        prepare_output_dir(args.out, CAMPAIGN_FILES, args.overwrite)
     try:
         if args.seeds is not None:
             if args.resume is not None or args.seed is not None:
                 raise ValueError("--seeds trains fresh runs: without --resume and --seed")
             if args.out is None:
                 raise ValueError("--seeds needs --out (the campaign folder)")
-            out = train_seeds(cfg, parse_seeds(args.seeds), args.out, overwrite=args.overwrite)
+            with make_executor(use_ray, address=args.address, num_cpus=args.num_cpus) as ex:
+                out = train_seeds(cfg, parse_seeds(args.seeds), args.out, overwrite=args.overwrite,
+                                  executor=ex)
             print(f"{len(parse_seeds(args.seeds))} runs, summary.json and learning curves "
                   f"written to {out}")
             return 0
@@ -65,14 +78,16 @@ def _train(args: argparse.Namespace) -> int:
 def _bench(args: argparse.Namespace) -> int:
     import shlex
 
-    from dss14_env.bench.bench import bench, build_plan
+    from dss14_env.bench.bench import bench, build_plan, prepare_out
 
     cmd = "dss14 " + shlex.join(args.argv)
     plan = build_plan(controllers=args.controllers, scenarios=args.scenarios, seeds=args.seeds,
                       wind_speeds=args.wind_speeds, steps=args.steps, quick=args.quick,
                       ppo_model=args.ppo_model, randomize=args.randomize, out=args.out,
                       figures=not args.no_figures, sweep=not args.no_sweep,
-                      sweep_seeds=args.sweep_seeds, command=cmd)
+                      sweep_seeds=args.sweep_seeds, sequential_episodes=args.sequential_episodes,
+                      threads=args.threads, overwrite=args.overwrite, command=cmd)
+    prepare_out(plan)  # before any work: a bad --out is a one-line error
     for note in plan.notes:
         print(f"dss14 bench: warning: {note}", file=sys.stderr)
     print(plan.describe(), flush=True)
@@ -81,6 +96,85 @@ def _bench(args: argparse.Namespace) -> int:
     print(f"results.json, results.md and {len(res['figures'])} figures written to {plan.out} "
           f"in {res['wall_time_s']:.1f} s")
     return 0
+
+
+def _campaign(args: argparse.Namespace) -> int:
+    import shlex
+
+    from dss14_env.bench import campaign as C
+    from dss14_env.bench.campaign_report import parse_requirements
+    from dss14_env.core.parallel import check_ray_options, make_executor, require_ray
+
+    given = {k: v for k, v in (("controllers", args.controllers), ("plants", args.plants),
+                               ("first_plant", args.first_plant), ("steps", args.steps),
+                               ("chunk_size", args.chunk_size), ("ppo_model", args.ppo_model),
+                               ("wind_speeds_kmh", C.parse_wind_speeds(args.wind_speeds)),
+                               ("directions", C.parse_directions(args.directions))) if v is not None}
+    spec = C.CampaignSpec(**given)
+    reqs = parse_requirements(args.requirements)
+    use_ray = args.ray or args.address is not None or args.num_cpus is not None
+    if use_ray:  # before any work: bad Ray options, or no Ray (then how to install it)
+        check_ray_options(args.address, args.num_cpus)
+        require_ray()
+
+    def executor():
+        return make_executor(use_ray, address=args.address, num_cpus=args.num_cpus)
+
+    where = "Ray " + (f"at {args.address}" if args.address else "(local)") if use_ray else "in-process"
+    print(f"campaign: {spec.plants} plants x {len(spec.conditions)} wind conditions x "
+          f"{len(spec.controllers)} controllers = {spec.n_episodes} episodes of {spec.steps} steps, "
+          f"{len(spec.chunks())} chunks, {where}", flush=True)
+    try:
+        res = C.run_campaign(spec, args.out, executor=executor, requirements=reqs, resume=args.resume,
+                             overwrite=args.overwrite, figures=not args.no_figures,
+                             progress=not args.no_progress, command="dss14 " + shlex.join(args.argv))
+    except KeyboardInterrupt:
+        print(f"dss14 campaign: interrupted; the finished chunks are in {args.out}/chunks: rerun "
+              f"with --resume to continue", file=sys.stderr)
+        return 130
+    print(res["table"])
+    print(f"results.json, results.md and {len(res['figures'])} figures written to {res['out']} "
+          f"({len(res['computed'])} chunks computed, {len(res['resumed'])} read back) in "
+          f"{res['results']['campaign']['wall_time_s']['total']:.1f} s")
+    return 0
+
+
+def _add_campaign_parser(sub: Any) -> None:
+    p = sub.add_parser("campaign", help="robustness campaign: controllers over plants drawn from "
+                       "the report's parameter ranges, in chunks, in-process or on Ray",
+                       description="N plants drawn from the report's hydraulic parameter ranges "
+                       "(stable part) x wind speeds x directions x controllers, hold episodes in "
+                       "chunks; writes results.json, results.md and a CDF figure per wind speed; "
+                       "--resume continues an interrupted campaign (docs/scale.md).")
+    p.add_argument("--plants", type=int, default=None, metavar="N", help="number of plants (default 200)")
+    p.add_argument("--first-plant", type=int, default=None, metavar="K",
+                   help="index of the first plant (default 0): plants K .. K+N-1")
+    p.add_argument("--controllers", nargs="+", metavar="NAME", default=None,
+                   help="pi_kp1 pi_kp0.7 lqg mpc yardstick ppo (default: pi_kp1 lqg mpc)")
+    p.add_argument("--ppo-model", default=None, metavar="PATH",
+                   help="the ppo controller's policy (default: the shipped one)")
+    p.add_argument("--wind-speeds", nargs="+", metavar="KMH", default=None,
+                   help="mean wind speeds, km/h (default 50)")
+    p.add_argument("--directions", nargs="+", metavar="DIR", default=None,
+                   help="front, side or degrees from the boresight (default: front side)")
+    p.add_argument("--steps", type=int, default=None,
+                   help="episode length, control periods, 50 per second (default 1500; 5-s warm-up)")
+    p.add_argument("--chunk-size", type=int, default=None, metavar="N",
+                   help="plants per chunk, the unit of work and of resuming (default 5)")
+    p.add_argument("--requirements", nargs="+", metavar="NAME=MDEG", default=None,
+                   help="pointing requirements on the 3-sigma servo error (default: Ka=2 X=8)")
+    p.add_argument("--ray", action="store_true", help="run the chunks as Ray tasks (a local Ray by default)")
+    p.add_argument("--address", default=None,
+                   help="join a running Ray cluster: 'auto' or its address (implies --ray)")
+    p.add_argument("--num-cpus", type=int, default=None, metavar="N",
+                   help="CPUs of the local Ray (implies --ray; default: all of the machine's)")
+    p.add_argument("--out", default="campaign_out", help="output folder (default: campaign_out)")
+    p.add_argument("--resume", action="store_true",
+                   help="continue the campaign in --out: finished chunks are read back")
+    p.add_argument("--overwrite", action="store_true", help="replace a campaign in --out")
+    p.add_argument("--no-figures", action="store_true", help="results.json and results.md only")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=_campaign)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -120,15 +214,26 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seeds", nargs="+", default=None, metavar="K",
                    help="one run per seed index into --out/seed_<k>/ (0-4, or 0 3 7), then "
                    "summary.json and learning curves")
+    p.add_argument("--ray", action="store_true",
+                   help="with --seeds: the runs as Ray tasks, on a local Ray by default (docs/scale.md)")
+    p.add_argument("--address", default=None,
+                   help="with --seeds: join a running Ray cluster, 'auto' or its address (implies "
+                   "--ray; --out on a folder every node can write)")
+    p.add_argument("--num-cpus", type=int, default=None, metavar="N",
+                   help="with --seeds: CPUs of the local Ray (implies --ray; default all)")
     p.set_defaults(func=_train)
     p = sub.add_parser("bench", help="score PI, LQG, MPC and PPO on the same scenarios and seeds",
                        description="Run every controller through the runner on the same "
-                       "scenarios and seeds; write results.json, results.md and PNG figures "
-                       "(docs/bench.md).")
+                       "scenarios and seeds; write results.json, results.md and PNG figures, every "
+                       "figure with its 95 % confidence interval (docs/bench.md).")
     p.add_argument("--quick", action="store_true",
-                   help="short version: 1 seed, shorter episodes, wind speeds 30 50 70 (under a minute)")
+                   help="short version for CI: few, short episodes, wind speeds 30 50 70 (under 30 s)")
     p.add_argument("--seeds", nargs="+", metavar="SEED", default=None,
-                   help="one value N: seeds 0..N-1; several: those seeds (default: 0 1)")
+                   help="episodes of the batched controllers in every scenario: one value N: seeds "
+                   "0..N-1; several: those seeds (default: each scenario's count, e.g. 128 for hold)")
+    p.add_argument("--sequential-episodes", type=int, default=None, metavar="M",
+                   help="episodes of the controllers that run one at a time (MPC): the first M seeds "
+                   "of every scenario and sweep point (default: each scenario's, e.g. 16 for hold)")
     p.add_argument("--controllers", nargs="+", metavar="NAME", default=None,
                    help="pi_kp1 pi_kp0.7 lqg mpc ppo yardstick (default: all but yardstick)")
     p.add_argument("--scenarios", nargs="+", metavar="NAME", default=None,
@@ -137,18 +242,25 @@ def main(argv: list[str] | None = None) -> int:
                    help="speeds of the error-vs-wind sweep, km/h (default: 30 40 50 60 70)")
     p.add_argument("--no-sweep", action="store_true", help="skip the error-vs-wind sweep")
     p.add_argument("--sweep-seeds", type=int, default=None, metavar="N",
-                   help="run the sweep on the first N seeds (default 1)")
+                   help="episodes per sweep point of the batched controllers (default 32)")
     p.add_argument("--steps", type=int, default=None,
                    help="episode length of every scenario and sweep point, control periods "
                    "(default: the scenario's; 50 per second)")
     p.add_argument("--ppo-model", default=None, metavar="PATH",
-                   help="PPO run folder, eval/best folder or zip (default: the shipped policy)")
+                   help="trained policy folder (run folder, eval/best or a checkpoint folder; "
+                   "default: the shipped policy)")
     p.add_argument("--randomize", action="store_true",
                    help="randomised plant parameters every episode (randomize_params=True)")
+    p.add_argument("--threads", type=int, default=1, metavar="N",
+                   help="BLAS threads of numpy and scipy while running (default 1)")
     p.add_argument("--out", default="bench_out", help="output folder (default: bench_out)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace the results of an earlier bench in --out (results.json, results.md, "
+                   "its figures; nothing else)")
     p.add_argument("--no-figures", action="store_true", help="results.json and results.md only")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_bench)
+    _add_campaign_parser(sub)
     args = parser.parse_args(argv)
     args.argv = list(argv) if argv is not None else sys.argv[1:]
     return run_command(args)

@@ -137,7 +137,8 @@ def loop_rows(m: DSS14Model, gain_set: str) -> dict:
         sm = step_metrics(t, y[:, 0])
         out[f"pi_overshoot_pct_{tag}"] = _row("20-30", sm["overshoot_pct"], [15, 35], "Fig. 21")
         out[f"pi_settling_2pct_s_{tag}"] = _row("7-9", sm["settling_2pct_s"], [0, 12], "Fig. 21, 2 %")
-        out[f"pi_settling_5pct_s_{tag}"] = _row("7-9", sm["settling_5pct_s"], None, "Fig. 21, 5 % (reported only)")
+        out[f"pi_settling_5pct_s_{tag}"] = _row("7-9", sm["settling_5pct_s"], None,
+                                               "Fig. 21, 5 % (reported only)")
         cal = first and ax == "az"
         out[f"cross_coupling_{ax}_step_{gain_set}"] = _row(
             1e-3, float(np.max(np.abs(y[:, 1]))), [1e-4, 5e-3],
@@ -166,8 +167,8 @@ def compute_metrics(m: DSS14Model, sweep_levels: int = 3) -> dict:
                                                       "Fig. 17 phase at 0.3 Hz, deg (not printed in [R])")
         tgt = m.cfg.calibration.gearbox_peak[ax]
         out[f"gearbox_peak_hz_{ax}"] = _row(tgt, peak_frequency(rl, ax, 0.5 * tgt, 2 * tgt, 400),
-                                            [0.9 * tgt, 1.1 * tgt], "Fig. 17 gearbox resonance (calibration target)",
-                                            True)
+                                            [0.9 * tgt, 1.1 * tgt],
+                                            "Fig. 17 gearbox resonance (calibration target)", True)
     s = m.structure.to_ss()
     f = np.geomspace(0.3, 3.0, 6000)
     pk = peak_frequencies(f, np.abs(freqresp(s, f, "enc_rate_az", "T_a")))
@@ -394,7 +395,7 @@ def viscosity_markdown(sens: dict) -> str:
             continue
         v = r["values"]
 
-        def pair(key: str, fmt: str = ".3f") -> str:
+        def pair(key: str, fmt: str = ".3f", v: dict = v) -> str:
             return " / ".join(format(v[key.format(ax=ax)], fmt) for ax in AXES)
         lam = " / ".join(f"{r['lambda'][ax]:.1f}" for ax in AXES)
         bad = ", ".join(f"`{k}`" for k in r["failed"]) or "none"
@@ -498,7 +499,8 @@ def readme_table(results: dict) -> str:
             ("gain crossover az / el, kp 1; kp 0.7, Hz", "0.1", "pi_crossover_hz_{ax}_{g}", ".3f", ".2f"),
             ("−3 dB bandwidth az / el, kp 1; kp 0.7, Hz", "0.1", "pi_bandwidth_hz_{ax}_{g}", ".3f", ".2f"),
             ("phase margin az / el, kp 1; kp 0.7, deg", "—", "pi_phase_margin_deg_{ax}_{g}", ".1f", ".1f"),
-            ("closed-loop peak \\|T\\| az / el, kp 1; kp 0.7, dB", "—", "pi_peak_T_db_{ax}_{g}", ".2f", ".1f"),
+            ("closed-loop peak \\|T\\| az / el, kp 1; kp 0.7, dB", "—", "pi_peak_T_db_{ax}_{g}", ".2f",
+             ".1f"),
             ("overshoot az / el, kp 1; kp 0.7, %", "20–30", "pi_overshoot_pct_{ax}_{g}", ".1f", ".0f"),
             ("2 % settling az / el, kp 1; kp 0.7, s", "7–9", "pi_settling_2pct_s_{ax}_{g}", ".1f", ".0f"),
             ("5 % settling az / el, kp 1; kp 0.7, s", "7–9", "pi_settling_5pct_s_{ax}_{g}", ".1f", ".0f")):
@@ -545,7 +547,8 @@ def loop_figures_markdown(results: dict) -> str:
             t = f"{ax}_{g}"
             lines.append(f"| {ax}, {gl} | {mt['pi_bandwidth_hz_' + t]['model']:.3f} | "
                          f"{mt['pi_crossover_hz_' + t]['model']:.3f} | "
-                         f"{mt['pi_phase_margin_deg_' + t]['model']:.1f} | {mt['pi_peak_T_db_' + t]['model']:.2f} |")
+                         f"{mt['pi_phase_margin_deg_' + t]['model']:.1f} | "
+                         f"{mt['pi_peak_T_db_' + t]['model']:.2f} |")
     return "\n".join(lines) + "\n"
 
 
@@ -555,7 +558,8 @@ def bandwidth_rigid_markdown(results: dict) -> str:
     lines = ["| loop | model | rigid structure |", "|---|---|---|"]
     for g in ("kp1", "kp0.7"):
         for ax in AXES:
-            lines.append(f"| {ax}, {g} | {bw[f'model_{ax}_{g}']:.3f} Hz | {bw[f'rigid_structure_{ax}_{g}']:.3f} Hz |")
+            lines.append(f"| {ax}, {g} | {bw[f'model_{ax}_{g}']:.3f} Hz | "
+                         f"{bw[f'rigid_structure_{ax}_{g}']:.3f} Hz |")
     return "\n".join(lines) + "\n"
 
 
@@ -606,7 +610,7 @@ def draw_wind_figures(loads: WindLoads, records: dict, dt: float, out: Path) -> 
     fig, axes = _figure(2, (8, 6))
     n = min(int(round(600.0 / dt)), next(iter(records.values())).shape[0])
     t = np.arange(n) * dt
-    for axp, (d, y) in zip(axes, records.items()):
+    for axp, (d, y) in zip(axes, records.items(), strict=True):
         axp.plot(t, y[:n, 0], lw=0.7, label="azimuth")
         axp.plot(t, y[:n, 1], lw=0.7, label="elevation")
         axp.set_ylabel(f"{d} wind: servo error, mdeg")
@@ -714,7 +718,8 @@ def draw_figures(m: DSS14Model, out: Path) -> list[str]:
     fig, (a, b) = _figure(2, (7, 7))
     fig2, (a2, b2) = _figure(2, (7, 7))
     for g, pl in pls.items():
-        for axp, axc, c_in, enc, oth in ((a, a2, "c_a", "enc_az", "enc_el"), (b, b2, "c_e", "enc_el", "enc_az")):
+        for axp, axc, c_in, enc, oth in ((a, a2, "c_a", "enc_az", "enc_el"),
+                                         (b, b2, "c_e", "enc_el", "enc_az")):
             t, y = step(pl, c_in, [enc, oth], STEP_T_END, STEP_N)
             axp.plot(t, y[:, 0], label=g)
             axc.plot(t, y[:, 1], label=g)
@@ -762,7 +767,8 @@ def reproduce(out_dir: str | Path, model: DSS14Model | None = None, figures: boo
     metrics.update(wind_rows)
     results = {"metrics": metrics, "rate_loop_poles": rate_loop_pole_table(m),
                "viscosity_sensitivity": viscosity_sensitivity(m),
-               "wind_loads": dict(wind_load_summary(loads), drive_sensitivity=wind_drive_sensitivity(m, loads)),
+               "wind_loads": dict(wind_load_summary(loads),
+                                  drive_sensitivity=wind_drive_sensitivity(m, loads)),
                "calibrated": m.derived(), "config": _config_label(m.cfg)}
     atomic_write_text(out / "metrics.json", json.dumps(results, indent=2, default=float))
     md = results_markdown(results)

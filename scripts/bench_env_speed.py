@@ -1,29 +1,51 @@
 """Speed of the DSS14 environments: single-env steps/s against Pendulum-v1, and the batched
 vector env's env-steps/s.
 
-Run on 2 cores (the figures in docs/env.md were taken like this)::
+Run it from the repository (it imports the repository's ``dss14_env``)::
 
-    taskset -c 0,1 python scripts/bench_env_speed.py
+    python scripts/bench_env_speed.py                                   # print
+    python scripts/bench_env_speed.py --json docs/results/env_speed.json  # and keep the results
 
-The single environments are made with ``gymnasium.make`` (so all carry the same standard
-wrappers) and stepped with actions drawn beforehand (uniform over the action space); an
-episode end triggers a reset, which is counted in the time.  The runs of the environments
-alternate, ``--repeats`` rounds, and each figure is the best of its runs (the one least
-disturbed by other load on the machine).
+How it measures.  The single environments are made with ``gymnasium.make`` (so all carry the
+same standard wrappers) and stepped with actions drawn beforehand (uniform over the action
+space); an episode end triggers a reset, which is counted in the time.  The environments run
+in turn, ``--repeats`` rounds, so a change of the machine's load affects them alike; the ratio
+to Pendulum-v1 is taken per round (same load) and summarised by its median over the rounds with
+a 95 % bootstrap interval over the rounds (:func:`dss14_env.core.stats.bootstrap_ci`).  The
+vector env's rate is summarised the same way over its repeats.  ``--clock cpu`` times with the
+process's CPU time instead of the wall clock: on a machine shared with other jobs it is much
+less disturbed (the single environments are single-threaded; the vector env's BLAS threads are
+counted too -- OpenBLAS threads spin while they wait, so with several BLAS threads on a busy
+machine its CPU-time rate says little: use ``--blas-threads 1`` with ``--clock cpu``).  The
+result file records the clock, the settings, the machine (CPU count, load average) and the
+package versions with the figures.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import os
+import platform
+import subprocess
 import sys
 import time
 from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
+from threadpoolctl import threadpool_limits
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository's dss14_env first
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))  # the repository's dss14_env first
 import dss14_env  # noqa: E402,F401  (registers DSS14-v0)
+from dss14_env.core.outdir import atomic_write_text  # noqa: E402
+from dss14_env.core.stats import bootstrap_ci  # noqa: E402
+
+SINGLE_IDS = ("Pendulum-v1", "DSS14-v0", "DSS14-Hold-v0")
+VECTOR_IDS = ("DSS14-v0", "DSS14-Hold-v0")
+TARGET_RATIO = 2.0
+CLOCKS = {"wall": time.perf_counter, "cpu": time.process_time}
 
 
 class _SingleRun:
@@ -40,63 +62,141 @@ class _SingleRun:
             self.env.step(a)
         self.env.reset(seed=seed)
 
-    def rate(self) -> float:
+    def rate(self, clock) -> float:
         """Steps/s of one pass over the actions (episode ends reset, inside the timing)."""
         env, actions = self.env, self.actions
-        t0 = time.perf_counter()
+        t0 = clock()
         for a in actions:
             _, _, term, trunc, _ = env.step(a)
             if term or trunc:
                 env.reset()
-        return actions.shape[0] / (time.perf_counter() - t0)
+        return actions.shape[0] / (clock() - t0)
 
 
-def single_env_rates(env_ids: list[str], n_steps: int, repeats: int) -> dict[str, float]:
-    """Best steps/s of each environment; the runs of the ids are interleaved ``repeats`` times,
-    so a change of the machine's load affects them alike."""
+def single_env_rates(env_ids: tuple[str, ...], n_steps: int, repeats: int, clock) -> dict[str, list[float]]:
+    """Steps/s of each environment per round; the rounds interleave the ids."""
     runs = {env_id: _SingleRun(env_id, n_steps) for env_id in env_ids}
-    best = dict.fromkeys(env_ids, 0.0)
+    rates: dict[str, list[float]] = {env_id: [] for env_id in env_ids}
     for _ in range(repeats):
         for env_id, run in runs.items():
-            best[env_id] = max(best[env_id], run.rate())
-    return best
+            rates[env_id].append(run.rate(clock))
+    return rates
 
 
-def vector_env_rate(env_id: str, num_envs: int, n_steps: int, repeats: int, seed: int = 0) -> float:
-    """Best env-steps/s of the ``vector_entry_point`` vector env over ``repeats`` runs."""
+def vector_env_rates(env_id: str, num_envs: int, n_steps: int, repeats: int, clock,
+                     seed: int = 0) -> list[float]:
+    """Env-steps/s of the ``vector_entry_point`` vector env, per repeat."""
     envs = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point")
     rng = np.random.default_rng(seed)
     actions = rng.uniform(-0.01, 0.01, (64, num_envs, 2)).astype(np.float32)
     envs.reset(seed=seed)
     for i in range(20):
         envs.step(actions[i % 64])
-    best = 0.0
+    rates = []
     for _ in range(repeats):
-        t0 = time.perf_counter()
+        t0 = clock()
         for i in range(n_steps):
             envs.step(actions[i % 64])
-        best = max(best, num_envs * n_steps / (time.perf_counter() - t0))
+        rates.append(num_envs * n_steps / (clock() - t0))
     envs.close()
-    return best
+    return rates
+
+
+def summary(values: list[float]) -> dict:
+    """Median with its 95 % bootstrap interval over the rounds, the best and every value."""
+    v = np.asarray(values, float)
+    ci = bootstrap_ci(v, np.median, rng=np.random.default_rng(0)) if v.size >= 3 else None
+    return {"median": float(np.median(v)), "ci95": None if ci is None else [ci.low, ci.high],
+            "best": float(v.max()), "values": v.tolist(), "n": int(v.size)}
+
+
+def run(args: argparse.Namespace) -> dict:
+    """Measure everything; the results as a JSON-ready dict."""
+    clock = CLOCKS[args.clock]
+    rates = single_env_rates(SINGLE_IDS, args.steps, args.repeats, clock)
+    out: dict = {"single": {}, "ratio_to_pendulum": {}, "vector": {}}
+    for env_id, r in rates.items():
+        out["single"][env_id] = summary(r)
+    pend = np.asarray(rates["Pendulum-v1"])
+    for env_id in SINGLE_IDS[1:]:
+        ratios = np.asarray(rates[env_id]) / pend  # per round: the same load on both
+        s = summary(ratios.tolist())
+        s["target"] = TARGET_RATIO
+        s["meets_target"] = None if s["ci95"] is None else bool(s["ci95"][0] >= TARGET_RATIO)
+        out["ratio_to_pendulum"][env_id] = s
+    with threadpool_limits(limits=args.blas_threads, user_api="blas"):
+        for env_id in VECTOR_IDS:
+            out["vector"][env_id] = summary(vector_env_rates(env_id, args.num_envs, args.vec_steps,
+                                                             args.repeats, clock))
+    out["settings"] = {"clock": args.clock, "steps": args.steps, "vec_steps": args.vec_steps,
+                       "num_envs": args.num_envs, "repeats": args.repeats, "blas_threads": args.blas_threads}
+    out["machine"] = {"cpus": os.cpu_count(), "load_average_1_5_15": list(os.getloadavg()),
+                      "platform": platform.platform(), "python": platform.python_version(),
+                      "numpy": np.__version__, "gymnasium": gym.__version__,
+                      "dss14_env": dss14_env.__version__, "git_revision": _git_revision()}
+    out["when"] = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+    return out
+
+
+def _git_revision() -> str | None:
+    """The repository's commit (with ``-dirty`` for uncommitted changes), None outside git."""
+    try:
+        rev = subprocess.run(["git", "describe", "--always", "--dirty"], cwd=ROOT, capture_output=True,
+                             text=True, timeout=10, check=True).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return rev or None
+
+
+def _fmt_ci(s: dict, fmt: str) -> str:
+    if s["ci95"] is None:
+        return ""
+    return f" (95 % CI {format(s['ci95'][0], fmt)} - {format(s['ci95'][1], fmt)})"
+
+
+def report(res: dict) -> str:
+    """The results as text lines."""
+    st, m = res["settings"], res["machine"]
+    lines = [f"clock: {st['clock']}, {st['repeats']} rounds, BLAS threads of the vector env: "
+             f"{st.get('blas_threads') or 'as is'}, load average {m['load_average_1_5_15'][0]:.1f} on "
+             f"{m['cpus']} CPUs"]
+    for env_id, s in res["single"].items():
+        lines.append(f"{env_id:15s} single env: median {s['median']:12,.0f} steps/s{_fmt_ci(s, ',.0f')}, "
+                     f"best {s['best']:,.0f}")
+    for env_id, s in res["ratio_to_pendulum"].items():
+        verdict = {True: "meets", False: "does not meet (CI reaches below)", None: "too few rounds for"}[
+            s["meets_target"]]
+        lines.append(f"{env_id:15s} ratio to Pendulum-v1: median {s['median']:.2f}x{_fmt_ci(s, '.2f')}, "
+                     f"best-round {s['best']:.2f}x; {verdict} the target >= {s['target']:g}")
+    for env_id, s in res["vector"].items():
+        lines.append(f"{env_id:15s} vector env N={res['settings']['num_envs']}: median {s['median']:12,.0f} "
+                     f"env-steps/s{_fmt_ci(s, ',.0f')}, best {s['best']:,.0f}")
+    return "\n".join(lines)
 
 
 def main() -> None:
-    """Print the single-env rates, their ratios to Pendulum-v1 and the vector-env rates."""
+    """Print the rates, the ratios to Pendulum-v1 and the vector-env rates; ``--json`` keeps them."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--steps", type=int, default=30000, help="single-env steps per run")
-    ap.add_argument("--vec-steps", type=int, default=1000, help="vector-env steps per run")
+    ap.add_argument("--steps", type=int, default=30000, help="single-env steps per round")
+    ap.add_argument("--vec-steps", type=int, default=1000, help="vector-env steps per repeat")
     ap.add_argument("--num-envs", type=int, default=1024)
-    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--repeats", type=int, default=9, help="rounds (at least 3 for an interval)")
+    ap.add_argument("--clock", choices=sorted(CLOCKS), default="wall")
+    ap.add_argument("--blas-threads", type=int, default=None,
+                    help="limit the BLAS threads of the vector env's matrix products (default: as is)")
+    ap.add_argument("--json", type=Path, default=None, help="write the results to this JSON file")
     args = ap.parse_args()
-    rates = single_env_rates(["Pendulum-v1", "DSS14-v0", "DSS14-Hold-v0"], args.steps, args.repeats)
-    for env_id, r in rates.items():
-        print(f"{env_id:15s} single env: {r:12,.0f} steps/s", flush=True)
-    for env_id in ("DSS14-v0", "DSS14-Hold-v0"):
-        print(f"{env_id:15s} ratio to Pendulum-v1: {rates[env_id] / rates['Pendulum-v1']:.2f}x (target >= 2)")
-    for env_id in ("DSS14-v0", "DSS14-Hold-v0"):
-        r = vector_env_rate(env_id, args.num_envs, args.vec_steps, args.repeats)
-        print(f"{env_id:15s} vector env N={args.num_envs}: {r:12,.0f} env-steps/s (target >= 2,000,000)",
-              flush=True)
+    if args.repeats < 1 or args.steps < 1 or args.vec_steps < 1 or args.num_envs < 1 or (
+            args.blas_threads is not None and args.blas_threads < 1):
+        ap.error("--repeats, --steps, --vec-steps, --num-envs and --blas-threads must be positive")
+    if args.json is not None and not (args.json.parent.is_dir() and os.access(args.json.parent, os.W_OK)):
+        ap.error(f"--json: folder {args.json.parent} does not exist or is not writable")
+    if args.json is not None and args.json.is_dir():
+        ap.error(f"--json: {args.json} is a folder")
+    res = run(args)
+    print(report(res), flush=True)
+    if args.json is not None:
+        atomic_write_text(args.json, json.dumps(res, indent=2) + "\n")
 
 
 if __name__ == "__main__":

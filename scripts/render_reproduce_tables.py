@@ -5,7 +5,8 @@ The tables between ``<!-- NAME:start -->`` and ``<!-- NAME:end -->`` markers are
 ``docs/results/reproduce_metrics.json``; nothing in them is typed by hand.  Refresh the results
 file first when the model changes::
 
-    dss14 reproduce --no-figures --out /tmp/rep && cp /tmp/rep/metrics.json docs/results/reproduce_metrics.json
+    dss14 reproduce --no-figures --out /tmp/rep
+    cp /tmp/rep/metrics.json docs/results/reproduce_metrics.json
     python scripts/render_reproduce_tables.py            # rewrite the documents
     python scripts/render_reproduce_tables.py --check    # exit 1 if a document is out of date
 

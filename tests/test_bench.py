@@ -1,45 +1,60 @@
-"""``dss14 bench`` (dss14_env/bench/bench.py): options, results.json against the runner, results.md,
-figures, and the command end to end."""
+"""``dss14 bench`` (dss14_env/bench/): options, the output folder, results.json against the
+runner, intervals recomputed from the stored episodes, results.md, figures, the README table
+generated from the committed default results, and the command end to end."""
 
 from __future__ import annotations
 
 import json
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from dss14_env import cli
 from dss14_env.bench import bench as B
+from dss14_env.bench import figures as F
+from dss14_env.bench import plan as P
+from dss14_env.bench import report as R
 from dss14_env.bench import runner
+from dss14_env.bench.run import sweep_points
+from dss14_env.bench.threads import blas_threads
 
-CTRLS = ["pi_kp1", "lqg"]
+ROOT = Path(__file__).resolve().parents[1]
+DEFAULT_RESULTS = ROOT / "docs" / "results" / "bench_default.json"
+CTRLS = ["pi_kp1", "pi_kp0.7", "lqg", "mpc"]
 SCENS = ["hold_side", "step"]
 STEPS = 300
+SEEDS = 4
+SEQ = 2
 
 
 # ------------------------------------------------------------------ options
 @pytest.mark.parametrize("values,seeds", [(["3"], [0, 1, 2]), (["1"], [0]), (["4", "2"], [4, 2]),
                                          ([5, 7, 9], [5, 7, 9]), (None, None)])
 def test_seeds_are_a_count_or_a_list(values, seeds) -> None:
-    assert B.parse_seeds(values) == seeds
+    assert P.parse_seeds(values) == seeds
 
 
 @pytest.mark.parametrize("values,message", [(["x"], "not an integer"), (["3", "-1"], "non-negative"),
                                             (["0"], ">= 1"), (["-2"], ">= 1"), (["1", "1"], "repeated"),
                                             ([], "give a count"), (["1.5"], "not an integer")])
 def test_bad_seeds_are_named(values, message) -> None:
-    with pytest.raises(B.BenchOptionError, match=f"--seeds: .*{message}"):
-        B.parse_seeds(values)
+    with pytest.raises(P.BenchOptionError, match=f"--seeds: .*{message}"):
+        P.parse_seeds(values)
 
 
 def test_wind_speeds_are_sorted_floats() -> None:
-    assert B.parse_wind_speeds(["70", "30", "45.5"]) == [30.0, 45.5, 70.0]
+    assert P.parse_wind_speeds(["70", "30", "45.5"]) == [30.0, 45.5, 70.0]
 
 
 @pytest.mark.parametrize("values", [["abc"], ["0"], ["-10"], ["200"], ["nan"], ["40", "40"], []])
 def test_bad_wind_speeds_are_named(values) -> None:
-    with pytest.raises(B.BenchOptionError, match="--wind-speeds"):
-        B.parse_wind_speeds(values)
+    with pytest.raises(P.BenchOptionError, match="--wind-speeds"):
+        P.parse_wind_speeds(values)
 
 
 @pytest.mark.parametrize("kwargs,message", [
@@ -49,54 +64,62 @@ def test_bad_wind_speeds_are_named(values) -> None:
     ({"scenarios": ["hover"]}, "--scenarios: unknown scenario 'hover'"),
     ({"scenarios": ["step", "step"]}, "--scenarios: scenario named twice"),
     ({"steps": 0}, "--steps"),
+    ({"steps": 2.5}, "--steps"),
     ({"controllers": ["lqg"], "ppo_model": "x"}, "--ppo-model: given, but 'ppo' is not"),
-    ({"seeds": 2, "sweep_seeds": 3}, "--sweep-seeds: a count from 1 to the number of seeds"),
     ({"sweep_seeds": 0}, "--sweep-seeds"),
+    ({"sequential_episodes": -1}, "--sequential-episodes"),
+    ({"seeds": 2, "sequential_episodes": 3}, "--sequential-episodes: 3 is more than the 2 episodes"),
+    ({"threads": 0}, "--threads"),
 ])
 def test_bad_options_are_named(kwargs, message) -> None:
-    with pytest.raises(B.BenchOptionError, match=message):
-        B.build_plan(**kwargs)
+    with pytest.raises(P.BenchOptionError, match=message):
+        P.build_plan(**kwargs)
 
 
 def test_missing_ppo_policy(monkeypatch, tmp_path) -> None:
     import dss14_env.agents.policy
     monkeypatch.setattr(dss14_env.agents.policy, "DEFAULT_POLICY", tmp_path / "none")
-    plan = B.build_plan()  # default run: a warning, and the others run
+    plan = P.build_plan()  # default run: a warning, and the others run
     assert "ppo" not in plan.controllers and plan.controllers == ["pi_kp1", "pi_kp0.7", "lqg", "mpc"]
     assert len(plan.notes) == 1 and str(tmp_path / "none") in plan.notes[0]
-    with pytest.raises(B.BenchOptionError, match="--controllers ppo: .*none"):
-        B.build_plan(controllers=["pi_kp1", "ppo"])  # asked for: an error
-    with pytest.raises(B.BenchOptionError, match="--ppo-model: .*nowhere"):
-        B.build_plan(ppo_model=tmp_path / "nowhere")
+    with pytest.raises(P.BenchOptionError, match="--controllers ppo: .*none"):
+        P.build_plan(controllers=["pi_kp1", "ppo"])  # asked for: an error
+    with pytest.raises(P.BenchOptionError, match="--ppo-model: .*nowhere"):
+        P.build_plan(ppo_model=tmp_path / "nowhere")
 
 
 def test_default_and_quick_plans(monkeypatch) -> None:
-    monkeypatch.setattr(B, "_ppo_problem", lambda path: None)  # as if the policy were shipped
-    plan = B.build_plan()
-    assert plan.controllers == list(B.DEFAULT_CONTROLLERS) and plan.scenarios == list(B.DEFAULT_SCENARIOS)
-    assert plan.seeds == list(B.DEFAULT_SEEDS) and plan.wind_speeds_kmh == [30, 40, 50, 60, 70]
-    assert plan.steps == {s: B.DEFAULT_STEPS.get(s, runner.SCENARIOS[s].steps) for s in plan.scenarios}
+    monkeypatch.setattr(P, "ppo_problem", lambda path: None)  # as if the policy were shipped
+    plan = P.build_plan()
+    assert plan.controllers == list(P.DEFAULT_CONTROLLERS) and plan.scenarios == list(P.DEFAULT_SCENARIOS)
+    assert plan.wind_speeds_kmh == [30, 40, 50, 60, 70] and plan.threads == 1 and not plan.overwrite
+    for s, b in P.DEFAULT_BUDGETS.items():
+        r = plan.runs[s]
+        assert r.steps == round(50 * b.seconds) and r.seeds == tuple(range(b.episodes))
+        assert r.sequential == b.sequential and r.sequential_seeds == r.seeds[:b.sequential]
+    # the hold figures rest on many episodes for the batched controllers, fewer for the MPC
+    assert len(plan.runs["hold_front"].seeds) >= 64 and plan.runs["hold_front"].sequential >= 5
     assert plan.sweep_directions == ["front", "side"] and plan.env_kwargs == {}
-    quick = B.build_plan(quick=True)
-    assert quick.seeds == [0] and len(quick.wind_speeds_kmh) < 5
-    assert all(quick.steps[s] < plan.steps[s] for s in plan.scenarios)
-    assert quick.sweep_steps < plan.sweep_steps
+    quick = P.build_plan(quick=True)
+    assert len(quick.wind_speeds_kmh) < 5 and quick.sweep.steps < plan.sweep.steps
+    for s in plan.scenarios:
+        q, d = quick.runs[s], plan.runs[s]
+        assert q.steps <= d.steps and len(q.seeds) < len(d.seeds)
     # explicit options win over --quick; --randomize; the sweep follows the hold scenarios
-    p = B.build_plan(quick=True, seeds=["2"], steps=100, randomize=True, scenarios=["hold_side", "step"])
-    assert p.seeds == [0, 1] and set(p.steps.values()) == {100} and p.sweep_steps == 100
+    p = P.build_plan(quick=True, seeds=["2"], steps=100, randomize=True, scenarios=["hold_side", "step"],
+                     sequential_episodes=1, sweep_seeds=3)
+    assert all(r.seeds == (0, 1) and r.steps == 100 and r.sequential == 1 for r in p.runs.values())
+    assert p.sweep.steps == 100 and p.sweep.seeds == (0, 1, 2) and p.sweep.sequential == 1
     assert p.env_kwargs == {"randomize_params": True} and p.sweep_directions == ["side"]
-    assert B.build_plan(scenarios=["step"]).sweep_directions == []
+    assert P.build_plan(scenarios=["step"]).sweep_directions == []
+    assert P.build_plan(sweep=False).sweep_directions == []
     # from Python: an int is a count, ints are the seeds, strings are command-line values
-    assert B.build_plan(seeds=3).seeds == [0, 1, 2] and B.build_plan(seeds=[0]).seeds == [0]
-    assert B.build_plan(seeds=[4]).seeds == [4] and B.build_plan(seeds=["4"]).seeds == [0, 1, 2, 3]
-    assert B.build_plan(sweep=False).sweep_directions == []
-    # the sweep runs on the first seed by default; a sweep point equal to a main scenario is
-    # taken from it only when the sweep runs on all the seeds
-    assert plan.sweep_seeds == [0] and B.build_plan(seeds=3, sweep_seeds=2).sweep_seeds == [0, 1]
-    one = B.build_plan(seeds=2, steps=100, wind_speeds=[50])
-    assert [p[-1] for p in B._sweep_points(one)] == [None, None]
-    both = B.build_plan(seeds=2, steps=100, wind_speeds=[50], sweep_seeds=2)
-    assert [p[-1] for p in B._sweep_points(both)] == ["hold_front", "hold_side"]
+    assert P.build_plan(seeds=3).runs["step"].seeds == (0, 1, 2)
+    assert P.build_plan(seeds=[4]).runs["step"].seeds == (4,)
+    assert P.build_plan(seeds=["4"]).runs["step"].seeds == (0, 1, 2, 3)
+    # a sweep point equal to a main scenario (same keys, length, warm-up) is taken from it
+    same = P.build_plan(steps=100, wind_speeds=[40, 50])
+    assert [pt[-1] for pt in sweep_points(same)] == [None, "hold_front", None, "hold_side"]
     json.dumps(p.as_dict())
 
 
@@ -112,12 +135,75 @@ def test_cli_bad_option_exits_2(capsys) -> None:
     assert exc.value.code == 2
 
 
+# ------------------------------------------------------------------ the output folder
+@pytest.fixture
+def no_work(monkeypatch) -> list:
+    """Fails the test if the bench starts running."""
+    started: list = []
+
+    def run_plan(*a, **k):
+        started.append(1)
+        raise AssertionError("the bench started although --out is unusable")
+    monkeypatch.setattr(B, "run_plan", run_plan)
+    return started
+
+
+def _one_line_error(capsys, *words: str) -> str:
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and err.startswith("dss14 bench: error: "), err
+    for w in words:
+        assert w in err, err
+    return err
+
+
+def test_out_is_a_file_fails_before_any_work(tmp_path, capsys, no_work) -> None:
+    f = tmp_path / "results.txt"
+    f.write_text("mine")
+    assert cli.main(["bench", "--quick", "--out", str(f)]) == 2
+    _one_line_error(capsys, "is a file")
+    assert cli.main(["bench", "--quick", "--out", str(f / "sub")]) == 2
+    _one_line_error(capsys, "cannot create")
+    assert not no_work and f.read_text() == "mine"
+
+
+@pytest.mark.skipif(hasattr(os, "geteuid") and os.geteuid() == 0, reason="root writes anywhere")
+def test_unwritable_out_fails_before_any_work(tmp_path, capsys, no_work) -> None:
+    d = tmp_path / "locked"
+    d.mkdir()
+    d.chmod(0o500)
+    try:
+        assert cli.main(["bench", "--quick", "--out", str(d / "sub")]) == 2
+        _one_line_error(capsys, "cannot create")
+        assert cli.main(["bench", "--quick", "--out", str(d)]) == 2
+        _one_line_error(capsys, "not writable")
+    finally:
+        d.chmod(0o700)
+    assert not no_work
+
+
+def test_a_used_folder_is_refused_unless_overwrite(tmp_path, capsys, monkeypatch) -> None:
+    out = tmp_path / "out"
+    out.mkdir()
+    for name in ("results.json", "results.md", F.FIGURES[1], "mine.png", "notes.txt"):
+        (out / name).write_text("old")
+    started: list = []
+    monkeypatch.setattr(B, "run_plan", lambda *a, **k: started.append(1) or (_ for _ in ()).throw(
+        RuntimeError("stop here")))
+    assert cli.main(["bench", "--quick", "--out", str(out)]) == 2
+    _one_line_error(capsys, "already holds results", "--overwrite")
+    assert not started and (out / "results.json").read_text() == "old"
+    # --overwrite clears exactly what the bench owns, then the run starts
+    assert cli.main(["bench", "--quick", "--out", str(out), "--overwrite"]) == 2
+    assert started and "stop here" in capsys.readouterr().err
+    assert sorted(p.name for p in out.iterdir()) == ["mine.png", "notes.txt"]
+
+
 # ------------------------------------------------------------------ a tiny run
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory) -> dict:
-    out = tmp_path_factory.mktemp("bench")
-    plan = B.build_plan(controllers=CTRLS, scenarios=SCENS, seeds=[0], steps=STEPS,
-                        wind_speeds=["40", "50"], out=out)
+    out = tmp_path_factory.mktemp("bench") / "out"
+    plan = P.build_plan(controllers=CTRLS, scenarios=SCENS, seeds=SEEDS, steps=STEPS,
+                        sequential_episodes=SEQ, sweep_seeds=2, wind_speeds=["40", "50"], out=out)
     res = B.bench(plan, progress=False)
     return {"plan": plan, "res": res, "out": out,
             "json": json.loads((out / "results.json").read_text())}
@@ -130,27 +216,63 @@ def _comparable(summary: dict) -> dict:
 
 def test_results_json_matches_the_runner(tiny) -> None:
     js = tiny["json"]
-    with B.blas_threads(1):  # the bench's setting (the last bits of BLAS sums depend on it)
-        direct = runner.run(CTRLS, SCENS, [0], steps=STEPS)
+    with blas_threads(1):  # the bench's setting (the last bits of BLAS sums depend on it)
+        direct = runner.run(CTRLS, SCENS, range(SEEDS), steps=STEPS, sequential_seeds=SEQ)
     assert js["meta"]["controllers"] == CTRLS and js["meta"]["scenarios"] == SCENS
     for c in CTRLS:
         for s in SCENS:
             assert _comparable(js["summary"][c][s]) == _comparable(direct["summary"][c][s]), (c, s)
     assert js["yardstick"] == direct["yardstick"] and set(js["yardstick"]) == {"hold_side"}
-    assert len(js["episodes"]) == len(direct["episodes"]) == 4
-    assert all("trace" not in ep for ep in js["episodes"])
+
+
+def test_every_figure_carries_its_interval(tiny) -> None:
+    s = tiny["json"]["summary"]
+    for c in CTRLS:
+        cell = s[c]["hold_side"]["servo_error_mdeg"]["az"]["three_sigma"]
+        assert set(cell) >= {"value", "ci95", "n_episodes", "seconds"}
+        lo, hi = cell["ci95"]
+        assert lo < cell["value"] < hi
+        batched = tiny["json"]["meta"]["batched"][c]
+        assert batched == (c != "mpc")
+        n = SEEDS if batched else SEQ  # the MPC, one at a time: the first seeds
+        assert cell["n_episodes"] == n and cell["seconds"] == pytest.approx(n * (STEPS / 50 - 5.0))
+        assert s[c]["step"]["step"]["az"]["overshoot_pct"]["ci95"][0] <= \
+            s[c]["step"]["step"]["az"]["overshoot_pct"]["value"]
+    r = s["pi_kp0.7"]["hold_side"]["vs_reference"]["az"]
+    assert r["ci95"][0] <= r["value"] <= r["ci95"][1] and isinstance(r["significant"], bool)
+    assert tiny["json"]["meta"]["reference"] == "pi_kp1"
+
+
+def test_intervals_recomputed_from_the_stored_episodes(tiny) -> None:
+    js = tiny["json"]
+    rows = R.episode_rows(js["episodes"])
+    assert len(rows) == 3 * 2 * SEEDS + 2 * SEQ and all("trace" not in ep for ep in rows)
+    for c in CTRLS:
+        for s in SCENS:
+            eps = [ep for ep in rows if ep["controller"] == c and ep["scenario"] == s]
+            again = runner.summarise(eps, runner.cell_rng(c, s))
+            for ax in ("az", "el"):
+                a = again["servo_error_mdeg"][ax]["three_sigma"]
+                b = js["summary"][c][s]["servo_error_mdeg"][ax]["three_sigma"]
+                # the stored values have 6 significant digits
+                assert a["value"] == pytest.approx(b["value"], rel=1e-5)
+                assert a["ci95"] == pytest.approx(b["ci95"], rel=1e-3)
 
 
 def test_results_json_records_the_run(tiny) -> None:
     js = tiny["json"]
     b = js["bench"]
-    assert b["config"]["controllers"] == CTRLS and b["config"]["seeds"] == [0]
-    assert b["config"]["steps"] == {s: STEPS for s in SCENS}
+    assert b["config"]["controllers"] == CTRLS
+    assert b["config"]["runs"]["step"]["seeds"] == list(range(SEEDS))
+    assert b["config"]["runs"]["step"]["sequential_seeds"] == list(range(SEQ))
+    assert {r["steps"] for r in b["config"]["runs"].values()} == {STEPS}
     assert b["wall_time_s"]["total"] > 0 and b["notes"] == []
-    assert set(b["figures"]) == set(B.FIGURES)
+    assert set(b["figures"]) == set(F.FIGURES) and b["blas_threads"]["threads"] == 1
+    assert "load_average_start" in b["machine"] and b["machine"]["cpu_count"] >= 1
     assert {"python", "numpy", "scipy", "gymnasium", "stable-baselines3", "torch", "cvxpy",
             "dss14-env"} <= set(js["versions"])
     assert js["versions"]["numpy"] == np.__version__
+    assert js["statistics"]["level"] == 0.95 and "bootstrap" in js["statistics"]["interval"]
 
 
 def test_wind_sweep_matches_the_runner(tiny) -> None:
@@ -162,51 +284,70 @@ def test_wind_sweep_matches_the_runner(tiny) -> None:
     cur = sw["curves"]["side"]
     assert cur["axis"] == "az"
     main = tiny["json"]["summary"]
-    with B.blas_threads(1):
-        direct = runner.run(CTRLS, [("p", B.sweep_scenario("side", 40, STEPS))], [0])
+    with blas_threads(1):
+        direct = runner.run(CTRLS, [("p", P.sweep_scenario("side", 40, STEPS))], [0, 1], sequential_seeds=SEQ)
     for c in CTRLS:
-        med = cur["three_sigma_mdeg"][c]["median"]
-        assert med[0] == direct["summary"][c]["p"]["servo_error_mdeg"]["az"]["three_sigma"]["median"]
-        assert med[1] == main[c]["hold_side"]["servo_error_mdeg"]["az"]["three_sigma"]["median"]
+        cells = cur["three_sigma_mdeg"][c]
+        assert cells[0] == direct["summary"][c]["p"]["servo_error_mdeg"]["az"]["three_sigma"]
+        assert cells[1] == main[c]["hold_side"]["servo_error_mdeg"]["az"]["three_sigma"]
     ref = cur["yardstick_three_sigma_mdeg"]
     assert ref[0] == pytest.approx(direct["yardstick"]["p"]["three_sigma_mdeg"][0])
     assert ref[1] == pytest.approx(tiny["json"]["yardstick"]["hold_side"]["three_sigma_mdeg"][0])
     assert ref[0] < ref[1]
 
 
-def test_results_md_and_figures(tiny) -> None:
+def test_results_md(tiny) -> None:
     md = (tiny["out"] / "results.md").read_text()
-    assert md == tiny["res"]["markdown"]
+    assert md == tiny["res"]["markdown"] == R.results_markdown(tiny["json"])  # from the JSON alone
     assert tiny["res"]["main_table"] in md and "## How to read it" in md
     for c in CTRLS:
         assert f"| {c} |" in md
     assert "yardstick (analytic)" in md and "Step response" in md and "side wind, 3σ az" in md
-    for f in B.FIGURES:
+    assert "hold_side az ÷ pi_kp1" in md and "Precision of the hold figures" in md
+    pi = tiny["json"]["summary"]["pi_kp1"]["hold_side"]["servo_error_mdeg"]["az"]["three_sigma"]
+    assert R.fmt_ci(pi) in md and " ± " in R.fmt_ci(pi)
+
+
+def test_figures_are_pngs_drawn_without_pyplot(tiny) -> None:
+    for f in F.FIGURES:
         p = tiny["out"] / f
-        assert p.is_file() and p.stat().st_size > 5000, f
+        assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and p.stat().st_size > 5000, f
+    # drawing from results.json in a fresh interpreter loads neither pyplot nor a backend switch
+    code = ("import json, sys, pathlib; from dss14_env.bench import figures as F; "
+            f"r = json.loads(pathlib.Path({str(tiny['out'] / 'results.json')!r}).read_text()); "
+            f"d = pathlib.Path({str(tiny['out'])!r}) / 'again'; d.mkdir(); "
+            "assert F.plot_error_bars(r, d / 'a.png') and F.plot_wind_sweep(r, d / 'b.png'); "
+            "print('matplotlib.pyplot' in sys.modules)")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 0 and done.stdout.strip() == "False", done.stderr
+    assert "matplotlib.use(" not in Path(F.__file__).read_text()
+    import shutil
+    shutil.rmtree(tiny["out"] / "again")
+    # no temporary files of the atomic writes are left behind
+    assert sorted(p.name for p in tiny["out"].iterdir()) == sorted(R.RESULT_FILES + F.FIGURES)
 
 
-def test_traces_are_opt_in(tiny) -> None:
+def test_traces_of_the_first_seed(tiny) -> None:
     eps = tiny["res"]["ran"]["main"]["episodes"]
-    tr = eps[0]["trace"]
-    n = eps[0]["n_steps"]
+    traced = [(e["controller"], e["scenario"], e["seed"]) for e in eps if "trace" in e]
+    assert sorted(traced) == sorted((c, s, 0) for c in CTRLS for s in SCENS)
+    step = next(e for e in eps if e["scenario"] == "step" and "trace" in e)
+    tr = step["trace"]
+    n = step["n_steps"]
     assert tr["t"].shape == (n,) and tr["t"][0] == pytest.approx(0.02)
-    for k in ("servo_error_mdeg", "command_deg", "encoder_deg", "rate_command_deg_s"):
+    for k in ("servo_error_mdeg", "pointing_error_mdeg", "command_deg", "encoder_deg", "rate_command_deg_s"):
         assert tr[k].shape == (n, 2), k
-    step = next(e for e in eps if e["scenario"] == "step")["trace"]
-    assert step["command_deg"][-1] == pytest.approx([0.1, 0.1])
+    assert tr["command_deg"][-1] == pytest.approx([0.1, 0.1])
     # the metric's position (command - true error) and the encoder agree within a count or so
-    pos = step["command_deg"] - step["servo_error_mdeg"] / 1e3
-    assert np.max(np.abs(pos - step["encoder_deg"])) < 1e-3
-    assert "trace" not in runner.run(["pi_kp1"], ["step"], [0], steps=20)["episodes"][0]
+    pos = tr["command_deg"] - tr["servo_error_mdeg"] / 1e3
+    assert np.max(np.abs(pos - tr["encoder_deg"])) < 1e-3
 
 
 def test_an_episode_that_ends_before_the_step(tmp_path) -> None:
-    plan = B.build_plan(controllers=["pi_kp1"], scenarios=["step"], seeds=[0], steps=20,
-                        out=tmp_path)
+    plan = P.build_plan(controllers=["pi_kp1"], scenarios=["step"], seeds=2, steps=20, out=tmp_path / "o")
     res = B.bench(plan, progress=False)
-    st = res["results"]["summary"]["pi_kp1"]["step"]["step"]
-    assert np.isnan(st["az"]["overshoot_pct"]["median"])
+    st = res["results"]["summary"]["pi_kp1"]["step"]
+    assert "step" not in st or np.isnan(st["step"]["az"]["overshoot_pct"]["value"])
     assert "| pi_kp1 | — / — |" in res["markdown"]
 
 
@@ -220,29 +361,142 @@ def test_the_ppo_entry_loads_the_policy_on_the_env(monkeypatch, tmp_path) -> Non
         calls.append((path, env))
         return PIController(env)
 
-    monkeypatch.setattr(B, "_ppo_problem", lambda path: None)
+    monkeypatch.setattr(P, "ppo_problem", lambda path: None)
     monkeypatch.setattr(dss14_env.agents.policy, "load_policy", fake_load)
-    plan = B.build_plan(controllers=["ppo"], scenarios=["step"], seeds=["1"], steps=50,
-                        out=tmp_path, figures=False)
+    plan = P.build_plan(controllers=["ppo"], scenarios=["step"], seeds=["1"], steps=50,
+                        out=tmp_path / "o", figures=False)
     res = B.bench(plan, progress=False)
     assert len(calls) == 1 and calls[0][0] is None and calls[0][1] is not None
     assert set(res["results"]["summary"]) == {"ppo"} and "| ppo |" in res["markdown"]
-    assert res["figures"] == [] and not (tmp_path / B.FIGURES[0]).exists()
+    assert res["figures"] == [] and not (tmp_path / "o" / F.FIGURES[0]).exists()
+
+
+# ------------------------------------------------------------------ formatting
+@pytest.mark.parametrize("value,ci,text", [
+    (2.7953, [2.735, 2.855], "2.80 ± 0.06"),
+    (0.02931, [0.0282, 0.0304], "0.0293 ± 0.0011"),
+    (165.2, [164.9, 165.5], "165.2 ± 0.3"),
+    (0.5, [float("nan"), float("nan")], "0.500 (1 ep.)"),
+    (9.88, [9.88, 9.88], "9.88 ± 0"),
+    (0.2000000000000002, [0.2, 0.20000000000000004], "0.20000 ± 0.00000"),
+    (float("inf"), [float("inf"), float("inf")], "∞"),
+])
+def test_values_are_shown_with_their_half_width(value, ci, text) -> None:
+    assert R.fmt_ci({"value": value, "ci95": ci, "n_episodes": 1}) == text
+
+
+@pytest.mark.parametrize("r,text", [
+    ({"value": 0.187, "ci95": [0.180, 0.195], "significant": True}, "0.187 [0.180, 0.195]"),
+    ({"value": 1.02, "ci95": [0.97, 1.06], "significant": False}, "1.02 [0.97, 1.06] n.s."),
+])
+def test_ratios_say_when_they_are_not_significant(r, text) -> None:
+    assert R.fmt_ratio(r) == text
+
+
+def test_fallbacks_are_listed_per_episode() -> None:
+    res = {"episodes": {"mpc": {"hold_front": {
+        "seed": [0, 1], "fallbacks": [0, 2],
+        "fallback_log": [[], [{"step": 12, "status": "infeasible"},
+                              {"step": 40, "status": "solver_error"}]]}}}}
+    assert R.fallback_lines(res) == ["* mpc, hold_front, seed 1: 2 fallbacks (step 12: infeasible, "
+                                     "step 40: solver_error)"]
+
+
+# ------------------------------------------------------------------ the README's table
+def _readme_region() -> str:
+    text = (ROOT / "README.md").read_text()
+    m = re.search(r"<!-- bench-table:start -->\n(.*?)<!-- bench-table:end -->", text, re.S)
+    assert m, "README.md lacks the bench-table markers"
+    return m.group(1)
+
+
+def test_readme_table_is_generated_from_the_committed_default_results() -> None:
+    results = json.loads(DEFAULT_RESULTS.read_text())
+    assert _readme_region() == R.readme_table(results), \
+        "README.md's bench table differs from docs/results/bench_default.json: run scripts/readme_tables.py"
+
+
+def test_committed_results_are_a_default_run() -> None:
+    results = json.loads(DEFAULT_RESULTS.read_text())
+    cfg = results["bench"]["config"]
+    assert not cfg["quick"] and cfg["env_kwargs"] == {} and cfg["threads"] == 1
+    assert results["bench"]["command"].startswith("dss14 bench")
+    for s, b in P.DEFAULT_BUDGETS.items():
+        assert cfg["runs"][s]["seeds"] == list(range(b.episodes)), s
+        assert cfg["runs"][s]["steps"] == round(50 * b.seconds), s
+    assert results["meta"]["controllers"] == list(P.DEFAULT_CONTROLLERS)
+    assert cfg["sweep"]["seeds"] == list(range(P.DEFAULT_SWEEP.episodes))
+    assert cfg["wind_speeds_kmh"] == list(P.DEFAULT_WIND_SPEEDS_KMH)
+    # every controller but the MPC acted on batches
+    assert results["meta"]["batched"] == {c: c != "mpc" for c in P.DEFAULT_CONTROLLERS}
+
+
+def test_readme_script_checks_and_writes(tmp_path) -> None:
+    readme = tmp_path / "README.md"
+    readme.write_text("intro\n<!-- bench-table:start -->\nSTALE-TABLE\n<!-- bench-table:end -->\nrest\n")
+    script = ROOT / "scripts" / "readme_tables.py"
+    cmd = [sys.executable, str(script), "--readme", str(readme), "--results", str(DEFAULT_RESULTS)]
+    assert subprocess.run(cmd + ["--check"], capture_output=True).returncode == 1
+    assert subprocess.run(cmd, capture_output=True).returncode == 0
+    assert subprocess.run(cmd + ["--check"], capture_output=True).returncode == 0
+    text = readme.read_text()
+    assert text.startswith("intro\n") and text.endswith("rest\n") and "STALE-TABLE" not in text
+
+
+# ------------------------------------------------------------------ the scripts
+def _script(name: str, *args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, str(ROOT / "scripts" / name), *args], capture_output=True,
+                          text=True)
+
+
+def test_two_runs_are_compared_within_their_intervals(tiny, tmp_path) -> None:
+    a = tiny["out"] / "results.json"
+    same = _script("compare_bench_runs.py", str(a), str(a))
+    assert same.returncode == 0 and same.stdout.count("0 (0.0 %) outside the other run's interval") == 3
+    js = json.loads(a.read_text())
+    cell = js["summary"]["pi_kp1"]["hold_side"]["servo_error_mdeg"]["az"]["three_sigma"]
+    cell["value"] = cell["ci95"][1] * 1.5  # far outside the first run's interval
+    b = tmp_path / "b.json"
+    b.write_text(json.dumps(js))
+    moved = _script("compare_bench_runs.py", str(a), str(b))
+    assert moved.returncode == 1 and "main/pi_kp1/hold_side/servo_error_mdeg/az/three_sigma" in moved.stdout
+    js["bench"]["config"]["runs"]["step"]["steps"] = 10
+    b.write_text(json.dumps(js))
+    assert _script("compare_bench_runs.py", str(a), str(b)).returncode == 2
+
+
+@pytest.mark.parametrize("script,args", [
+    ("compare_bench_runs.py", ["/nonexistent/a.json", "/nonexistent/b.json"]),
+    ("bench_targets.py", ["/nonexistent/results.json"]),
+    ("readme_tables.py", ["--check", "--results", "/nonexistent/r.json"])])
+def test_scripts_name_a_missing_file_in_one_line(script, args) -> None:
+    done = _script(script, *args)
+    assert done.returncode == 2 and "/nonexistent/" in done.stderr and "Traceback" not in done.stderr
+    assert done.stderr.strip().count("\n") == 0
+
+
+def test_targets_script_reads_a_run(tiny) -> None:
+    done = _script("bench_targets.py", str(tiny["out"] / "results.json"))
+    assert "wall time" in done.stdout and "of 300 s" in done.stdout
+    # 4 episodes with 1 s of data each: far from the 5 % precision target
+    assert done.returncode == 1 and "hold_side az    pi_kp1" in done.stdout and "MISSED" in done.stdout
 
 
 # ------------------------------------------------------------------ end to end
 def test_cli_quick_end_to_end(tmp_path, capsys) -> None:
-    out = tmp_path / "tmp"
-    assert cli.main(["bench", "--quick", "--controllers", "pi_kp1", "lqg", "mpc", "--out", str(out)]) == 0
+    """``dss14 bench --quick``, the CI smoke test: every default controller and scenario."""
+    out = tmp_path / "q"
+    assert cli.main(["bench", "--quick", "--no-progress", "--out", str(out)]) == 0
     text = capsys.readouterr().out
-    assert "| mpc |" in text and "written to" in text
+    assert "| mpc |" in text and "written to" in text and " ± " in text
     js = json.loads((out / "results.json").read_text())
-    assert js["meta"]["controllers"] == ["pi_kp1", "lqg", "mpc"]
-    assert js["meta"]["scenarios"] == list(B.DEFAULT_SCENARIOS) and js["meta"]["seeds"] == [0]
+    assert js["meta"]["scenarios"] == list(P.DEFAULT_SCENARIOS)
     assert js["bench"]["command"].startswith("dss14 bench --quick")
-    assert sum(v["failures"] for c in js["summary"].values() for v in c.values()) == 0
-    for f in ("results.md",) + B.FIGURES:
+    assert sum(v["failures"] + v["terminated"] for c in js["summary"].values() for v in c.values()) == 0
+    for f in ("results.md",) + F.FIGURES:
         assert (out / f).stat().st_size > 0, f
+    # a second run into the same folder is refused
+    assert cli.main(["bench", "--quick", "--out", str(out)]) == 2
 
 
 def test_blas_threads_limits_and_restores() -> None:
@@ -252,8 +506,8 @@ def test_blas_threads_limits_and_restores() -> None:
     def blas() -> list[int]:
         return [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
     before = blas()
-    with B.blas_threads(1) as bt:
+    with blas_threads(1) as bt:
         assert bt.n_libraries == len(before) >= 1 and blas() == [1] * len(before)
     assert blas() == before
-    with B.blas_threads(None) as bt:
+    with blas_threads(None) as bt:
         assert bt.n_libraries == 0 and blas() == before

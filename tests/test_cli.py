@@ -74,3 +74,18 @@ def test_reproduce_bad_config_named_before_any_work(tmp_path, capsys) -> None:
     assert main(["reproduce", "--out", str(tmp_path / "o"), "--config", "no_such_model"]) == 2
     assert "no_such_model" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
+
+
+def test_atomic_writes_give_ordinary_file_modes(tmp_path) -> None:
+    import os
+    import stat
+
+    from dss14_env.core.outdir import atomic_write_text
+
+    old = os.umask(0o022)
+    try:
+        atomic_write_text(tmp_path / "results.json", "{}")
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE((tmp_path / "results.json").stat().st_mode) == 0o644
+    assert [p.name for p in tmp_path.iterdir()] == ["results.json"]  # no temporary left behind

@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 
 import dss14_env  # noqa: F401  (registers the ids)
+from dss14_env.envs.config import EPISODE_KEYS, load_env_config
 from dss14_env.envs.env import OBS_NAMES, DSS14Env
-from dss14_env.envs.scenarios import EPISODE_KEYS, load_env_config
+from dss14_env.envs.vector import DSS14VectorEnv
 from dss14_env.model.assembly import default_model
 from dss14_env.model.uncertainty import SWEEP_PARAMS, draw_stable_params, pi_loop_abscissa, rate_loop_stable
 
@@ -97,12 +98,17 @@ def test_reset_without_seed_continues_the_generator() -> None:
     (np.zeros(3, np.float32), "shape"),
     (np.zeros((2, 1), np.float32), "shape"),
     (0.5, "shape"),
-    (["a", "b"], "numeric"),
+    (["a", "b"], "real numbers"),
+    (np.array(["0.5", "1e3"]), "real numbers"),
+    (np.array([0.5 + 0j, 0.0]), "real numbers"),
+    ([10**400, 0], "real numbers"),
+    (np.array([True, False]), "real numbers"),
+    (np.array([0.1, 0.2], dtype=object), "real numbers"),
 ])
 def test_bad_action_raises_value_error(action, match: str) -> None:
     env = DSS14Env()
     env.reset(seed=0)
-    with pytest.raises(ValueError, match=match):
+    with pytest.raises(ValueError, match="^action must .*" + match):
         env.step(action)
 
 
@@ -137,6 +143,56 @@ def test_bad_config_value_raises_naming_the_key(key: str, value) -> None:
         DSS14Env(**{key: value})
 
 
+@pytest.mark.parametrize("key, value", [
+    ("wind_speed_kmh", 1e5),            # once NaN observations forever (vector) / a crash (single)
+    ("wind_speed_kmh", 3000.0),         # once blamed on dt
+    ("wind_speed_kmh", 90.5),           # beyond the operating range the model is meant for
+    ("wind_speed_grid_kmh", [30.0, 1e5]),
+    ("error_scale_mdeg", 1e-300),       # once an infinite reward
+    ("dt", 1e-300),
+    ("action_scale_deg_s", 1e-300),
+    ("rate_limit_deg_s", 1e300),
+    ("accel_limit_deg_s2", 1e300),
+    ("encoder_noise_mdeg", 1e300),
+    ("action_change_weight", 1e308),
+    ("termination_penalty", 1e308),
+    ("track_period_range_s", [1e-320, 600.0]),
+    ("slew_accel_deg_s2", 1e-320),
+    ("slew_rate_deg_s", 1e-320),
+    ("step_deg", 1e200),
+    ("az_wrap_centre_deg", 1e300),
+    ("start_az_deg", 300.0),
+    ("start_el_range_deg", [1.0, 50.0]),
+    ("render_window_s", 1e300),
+])
+def test_unphysical_values_are_refused_by_both_envs(key: str, value) -> None:
+    with pytest.raises(ValueError, match=f"field '{key}'"):
+        DSS14Env(**{key: value})
+    with pytest.raises(ValueError, match=f"field '{key}'"):
+        DSS14VectorEnv(num_envs=2, **{key: value})
+    if key in EPISODE_KEYS:
+        env = DSS14Env()
+        with pytest.raises(ValueError, match=f"reset options: field '{key}'"):
+            env.reset(seed=0, options={key: value})
+
+
+def test_scientific_notation_is_accepted_in_files_and_arguments(tmp_path) -> None:
+    path = tmp_path / "env.yaml"
+    path.write_text("dt: 1e-2\nerror_scale_mdeg: 1e1\n")  # YAML 1.1 reads 1e-2 as a string
+    cfg = load_env_config(path, encoder_noise_mdeg="5e-2")
+    assert (cfg.dt, cfg.error_scale_mdeg, cfg.encoder_noise_mdeg) == (0.01, 10.0, 0.05)
+
+
+def test_config_file_errors_name_the_file_and_the_key(tmp_path) -> None:
+    path = tmp_path / "env.yaml"
+    path.write_text("dt: fast\n")
+    with pytest.raises(ValueError, match=f"{path}: field 'dt': must be a number"):
+        DSS14Env(config=path)
+    path.write_text("dt: [0.02\n")
+    with pytest.raises(ValueError, match=f"{path}: not valid YAML"):
+        DSS14Env(config=path)
+
+
 def test_unknown_config_key_raises_naming_it() -> None:
     with pytest.raises(ValueError, match="wind_speed_mph"):
         DSS14Env(wind_speed_mph=30.0)
@@ -157,7 +213,8 @@ def test_bad_reset_option_raises_naming_it(options: dict, match: str) -> None:
 
 def test_reset_options_apply_to_one_episode_only() -> None:
     env = DSS14Env(scenario="track", wind_speed_kmh=50.0)
-    _, info = env.reset(seed=0, options={"scenario": "hold", "wind_speed_kmh": 70.0, "wind_direction": "side"})
+    _, info = env.reset(seed=0, options={"scenario": "hold", "wind_speed_kmh": 70.0,
+                                         "wind_direction": "side"})
     assert info["scenario"] == "hold" and info["wind_speed_mps"] == pytest.approx(70 / 3.6)
     assert info["wind_direction_rad"] == pytest.approx(math.pi / 2)
     _, info = env.reset()
@@ -201,7 +258,7 @@ def test_command_limiter_limits_rate_change_and_counts_hits() -> None:
     cfg = env.config
     dr = cfg.accel_limit_deg_s2 * cfg.dt
     prev = obs[10] * cfg.rate_limit_deg_s
-    for k in range(3):
+    for _ in range(3):
         obs, _, _, _, info = env.step(np.array([1.0, -5.0], np.float32))
         assert info["accel_limited"] and not info["rate_limited"]
         assert info["action_unclipped"] == (1.0, -5.0)
@@ -240,10 +297,11 @@ def test_leaving_the_travel_terminates(options: dict, what: str) -> None:
     a = np.array([1.0, 0.0] if what == "azimuth" else [0.0, -1.0], np.float32)
     for k in range(2000):
         _, r, term, _, info = env.step(a)
+        steps = k + 1
         if term:
             break
     assert term and r < -env.config.termination_penalty
-    assert k * env.config.dt < 20.0
+    assert steps * env.config.dt < 20.0
 
 
 def test_error_beyond_the_bound_terminates() -> None:
@@ -251,10 +309,11 @@ def test_error_beyond_the_bound_terminates() -> None:
     env.reset(seed=0)
     for k in range(200):
         _, _, term, _, info = env.step(np.zeros(2, np.float32))
+        steps = k + 1
         if term:
             break
     assert term and abs(info["servo_error_az_mdeg"]) > 1000.0
-    assert (k + 1) * env.config.dt == pytest.approx(env.config.step_time_s)
+    assert steps * env.config.dt == pytest.approx(env.config.step_time_s)
 
 
 def test_info_state_option_adds_the_plant_state() -> None:

@@ -10,6 +10,10 @@ import dss14_env  # noqa: F401  (registers the ids)
 from dss14_env.envs.env import DSS14Env
 from dss14_env.envs.vector import DSS14VectorEnv
 
+#: info entries compared between the single and the vector env (also at resets)
+INFO = ("servo_error_az_mdeg", "servo_error_el_mdeg", "measured_error_az_mdeg", "measured_error_el_mdeg",
+        "pointing_error_el_mdeg", "pointing_error_xel_mdeg", "wind_speed_mps", "wind_direction_rad",
+        "rate_command_az_deg_s", "rate_command_el_deg_s")
 # (config, constant action or None for small random ones): the second makes sub-environments
 # hit the elevation limit at different steps, so autoresets desynchronise them
 CASES = {
@@ -35,30 +39,33 @@ def test_vector_env_equals_single_envs_with_seeds_seed_plus_i(case: str) -> None
     N, T, max_steps, seed = 3, 700, 400, 10
     acts = _actions(const, T, N)
     venv = DSS14VectorEnv(num_envs=N, max_episode_steps=max_steps, **kw)
-    obs, _ = venv.reset(seed=seed)
-    v_obs, v_rew, v_term, v_trunc = [obs], [], [], []
+    obs, info = venv.reset(seed=seed)
+    v_obs, v_rew, v_term, v_trunc, v_info = [obs], [], [], [], [np.stack([info[k] for k in INFO], 1)]
     for t in range(T):
-        obs, r, te, tr, _ = venv.step(acts[t])
+        obs, r, te, tr, info = venv.step(acts[t])
         v_obs.append(obs), v_rew.append(r), v_term.append(te), v_trunc.append(tr)
-    v_obs, v_rew, v_term, v_trunc = map(np.array, (v_obs, v_rew, v_term, v_trunc))
+        v_info.append(np.stack([info[k] for k in INFO], 1))
+    v_obs, v_rew, v_term, v_trunc, v_info = map(np.array, (v_obs, v_rew, v_term, v_trunc, v_info))
     for i in range(N):
         env = DSS14Env(**kw)
-        obs, _ = env.reset(seed=seed + i)
-        s_obs, s_rew, s_term, s_trunc = [obs], [], [], []
+        obs, info = env.reset(seed=seed + i)
+        s_obs, s_rew, s_term, s_trunc, s_info = [obs], [], [], [], [[info[k] for k in INFO]]
         done = False
         for t in range(T):
             if done:  # the vector env's autoreset step
-                obs, _ = env.reset()
+                obs, info = env.reset()
                 r, te, tr, done = 0.0, False, False, False
             else:
-                obs, r, te, tr, _ = env.step(acts[t, i])
+                obs, r, te, tr, info = env.step(acts[t, i])
                 tr = env.elapsed_steps >= max_steps
                 done = te or tr
             s_obs.append(obs), s_rew.append(r), s_term.append(te), s_trunc.append(tr)
+            s_info.append([info[k] for k in INFO])
         assert np.array_equal(np.array(s_term), v_term[:, i])
         assert np.array_equal(np.array(s_trunc), v_trunc[:, i])
         np.testing.assert_allclose(np.array(s_obs), v_obs[:, i], rtol=1e-6, atol=1e-6)
         np.testing.assert_allclose(np.array(s_rew), v_rew[:, i], rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(np.array(s_info), v_info[:, i], rtol=1e-7, atol=1e-9)
     if case == "hold-terminating-at-el-limit":
         assert v_term.sum() >= N  # the desynchronising terminations did happen
 
@@ -119,5 +126,6 @@ def test_vector_env_info_arrays_and_counters() -> None:
                 "rate_command_az_deg_s", "accel_limited"):
         assert info[key].shape == (5,)
     assert info["action_unclipped"].shape == (5, 2)
-    assert np.all(info["accel_limited"]) and np.all(venv.n_accel_limited == 1) and np.all(info["n_accel_limited"] == 1)
+    assert np.all(info["accel_limited"]) and np.all(venv.n_accel_limited == 1)
+    assert np.all(info["n_accel_limited"] == 1)
     assert np.allclose(info["wind_speed_mps"], 50 / 3.6)

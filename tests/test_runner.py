@@ -1,5 +1,6 @@
 """The benchmark runner (dss14_env/bench/runner.py): metrics, same episodes for every controller,
-JSON output, robustness on the randomised plant."""
+batched and one-at-a-time paths, pooled figures with their intervals, JSON output, robustness
+on the randomised plant."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ import numpy as np
 import pytest
 
 from dss14_env.baselines.base import Controller
+from dss14_env.baselines.pi import PIController
 from dss14_env.bench.runner import (
     CONTROLLERS,
     SCENARIOS,
@@ -17,8 +19,11 @@ from dss14_env.bench.runner import (
     episode_metrics,
     ratio,
     run,
+    run_episode,
     step_response,
+    summarise,
 )
+from dss14_env.envs.env import DSS14Env
 
 
 class Recorder(Controller):
@@ -41,6 +46,48 @@ class Recorder(Controller):
 class Broken(Controller):
     def act(self, observation):
         raise RuntimeError("no")
+
+
+class Pusher(Controller):
+    """Batched: drives row 0 at full rate (into the error bound), holds the others; records
+    the restart masks it gets."""
+
+    batchable = True
+
+    def __init__(self) -> None:
+        super().__init__("pusher")
+        self.restarts: list[np.ndarray] = []
+        self.info_batch: dict = {}
+
+    def reset_batch(self, n: int, seeds=None) -> None:
+        self.n, self.restarts = n, []
+        self.info_batch = {"n_fallbacks": np.arange(n)}
+
+    def act_batch(self, obs: np.ndarray) -> np.ndarray:
+        a = np.array(obs[:, 10:12], np.float32)
+        a[0] = 1.0
+        return a
+
+    def act(self, observation):
+        return self.act_batch(observation[None])[0]
+
+    def restart(self, mask: np.ndarray) -> None:
+        self.restarts.append(np.array(mask))
+
+
+class BrokenBatch(Pusher):
+    def act_batch(self, obs):
+        raise RuntimeError("batch down")
+
+
+class Falls(Recorder):
+    """One at a time, reports two solver fallbacks with their statuses."""
+
+    def act(self, observation):
+        a = super().act(observation)
+        self.info = {"n_fallbacks": 2, "fallbacks": [{"step": 3, "status": "infeasible"},
+                                                     {"step": 7, "status": "max_iter_reached"}]}
+        return a
 
 
 SHORT_HOLD = ("hold_short", Scenario({"scenario": "hold", "wind_speed_kmh": 50.0, "wind_direction": "side"},
@@ -119,13 +166,138 @@ def test_bad_arguments_are_named(kwargs: dict, message: str) -> None:
         run(**kwargs)
 
 
-def test_registries_cover_the_issue() -> None:
+def test_registries_cover_the_benchmark() -> None:
     assert {"pi_kp1", "pi_kp0.7", "lqg", "mpc", "yardstick"} <= set(CONTROLLERS)
     assert {"hold_front", "hold_side", "step", "slew", "track"} <= set(SCENARIOS)
 
 
 def test_ratio_helper(pair_result) -> None:
     assert ratio(pair_result["summary"], "a", "b", "hold_short", "az") == pytest.approx(1.0)
+
+
+# ------------------------------------------------------------------ batched and sequential paths
+NO_QUANTISER = {"encoder_bits": None, "encoder_noise_mdeg": 0.0}
+
+
+@pytest.fixture(scope="module")
+def pi_runs() -> dict:
+    """The report's PI batched (vector env) and one episode at a time (single env), without
+    the encoder's quantiser (so that rounding cannot be amplified into a different path)."""
+    kw = dict(controllers=["pi_kp1", "pi_kp0.7"], scenarios=[SHORT_HOLD], seeds=[3, 4, 5, 6],
+              env_kwargs=NO_QUANTISER)
+    return {"batched": run(**kw), "sequential": run(**kw, batch=False)}
+
+
+def test_pi_runs_batched_through_the_vector_env(pi_runs) -> None:
+    assert pi_runs["batched"]["meta"]["batched"] == {"pi_kp1": True, "pi_kp0.7": True}
+    assert pi_runs["sequential"]["meta"]["batched"] == {"pi_kp1": False, "pi_kp0.7": False}
+    assert {ep["batch_rows"] for ep in pi_runs["batched"]["episodes"]} == {4}
+
+
+def test_batched_episodes_equal_the_single_env_episodes(pi_runs) -> None:
+    a = {(e["controller"], e["seed"]): e for e in pi_runs["batched"]["episodes"]}
+    b = {(e["controller"], e["seed"]): e for e in pi_runs["sequential"]["episodes"]}
+    assert a.keys() == b.keys()
+    for k in a:
+        for key, axes in (("servo_error_mdeg", ("az", "el")), ("pointing_error_mdeg", ("el", "xel"))):
+            for ax in axes:
+                for st in ("three_sigma", "rms", "max"):
+                    x, y = a[k][key][ax][st], b[k][key][ax][st]
+                    assert x == pytest.approx(y, rel=1e-6, abs=1e-9), (k, key, ax)
+        assert a[k]["wind_direction_rad"] == b[k]["wind_direction_rad"]
+
+
+def test_summary_pools_the_episodes(pi_runs) -> None:
+    res = pi_runs["batched"]
+    for c in ("pi_kp1", "pi_kp0.7"):
+        eps = [e for e in res["episodes"] if e["controller"] == c]
+        cell = res["summary"][c]["hold_short"]["servo_error_mdeg"]["az"]["three_sigma"]
+        x = np.array([e["servo_error_mdeg"]["az"]["three_sigma"] for e in eps])
+        assert cell["value"] == pytest.approx(np.sqrt(np.mean(x ** 2)))  # pooled 3-sigma
+        assert cell["median"] == pytest.approx(np.median(x))
+        assert cell["ci95"][0] <= cell["value"] <= cell["ci95"][1]
+        assert cell["n_episodes"] == 4
+        assert cell["seconds"] == pytest.approx(4 * (200 * 0.02 - 1.0))
+        peak = res["summary"][c]["hold_short"]["servo_error_mdeg"]["az"]["max"]["value"]
+        assert peak == pytest.approx(np.mean([e["servo_error_mdeg"]["az"]["max"] for e in eps]))
+
+
+def test_summary_interval_is_reproducible_from_the_episodes(pi_runs) -> None:
+    from dss14_env.bench.runner import cell_rng
+
+    res = pi_runs["batched"]
+    eps = [e for e in res["episodes"] if e["controller"] == "pi_kp0.7"]
+    again = summarise(eps, cell_rng("pi_kp0.7", "hold_short"))
+    assert again["servo_error_mdeg"] == res["summary"]["pi_kp0.7"]["hold_short"]["servo_error_mdeg"]
+
+
+def test_ratio_to_the_reference_is_paired(pi_runs) -> None:
+    s = pi_runs["batched"]["summary"]
+    r = s["pi_kp0.7"]["hold_short"]["vs_reference"]["az"]
+    assert r["value"] == pytest.approx(ratio(s, "pi_kp0.7", "pi_kp1", "hold_short", "az"))
+    assert r["ci95"][0] <= r["value"] <= r["ci95"][1] and r["n_episodes"] == 4
+    # the same gusts in both: the paired ratio is sharper than either figure
+    width = (r["ci95"][1] - r["ci95"][0]) / r["value"]
+    c = s["pi_kp0.7"]["hold_short"]["servo_error_mdeg"]["az"]["three_sigma"]
+    assert width < (c["ci95"][1] - c["ci95"][0]) / c["value"]
+    ref = s["pi_kp1"]["hold_short"]["vs_reference"]["az"]
+    assert ref["value"] == 1.0 and ref["significant"] is False
+
+
+def test_yardstick_ratio_divides_by_the_analytic_figure(pi_runs) -> None:
+    res = pi_runs["batched"]
+    y = res["yardstick"]["hold_short"]["three_sigma_mdeg"][0]
+    cell = res["summary"]["pi_kp1"]["hold_short"]
+    r = cell["vs_yardstick"]["az"]
+    t = cell["servo_error_mdeg"]["az"]["three_sigma"]
+    assert r["value"] == pytest.approx(t["value"] / y)
+    assert r["ci95"] == pytest.approx([t["ci95"][0] / y, t["ci95"][1] / y])
+    assert r["significant"] is True  # the PI is far from the yardstick
+
+
+def test_one_at_a_time_controllers_run_the_first_seeds() -> None:
+    res = run([Recorder("rec"), "pi_kp1"], [SHORT_HOLD], seeds=[7, 8, 9], sequential_seeds=2)
+    seeds = {c: [e["seed"] for e in res["episodes"] if e["controller"] == c] for c in ("rec", "pi_kp1")}
+    assert seeds == {"rec": [7, 8], "pi_kp1": [7, 8, 9]}
+    assert res["summary"]["rec"]["hold_short"]["vs_reference"]["az"]["n_episodes"] == 2
+    assert res["meta"]["batched"] == {"rec": False, "pi_kp1": True}
+
+
+def test_terminated_rows_are_masked_and_restarted() -> None:
+    ctrl = Pusher()
+    sc = ("bound", Scenario({"scenario": "hold", "wind_speed_kmh": 0.0, "max_error_deg": 0.02}, 150))
+    res = run([ctrl], [sc], seeds=[0, 1])
+    ep = {e["seed"]: e for e in res["episodes"]}
+    assert ep[0]["terminated"] and ep[0]["n_steps"] < 150
+    assert not ep[1]["terminated"] and ep[1]["n_steps"] == 150
+    assert res["summary"]["pusher"]["bound"]["terminated"] == 1
+    # the row that ended is restarted after the vector env reset it (the pusher drives it into
+    # the bound again and again), the other row never
+    assert ctrl.restarts and all(m.tolist() == [True, False] for m in ctrl.restarts)
+    # per-row controller info (fallback counts) is kept per episode
+    assert [ep[s]["fallbacks"] for s in (0, 1)] == [0, 1]
+
+
+def test_batched_failure_ends_every_row() -> None:
+    res = run([BrokenBatch()], [SHORT_HOLD], seeds=[0, 1])
+    assert [e["failures"] for e in res["episodes"]] == [1, 1]
+    assert all("batch down" in e["failure"] and e["n_steps"] == 0 for e in res["episodes"])
+
+
+def test_fallback_statuses_are_kept_per_episode() -> None:
+    res = run([Falls("mpc-like")], [SHORT_HOLD], seeds=[0, 1])
+    for e in res["episodes"]:
+        assert e["fallbacks"] == 2
+        assert e["fallback_log"] == [{"step": 3, "status": "infeasible"},
+                                     {"step": 7, "status": "max_iter_reached"}]
+    assert res["summary"]["mpc-like"]["hold_short"]["fallbacks"] == 4
+
+
+def test_run_episode_on_a_single_env() -> None:
+    env = DSS14Env(**SCENARIOS["step"].env)
+    m = run_episode(PIController(env), env, seed=0, steps=300, record=True)
+    assert m["n_steps"] == 300 and m["batch_rows"] == 1 and m["trace"]["encoder_deg"].shape == (300, 2)
+    assert m["step"]["az"]["overshoot_pct"] > 10.0  # the report's PI overshoots (20-30 %)
 
 
 # ------------------------------------------------------------------ robustness

@@ -307,7 +307,8 @@ def _peaks(f: np.ndarray, mag: np.ndarray, prominence_db: float) -> np.ndarray:
     return f[idx[order]]
 
 
-def test_regression_calibrated_fig15_az_resonances_reduced_model(reduced: ModalModel, grid: np.ndarray) -> None:
+def test_regression_calibrated_fig15_az_resonances_reduced_model(reduced: ModalModel,
+                                                                  grid: np.ndarray) -> None:
     mag = np.abs(freqresp(reduced.to_ss(), grid, "enc_rate_az", "T_a"))
     peaks = _peaks(grid, mag, 3.0)
     assert peaks.size >= 2
@@ -359,8 +360,8 @@ def test_pinion_torque_input_eq47(lumped: LumpedStructure, model: DSS14Model, ax
 def test_rigid_rotation_outputs(lumped: LumpedStructure, model: DSS14Model, axis: str) -> None:
     Cq, Cv = lumped.output_matrices()
     q = _rigid_by_hand(lumped, axis)
-    y = dict(zip(STRUCT_OUTPUTS, Cq @ q))
-    v = dict(zip(STRUCT_OUTPUTS, Cv @ q))  # same vector read as a velocity of 1 rad/s
+    y = dict(zip(STRUCT_OUTPUTS, Cq @ q, strict=True))
+    v = dict(zip(STRUCT_OUTPUTS, Cv @ q, strict=True))  # same vector read as a velocity of 1 rad/s
     other = "el" if axis == "az" else "az"
     n_p = model.cfg.gearbox.n_p
     assert y[f"enc_{axis}"] == pytest.approx(1.0, rel=1e-12)

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import pytest
@@ -20,7 +21,7 @@ BAND = (0.003, 10.0)  # Hz
 
 def _log_binned(f: np.ndarray, values: np.ndarray, edges: np.ndarray) -> list[np.ndarray]:
     """Split ``values`` into the frequency bins ``edges[i] <= f < edges[i + 1]``."""
-    return [values[(f >= lo) & (f < hi)] for lo, hi in zip(edges[:-1], edges[1:])]
+    return [values[(f >= lo) & (f < hi)] for lo, hi in zip(edges[:-1], edges[1:], strict=True)]
 
 
 # --------------------------------------------------------------------------
@@ -53,7 +54,7 @@ def test_welch_psd_within_20_percent_in_log_bins(mean_speed: float) -> None:
     est = _log_binned(f, p, edges)
     ref = _log_binned(f, wind.davenport_psd(f, mean_speed), edges)
     assert min(b.size for b in est) >= 5
-    errors = np.array([e.mean() / r.mean() - 1.0 for e, r in zip(est, ref)])
+    errors = np.array([e.mean() / r.mean() - 1.0 for e, r in zip(est, ref, strict=True)])
     assert np.max(np.abs(errors)) < 0.20, errors
 
 

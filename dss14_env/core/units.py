@@ -89,12 +89,3 @@ def rad_to_mdeg(x):
     """Radians to millidegrees (works on arrays)."""
     return x * (180.0e3 / math.pi)
 
-
-def mdeg_to_rad(x):
-    """Millidegrees to radians (works on arrays)."""
-    return x * (math.pi / 180.0e3)
-
-
-def hz_to_rad_s(f):
-    """Frequency in Hz to angular frequency in rad/s."""
-    return 2.0 * math.pi * f

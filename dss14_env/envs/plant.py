@@ -34,28 +34,43 @@ Within one episode the two filter copies stay proportional, so the single enviro
 the exact 64-state restriction ``[x_r, x_f]`` (:meth:`Plant.one_copy_projection`); the vector
 environment steps the 68-state form, whose matrices serve every direction at once.
 
-Outputs ``y = C x``: :data:`OUTPUTS` (encoder angles and the dish pointing errors in rad, the
-gust torques in N*m).  Plants are cached per (parameters, U, dt) by :func:`get_plant`.
+Outputs ``y = C x``: :data:`OUTPUTS` (encoder angles and the dish's pointing angles in rad --
+elevation and cross-elevation, deformation included -- and the gust torques in N*m).
+
+Plants belong to their model: a :class:`PlantFactory` holds one calibrated model (and the wind
+loads calibrated on it) and builds and keeps its plants per (parameters, U, dt).  Factories
+are kept per model configuration file (its path and content) in :data:`PLANT_FACTORIES`, so the
+environments built on one file share one calibration.
 """
 
 from __future__ import annotations
 
+import hashlib
 import math
 from collections import OrderedDict
-from functools import cached_property
-from typing import TYPE_CHECKING, Mapping
+from collections.abc import Mapping
+from functools import cached_property, lru_cache
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy import linalg
 
+from dss14_env.core.schema import config_path
+from dss14_env.core.threads import single_threaded
+from dss14_env.model.assembly import build_model, default_model
+from dss14_env.model.config import load_model_config
 from dss14_env.model.linsys import balance, discretize, noise_factor
+from dss14_env.model.uncertainty import SWEEP_PARAMS, draw_stable_params, perturbed_rate_loop
+from dss14_env.wind.loads import calibrate_wind_loads, default_wind_loads
 
-if TYPE_CHECKING:  # annotations only: keep this module's imports light
+if TYPE_CHECKING:  # annotations only
     import control as ct
 
+    from dss14_env.model.assembly import DSS14Model
     from dss14_env.wind.loads import WindLoads
 
-#: rows of :attr:`Plant.C`: encoder angles (rad), dish pointing errors (rad), gust torques (N*m)
+#: rows of :attr:`Plant.C`: encoder angles (rad), dish pointing angles (rad), gust torques (N*m)
 OUTPUTS = ("enc_az", "enc_el", "point_el", "point_xel", "gust_torque_az", "gust_torque_el")
 #: rate-loop outputs used for the steady-motion start (not in :data:`OUTPUTS`)
 RATE_OUTPUTS = ("enc_rate_az", "enc_rate_el")
@@ -63,8 +78,8 @@ RATE_OUTPUTS = ("enc_rate_az", "enc_rate_el")
 NOISE_TAIL_TOL = 1.0e-8
 #: reference speed (m/s) for the (unused, zero-gain) gust filter of a plant without wind
 _NO_WIND_FILTER_SPEED = 1.0
-_CACHE_SIZE = 64
-_cache: OrderedDict = OrderedDict()
+#: outputs computed every step (:data:`OUTPUTS` up to the gust torques)
+N_STEP_OUTPUTS = 4
 
 
 def _van_loan(A: np.ndarray, W: np.ndarray, dt: float) -> np.ndarray:
@@ -90,19 +105,26 @@ class Plant:
     :param wind_speed: mean wind speed ``U`` in m/s (0 = no wind)
     :param dt: control period in s (> 0)
     :param params: hydraulic parameters the rate loop was built with (for the record)
-    :raises ValueError: on a bad speed or period, or if ``dt`` is so long that the 4-direction
-        noise factor would drop more than :data:`NOISE_TAIL_TOL` of the noise
+    :param xel_scale: ``cos(E)`` of the structure model's elevation angle ``E``: the
+        cross-elevation pointing output of a rigid azimuth rotation ``theta`` is
+        ``xel_scale * theta`` (:meth:`dss14_env.model.structure.Structure.output_matrices`)
+    :raises ValueError: on a bad speed or period, if ``dt`` is so long that the 4-direction
+        noise factor would drop more than :data:`NOISE_TAIL_TOL` of the noise, or if the
+        discretised plant is not finite
     """
 
     def __init__(self, rate_loop: ct.StateSpace, loads: WindLoads, wind_speed: float, dt: float,
-                 params: Mapping[str, float] | None = None) -> None:
+                 params: Mapping[str, float] | None = None, *, xel_scale: float) -> None:
         if not (math.isfinite(wind_speed) and wind_speed >= 0.0):
             raise ValueError(f"wind_speed must be a finite speed >= 0 m/s, got {wind_speed!r}")
         if not (math.isfinite(dt) and dt > 0.0):
             raise ValueError(f"dt must be a positive finite period in s, got {dt!r}")
+        if not (math.isfinite(xel_scale) and 0.0 < xel_scale <= 1.0):
+            raise ValueError(f"xel_scale must be cos(E) in (0, 1], got {xel_scale!r}")
         self.wind_speed = float(wind_speed)
         self.dt = float(dt)
         self.params = dict(params or {})
+        self.xel_scale = float(xel_scale)
         self.loads = loads
         il, ol = list(rate_loop.input_labels), list(rate_loop.output_labels)
         A_r = np.asarray(rate_loop.A, float)
@@ -148,6 +170,9 @@ class Plant:
         self.state_scale = scale
 
         Ad, Bd, _ = discretize(A, B, self.dt)
+        if not (np.all(np.isfinite(Ad)) and np.all(np.isfinite(Bd))):
+            raise ValueError(f"the plant at U = {self.wind_speed:g} m/s, dt = {self.dt:g} s, parameters "
+                             f"{self.params or 'nominal'} is not finite")
         self.Ad, self.Bd_r, self.Bd_T = Ad, Bd[:, :2], Bd[:, 2:]
         self.L_a, self.L_e, self.noise_tail = self._noise_factors()
         self.noise_rank = self.L_a.shape[1]
@@ -277,55 +302,246 @@ class Plant:
         """Noise factor ``L = kappa_az L_a + kappa_el L_e`` ``(n, 4)`` of one direction."""
         return kappa[0] * self.L_a + kappa[1] * self.L_e
 
-    def step_matrix(self, t_mean: np.ndarray) -> np.ndarray:
-        """Fused one-step map of one episode: ``[x+; y+] = M [x; r_a; r_e; 1]`` (no noise)."""
-        top = np.hstack([self.Ad, self.Bd_r, (self.Bd_T @ t_mean)[:, None]])
-        return np.vstack([top, self.C @ top])
+    @single_threaded
+    def episode_map(self, kappa: np.ndarray, t_mean: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The fused one-step map of one episode in the 64-state one-copy form (the single env).
+
+        ``[u+; y+] = M [r_a, r_e, 1, xi, u]``: ``u = P x`` the one-copy state
+        (:meth:`one_copy_projection`), ``r`` the held rate command, ``xi`` the step's standard
+        normals, ``y`` the first :data:`N_STEP_OUTPUTS` outputs at the step's end; the constant
+        input carries the held mean torque.  Exact: the same discretisation as
+        :attr:`batch_step_matrix` restricted to the episode's direction.  Computed with one BLAS
+        thread (:func:`dss14_env.core.threads.single_threaded`): the same bits whatever the
+        caller's threads.
+
+        :param kappa: direction factors (:meth:`kappa`)
+        :param t_mean: mean wind torques, N*m (:meth:`mean_torque`)
+        :return: ``(M, T, P)``: ``M`` of shape ``(m + N_STEP_OUTPUTS, 3 + k + m)`` with
+            ``m = n - n_wind`` and ``k`` the noise rank, and the maps of
+            :meth:`one_copy_projection`
+        """
+        T, P = self.one_copy_projection(kappa)
+        m, k = P.shape[0], self.noise_rank
+        h = 3 + k
+        M = np.zeros((m + N_STEP_OUTPUTS, h + m))
+        M[:m, :2] = P @ self.Bd_r
+        M[:m, 2] = P @ (self.Bd_T @ np.asarray(t_mean, float))
+        M[:m, 3:h] = P @ self.noise_matrix(kappa)
+        M[:m, h:] = P @ self.Ad @ T
+        M[m:] = (self.C[:N_STEP_OUTPUTS] @ T) @ M[:m]
+        return M, T, P
 
     @cached_property
     def batch_step_matrix(self) -> np.ndarray:
-        """Transposed fused map of the vector env (computed once):
+        """Transposed fused map of the vector env (computed once, with one BLAS thread):
         ``[x+, y+] = [x, r, T_mean, kappa_az xi, kappa_el xi] @ M^T``."""
-        top = np.hstack([self.Ad, self.Bd_r, self.Bd_T, self.L_a, self.L_e])
-        return np.vstack([top, self.C @ top]).T.copy()
+        return _batch_step_matrix(self)
 
     def __repr__(self) -> str:
         return (f"Plant(U={self.wind_speed:.3g} m/s, dt={self.dt:g} s, n={self.n}, "
                 f"params={self.params or 'nominal'})")
 
 
-# ---------------------------------------------------------------------- cache and factory
-def _params_key(params: Mapping[str, float] | None) -> tuple:
-    return tuple(sorted((k, float(v)) for k, v in (params or {}).items()))
+@single_threaded
+def _batch_step_matrix(p: Plant) -> np.ndarray:
+    top = np.hstack([p.Ad, p.Bd_r, p.Bd_T, p.L_a, p.L_e])
+    return np.vstack([top, p.C @ top]).T.copy()
+
+
+# ---------------------------------------------------------------------- one episode's step
+def step_buffers(M: np.ndarray, x0: np.ndarray, y0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The two step buffers ``z = [r_a, r_e, 1, xi, u, y]`` of an episode map ``M``
+    (:meth:`Plant.episode_map`), the first holding the one-copy start state ``x0`` and its
+    outputs ``y0``; :func:`buffer_views` makes the views the step reads and writes
+    (:func:`dss14_env.envs.core.step_1`)."""
+    n_in = M.shape[1]
+    z0, z1 = np.zeros(n_in + N_STEP_OUTPUTS), np.zeros(n_in + N_STEP_OUTPUTS)
+    z0[2] = z1[2] = 1.0
+    z0[n_in - x0.shape[0]:n_in] = x0
+    z0[n_in:] = y0
+    return z0, z1
+
+
+def buffer_views(z: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(z, input [r, 1, xi, u], state and outputs [u, y], outputs y)`` of one step buffer of
+    an episode with ``m`` one-copy states (views, so that ``M @ input`` is written in place into
+    the other buffer's ``[u, y]``: one matrix-vector product per step, no copies)."""
+    n_in = z.shape[0] - N_STEP_OUTPUTS
+    return z, z[:n_in], z[n_in - m:], z[n_in:]
+
+
+# ---------------------------------------------------------------------- plants of one model
+class PlantFactory:
+    """The discretised plants of one calibrated model, built on demand and kept.
+
+    Holds the model, the wind loads calibrated on it and its plants (least recently used
+    first out beyond ``cache_size``).  Build one with :meth:`from_model_config` or take the
+    shared one of a configuration file from :data:`PLANT_FACTORIES`.
+
+    :param model: calibrated servo model (:func:`dss14_env.model.build_model`)
+    :param loads: wind loads calibrated on that model
+        (:func:`dss14_env.wind.loads.calibrate_wind_loads`)
+    :param source: the model configuration file (None: the shipped default)
+    :param cache_size: plants kept
+    """
+
+    def __init__(self, model: DSS14Model, loads: WindLoads, source: str | None = None,
+                 cache_size: int = 64) -> None:
+        self.model = model
+        self.loads = loads
+        self.source = source
+        self.cache_size = int(cache_size)
+        #: cos(E) of the structure model's elevation angle (cross-elevation of an az rotation)
+        self.xel_scale = math.cos(model.cfg.structure.elevation_angle)
+        self._plants: OrderedDict = OrderedDict()
+
+    @classmethod
+    def from_model_config(cls, path: str | Path) -> PlantFactory:
+        """Build the model of a configuration file and calibrate its wind loads (a few seconds;
+        :data:`PLANT_FACTORIES` keeps the result per file).
+
+        :param path: model YAML file or the name of a shipped one
+        :raises ConfigError: a bad model configuration
+        """
+        cfg = load_model_config(path)
+        model = build_model(cfg)
+        return cls(model, calibrate_wind_loads(model), source=str(cfg.path))
+
+    def plant(self, wind_speed: float, dt: float, params: Mapping[str, float] | None = None) -> Plant:
+        """The plant for a mean wind speed, period and parameter set (built once per key).
+
+        :param wind_speed: mean wind speed, m/s (0 = no wind)
+        :param dt: control period, s
+        :param params: hydraulic parameters (SI, names of
+            :data:`dss14_env.model.uncertainty.SWEEP_PARAMS`) replacing the nominal ones
+        """
+        key = (tuple(sorted((k, float(v)) for k, v in (params or {}).items())), float(wind_speed), float(dt))
+        plant = self._plants.get(key)
+        if plant is not None:
+            self._plants.move_to_end(key)
+            return plant
+        plant = _build_plant(self, float(wind_speed), float(dt), params)
+        self._plants[key] = plant
+        if len(self._plants) > self.cache_size:
+            self._plants.popitem(last=False)
+        return plant
+
+    def check_params(self, params: Mapping[str, float], source: str = "params") -> dict[str, float]:
+        """``params`` checked against the model's ranges (its configuration's ``range``).
+
+        :param source: where ``params`` came from, for the message
+            (:meth:`dss14_env.envs.config.EnvConfig.source_of`)
+        :raises ValueError: ``<source>: field 'params.<name>': must lie in the range ...``
+        """
+        out = {}
+        for name, value in params.items():
+            if name not in SWEEP_PARAMS:
+                raise ValueError(f"{source}: field 'params': must name parameters of "
+                                 f"{', '.join(SWEEP_PARAMS)}, got {name!r}")
+            lo, hi = self.model.cfg.params[name].range
+            v = float(value)
+            if not lo <= v <= hi:
+                raise ValueError(f"{source}: field 'params.{name}': must lie in the range [{lo:g}, {hi:g}] "
+                                 f"(SI) of the model {self.source or 'configs/model.yaml'}, got {value!r}")
+            out[name] = v
+        return out
+
+    def draw_params(self, rng: np.random.Generator) -> dict[str, float]:
+        """A stable draw of the uncertain parameters of this model
+        (:func:`dss14_env.model.uncertainty.draw_stable_params`)."""
+        return draw_stable_params(rng, model=self.model)
+
+    def __len__(self) -> int:
+        return len(self._plants)
+
+    def __repr__(self) -> str:
+        return f"PlantFactory(source={self.source or 'default'!s}, plants={len(self._plants)})"
+
+    def __deepcopy__(self, memo: dict) -> PlantFactory:
+        return self  # the model and loads never change; its plants are immutable
+
+    def __reduce__(self) -> tuple:
+        """Pickled by reference: the shipped model's factory, or the one of a model file (built
+        again, or found in :data:`PLANT_FACTORIES`, on loading)."""
+        if self is default_plant_factory():
+            return (default_plant_factory, ())
+        if self.source is None:
+            raise TypeError("a PlantFactory built from model objects cannot be pickled; build it from a "
+                            "model file (PlantFactory.from_model_config) to pickle environments on it")
+        return (_factory_of_file, (self.source,))
+
+
+class PlantFactories:
+    """Plant factories per model configuration file: the models a process has built.
+
+    Keyed by the file's resolved path and content (an edited file is built anew).  One
+    instance, :data:`PLANT_FACTORIES`, serves the environments; :meth:`clear` frees its models.
+    """
+
+    def __init__(self) -> None:
+        self._factories: dict[tuple[str, str], PlantFactory] = {}
+
+    def get(self, model_config: str | Path | None = None) -> PlantFactory:
+        """The factory of a model configuration file (None: the shipped default model).
+
+        :raises ConfigError: the file is missing or its configuration is bad
+        """
+        if model_config is None:
+            return default_plant_factory()
+        path = config_path(model_config).resolve()
+        key = (str(path), hashlib.sha256(path.read_bytes()).hexdigest())
+        factory = self._factories.get(key)
+        if factory is None:
+            factory = self._factories[key] = PlantFactory.from_model_config(path)
+        return factory
+
+    def clear(self) -> None:
+        """Forget every model built from a file (the default model stays)."""
+        self._factories.clear()
+
+    def __len__(self) -> int:
+        return len(self._factories)
+
+
+@single_threaded
+def _build_plant(f: PlantFactory, wind_speed: float, dt: float, params: Mapping[str, float] | None) -> Plant:
+    """A plant of ``f``'s model, built with one BLAS thread (the same bits whatever the caller's
+    threads, :mod:`dss14_env.core.threads`)."""
+    rl = perturbed_rate_loop(f.model, dict(params)) if params else f.model.rate_loop
+    return Plant(rl, f.loads, wind_speed, dt, params, xel_scale=f.xel_scale)
+
+
+#: the plant factories of this process, per model configuration file
+PLANT_FACTORIES = PlantFactories()
+
+
+@lru_cache(maxsize=1)
+def default_plant_factory() -> PlantFactory:
+    """The factory of the shipped model (:func:`dss14_env.model.default_model` and
+    :func:`dss14_env.wind.loads.default_wind_loads`), built once per process."""
+    return PlantFactory(default_model(), default_wind_loads())
+
+
+def _factory_of_file(path: str) -> PlantFactory:
+    return PLANT_FACTORIES.get(path)
+
+
+def resolve_factory(model_config: Any) -> PlantFactory:
+    """The plant factory an environment's ``model_config`` argument names.
+
+    :param model_config: None (the shipped model), a model YAML path or shipped name, or a
+        :class:`PlantFactory`
+    :raises ValueError: anything else (``ConfigError`` for a bad file)
+    """
+    if isinstance(model_config, PlantFactory):
+        return model_config
+    if model_config is None or isinstance(model_config, (str, Path)):
+        return PLANT_FACTORIES.get(model_config)
+    raise ValueError(f"model_config must be None, a model YAML path or a PlantFactory, got "
+                     f"{type(model_config).__name__}")
 
 
 def get_plant(wind_speed: float, dt: float, params: Mapping[str, float] | None = None) -> Plant:
-    """The (cached) plant of the default model for a mean speed, period and parameter set.
-
-    :param wind_speed: mean wind speed, m/s (0 = no wind)
-    :param dt: control period, s
-    :param params: hydraulic parameters (SI, names of :data:`dss14_env.model.uncertainty.SWEEP_PARAMS`)
-        replacing the nominal ones, default none
-    :return: the plant; built at most once per key (LRU of 64 plants)
-    """
-    key = (_params_key(params), float(wind_speed), float(dt))
-    plant = _cache.get(key)
-    if plant is not None:
-        _cache.move_to_end(key)
-        return plant
-    from dss14_env.model.assembly import default_model
-    from dss14_env.model.uncertainty import perturbed_rate_loop
-    from dss14_env.wind.loads import default_wind_loads
-
-    model = default_model()
-    rl = perturbed_rate_loop(model, dict(params)) if params else model.rate_loop
-    plant = Plant(rl, default_wind_loads(), float(wind_speed), float(dt), params)
-    _cache[key] = plant
-    if len(_cache) > _CACHE_SIZE:
-        _cache.popitem(last=False)
-    return plant
-
-
-def clear_plant_cache() -> None:
-    """Forget every cached plant."""
-    _cache.clear()
+    """The plant of the shipped model for a mean speed, period and parameter set
+    (``default_plant_factory().plant(...)``)."""
+    return default_plant_factory().plant(wind_speed, dt, params)

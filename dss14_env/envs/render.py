@@ -32,6 +32,14 @@ class Renderer:
         self._fig = None
         self._lines = None
 
+    def __getstate__(self) -> dict:
+        """The history and settings; the figure is drawn again by the copy when it renders."""
+        state = self.__dict__.copy()
+        for key in ("_fig", "_axs", "_lines", "_suptitle"):
+            state.pop(key, None)
+        state["_fig"] = state["_lines"] = None
+        return state
+
     def reset(self, title: str) -> None:
         """Forget the history; ``title`` labels the figure (scenario, wind)."""
         for d in self.hist.values():
@@ -42,7 +50,7 @@ class Renderer:
                cd_az: float, cd_el: float, wind: float) -> None:
         """Add one sample: time (s), true servo errors (mdeg), applied and commanded rates
         (deg/s), wind speed (m/s)."""
-        for k, v in zip(_FIELDS, (t, e_az, e_el, r_az, r_el, cd_az, cd_el, wind)):
+        for k, v in zip(_FIELDS, (t, e_az, e_el, r_az, r_el, cd_az, cd_el, wind), strict=True):
             self.hist[k].append(v)
 
     # ------------------------------------------------------------------ drawing

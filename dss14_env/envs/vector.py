@@ -7,14 +7,15 @@ per-sub-environment factor, see :mod:`dss14_env.envs.plant`) are stepped by ONE 
 
     [X+, Y+] = [X, R, T_mean, kappa_az Xi, kappa_el Xi] @ M^T
 
-Everything else (command limiter, encoders, observation, reward, episode end) is elementwise
-numpy over the batch.
+Everything else -- input checks, command limiter, encoders, errors, episode end, reward,
+observation, info -- is the batched step of :mod:`dss14_env.envs.core`, the one the single
+environment's scalar twin is held to.
 
 Seeding rule (the one of ``gymnasium.vector.SyncVectorEnv``): sub-environment ``i`` owns its
 own ``numpy.random.Generator``, seeded with ``seed + i`` by ``reset(seed=seed)`` (or ``seed[i]``
-for a list; fresh entropy for None on the first reset, continued otherwise).  Every draw of
-sub-environment ``i`` -- its episodes (:func:`dss14_env.envs.scenarios.draw_episode`) and its noise
-blocks -- comes from that generator in the same order as in a single environment, so the
+for a sequence; fresh entropy for None on the first reset, continued otherwise).  Every draw of
+sub-environment ``i`` -- its episodes (:func:`dss14_env.envs.scenarios.draw_episode`) and its
+noise blocks -- comes from that generator in the same order as in a single environment, so the
 results equal those of N single environments reset with seeds ``seed + i`` and stepped with
 the same actions (up to floating-point rounding, about 1e-10 relative: the single environment
 steps the exact 64-state restriction of the same plant).
@@ -27,13 +28,14 @@ steps (from the registration, via ``make_vec``).
 
 ``info`` holds arrays of shape ``(N,)`` (``action_unclipped``: ``(N, 2)``) with the keys of the
 single environment's step info (values of a sub-environment that was just reset describe its
-first state); there are no ``_key`` masks.  Rendering is not supported.
+first state); there are no ``_key`` masks.  Rendering is not supported.  ``copy.deepcopy``, a
+pickle round trip and :meth:`DSS14VectorEnv.get_state` / ``set_state`` continue bit for bit.
 """
 
 from __future__ import annotations
 
-import math
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from gymnasium import spaces
@@ -41,19 +43,25 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from dss14_env.envs.env import OBS_ERROR_BOUND, OBS_ERROR_RATE_BOUND, OBS_HIGH, R2D, R2MD
-from dss14_env.envs.plant import Plant, get_plant
-from dss14_env.envs.scenarios import (
-    DEG,
-    MDEG,
-    NOISE_BLOCK,
-    EnvConfig,
-    block_rows,
-    command,
-    draw_episode,
-    draw_noise_block,
-    load_env_config,
+from dss14_env.core.units import DEG, R2D, R2MD
+from dss14_env.envs.config import EnvConfig, load_env_config
+from dss14_env.envs.core import (
+    OBS_HIGH,
+    StepConstants,
+    as_actions,
+    check_seeds,
+    limit_commands,
+    observation,
+    read_encoders,
+    reward,
+    servo_errors,
+    start_action,
+    step_info,
+    terminated,
 )
+from dss14_env.envs.env import EnvState, restore, snapshot
+from dss14_env.envs.plant import N_STEP_OUTPUTS, Plant, PlantFactory, resolve_factory
+from dss14_env.envs.scenarios import NOISE_BLOCK, block_rows, command, draw_episode, draw_noise_block
 
 _TRAJ_KEYS = ("v", "amp", "omega", "phase", "sin_phase", "step", "t_step", "slew_acc", "slew_t0",
               "slew_ta", "slew_T")
@@ -66,6 +74,7 @@ class DSS14VectorEnv(VectorEnv):
     :param max_episode_steps: truncate episodes after this many steps (None: never)
     :param render_mode: must be None
     :param config: as for :class:`dss14_env.envs.env.DSS14Env`
+    :param model_config: as for :class:`dss14_env.envs.env.DSS14Env` (one model for all)
     :param overrides: configuration keys
     """
 
@@ -73,16 +82,21 @@ class DSS14VectorEnv(VectorEnv):
 
     def __init__(self, num_envs: int = 1, max_episode_steps: int | None = None,
                  render_mode: str | None = None, config: str | EnvConfig | dict | None = None,
-                 **overrides: Any) -> None:
+                 model_config: Any = None, **overrides: Any) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
         if max_episode_steps is not None and (isinstance(max_episode_steps, bool) or not isinstance(
                 max_episode_steps, (int, np.integer)) or max_episode_steps < 1):
-            raise ValueError(f"max_episode_steps must be None or a positive integer, got {max_episode_steps!r}")
+            raise ValueError(f"max_episode_steps must be None or a positive integer, got "
+                             f"{max_episode_steps!r}")
         if render_mode is not None:
-            raise ValueError(f"DSS14VectorEnv does not render (render_mode must be None, got {render_mode!r}); "
-                             "use the single environment for rendering")
+            raise ValueError(f"render_mode must be None (DSS14VectorEnv does not render; use the single "
+                             f"environment), got {render_mode!r}")
         self.config = load_env_config(config, **overrides)
+        #: the model's plants (:class:`~dss14_env.envs.plant.PlantFactory`), shared by all
+        self.plants: PlantFactory = resolve_factory(model_config)
+        if self.config.params is not None:
+            self.plants.check_params(self.config.params, self.config.source_of("params"))
         self.num_envs = int(num_envs)
         self.max_episode_steps = None if max_episode_steps is None else int(max_episode_steps)
         self.render_mode = None
@@ -90,16 +104,7 @@ class DSS14VectorEnv(VectorEnv):
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.single_observation_space = spaces.Box(-OBS_HIGH, OBS_HIGH, dtype=np.float32)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
-        c = self.config
-        self._dt = c.dt
-        self._scale = c.action_scale_deg_s * DEG
-        self._rl = c.rate_limit_deg_s * DEG
-        self._dr = c.accel_limit_deg_s2 * DEG * c.dt
-        self._inv_es = 1.0 / c.error_scale_mdeg
-        self._q = (2.0 * math.pi / 2 ** c.encoder_bits) if c.encoder_bits else 0.0
-        self._sig = c.encoder_noise_mdeg * MDEG
-        self._el_lo, self._el_hi = (v * DEG for v in c.el_limits_deg)
-        self._az_c, self._az_h = c.az_wrap_centre_deg * DEG, c.az_wrap_half_range_deg * DEG
+        self.constants = StepConstants.from_config(self.config)
         self._rngs: list[np.random.Generator | None] = [None] * self.num_envs
         self._Zs = None
 
@@ -108,47 +113,47 @@ class DSS14VectorEnv(VectorEnv):
               options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         """Reset every sub-environment.
 
-        :param seed: int (sub-environment i gets ``seed + i``), a list of N seeds/None, or None
+        :param seed: None, a non-negative integer (sub-environment i gets ``seed + i``) or a
+            sequence of N such seeds / None
         :param options: episode keys for the episodes this reset starts (all sub-environments)
         :return: observations ``(N, 12)`` and info
+        :raises ValueError: a bad seed or option, before anything changes
         """
         N = self.num_envs
+        seeds = check_seeds(seed, N)
         cfg = self.config.with_options(options)
-        if seed is None:
-            seeds: list = [None] * N
-        elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
-            seeds = [int(seed) + i for i in range(N)]
-            super().reset(seed=int(seed))
-        else:
-            seeds = list(seed)
-            if len(seeds) != N:
-                raise ValueError(f"seed list must have num_envs = {N} entries, got {len(seeds)}")
+        if cfg.params is not None:
+            self.plants.check_params(cfg.params, cfg.source_of("params"))
+        if seed is not None and not isinstance(seed, (list, tuple, np.ndarray)):
+            super().reset(seed=seeds[0])
         for i, s in enumerate(seeds):
             if s is not None or self._rngs[i] is None:
                 self._rngs[i] = seeding.np_random(s)[0]
         self._allocate()
         idx = np.arange(N)
         self._reset_envs(idx, cfg)
-        return self._reset_obs(idx), self._reset_info()
+        obs, info = self._reset_rows(idx)
+        info["start_az_deg"], info["start_el_deg"] = self._start[:, 0] * R2D, self._start[:, 1] * R2D
+        return obs, info
 
     def _allocate(self) -> None:
         """Per-sub-environment arrays (sized from the nominal plant)."""
         N = self.num_envs
-        p = get_plant(0.0, self.config.dt)  # sizes only
+        p = self.plants.plant(0.0, self.config.dt)  # sizes only
         self._n, self._k_rank = p.n, p.noise_rank
-        n, k, m = p.n, p.noise_rank, 4  # outputs: encoders and pointing (Plant.OUTPUTS[:4])
+        n, k = p.n, p.noise_rank
         # plant state, inputs and outputs in *slot* order (sub-environments sorted by plant,
         # slot s holds sub-environment perm[s]); everything else in sub-environment order
         self._Zs = np.zeros((N, n + 4 + 2 * k))
-        self._Os = np.zeros((N, n + m))
-        self._Y = np.zeros((N, m))
+        self._Os = np.zeros((N, n + N_STEP_OUTPUTS))
+        self._Y = np.zeros((N, N_STEP_OUTPUTS))
         self._kappa = np.zeros((N, 2))
         self._kappa_s = np.zeros((N, 2))
         self._start = np.zeros((N, 2))
         self._traj = {key: np.zeros((N, 2)) for key in _TRAJ_KEYS}
         self._k = np.zeros(N, np.int64)
         self._j = np.zeros(N, np.int64)
-        self._blocks = np.zeros((NOISE_BLOCK, N, 6 + k + 2))  # block_rows, time-major
+        self._blocks = np.zeros((NOISE_BLOCK, N, 8 + k))  # block_rows, time-major
         self._rp = np.zeros((N, 2))
         self._ap = np.zeros((N, 2))
         self._em = np.zeros((N, 2))
@@ -157,21 +162,18 @@ class DSS14VectorEnv(VectorEnv):
         self._max_e = np.zeros(N)
         self._wind = np.zeros((N, 2))  # speed (m/s), direction (rad)
         self._pid = np.zeros(N, np.int64)
-        self._plants: list = []
+        self._plants: list[Plant] = []
+        self._groups: list = []
         self._prev_done = np.zeros(N, bool)
-        self._info_state = self.config.info_state
         self._arange = np.arange(N)
         self._j_uniform = True
-        self._obs_high64 = OBS_HIGH.astype(np.float64)
-        self._obs_low64 = -self._obs_high64
-        self._w = self.config.action_change_weight
-        self._rb = (1.0 / self.config.error_scale_mdeg) * (1.0 / self._dt)
+        self._any_noise = False
         self._clamp_always = False
         self._perm = self._inv = None
 
     def _matrix(self, plant: Plant) -> np.ndarray:
         """The plant's batch step map without the gust-torque outputs (not observed)."""
-        return np.ascontiguousarray(plant.batch_step_matrix[:, :self._n + 4])
+        return np.ascontiguousarray(plant.batch_step_matrix[:, :self._n + N_STEP_OUTPUTS])
 
     def _plant_id(self, plant: Plant) -> int:
         for i, p in enumerate(self._plants):
@@ -182,22 +184,23 @@ class DSS14VectorEnv(VectorEnv):
 
     def _reset_envs(self, idx: np.ndarray, cfg: EnvConfig) -> None:
         """Draw new episodes for the sub-environments ``idx`` (same draws as DSS14Env.reset)."""
-        n = self._n
+        n, k = self._n, self.constants
         inv_old = self._inv
         for i in idx.tolist():
             rng = self._rngs[i]
-            ep = draw_episode(cfg, rng)
-            ne = rng.standard_normal(2) * self._sig if self._sig else np.zeros(2)
-            block_rows(ep.traj, 0, self._dt, self._rl, draw_noise_block(rng, self._k_rank, self._sig > 0.0),
-                       self._sig, out=self._blocks[:, i])
+            ep = draw_episode(cfg, rng, self.plants)
+            ne = rng.standard_normal(2) * k.encoder_sigma if k.encoder_sigma else np.zeros(2)
+            block_rows(ep.traj, 0, k.dt, k.rate_limit,
+                       draw_noise_block(rng, self._k_rank, k.encoder_sigma > 0.0), k.encoder_sigma,
+                       out=self._blocks[:, i])
             p = ep.plant
             self._pid[i] = self._plant_id(p)
             slot = i if inv_old is None else inv_old[i]
             self._Zs[slot, :n] = ep.x0
             self._Zs[slot, n + 2:n + 4] = ep.t_mean
-            self._Y[i] = p.C[:4] @ ep.x0
-            self._rp[i] = np.clip(ep.r0, -self._rl, self._rl)
-            self._ap[i] = self._rp[i] / self._scale
+            self._Y[i] = p.C[:N_STEP_OUTPUTS] @ ep.x0
+            self._rp[i] = np.clip(ep.r0, -k.rate_limit, k.rate_limit)
+            self._ap[i] = start_action(self._rp[i], k)
             self._kappa[i] = ep.kappa
             self._start[i] = ep.start
             for key in _TRAJ_KEYS:
@@ -208,7 +211,11 @@ class DSS14VectorEnv(VectorEnv):
         self._k[idx] = 0
         self._j[idx] = 0
         self._hits[idx] = 0
-        # drop plants no sub-environment uses, then group the sub-environments by plant
+        self._regroup(inv_old)
+        self._clamp_always = any(k.clamp_always(me) for me in np.unique(self._max_e).tolist())
+
+    def _regroup(self, inv_old: np.ndarray | None) -> None:
+        """Drop plants no sub-environment uses, then group the sub-environments by plant."""
         used = np.unique(self._pid)
         if used.size < len(self._plants):
             remap = np.full(len(self._plants), -1)
@@ -236,44 +243,26 @@ class DSS14VectorEnv(VectorEnv):
         self._kappa_s = self._kappa if self._perm is None else self._kappa[self._perm]
         self._any_noise = bool(np.any(self._kappa))
         self._j_uniform = bool(np.all(self._j == self._j[0]))
-        # without encoder noise the observation bounds can only be passed on a terminating step
-        me, q_mdeg = cfg.max_error_deg * DEG * R2MD, self._q * R2MD
-        self._clamp_always = self._clamp_always or bool(self._sig) or \
-            (me + q_mdeg) * self._inv_es > OBS_ERROR_BOUND or 2.0 * (me + q_mdeg) * self._rb > OBS_ERROR_RATE_BOUND
 
-    def _reset_obs(self, idx: np.ndarray) -> np.ndarray:
-        """Observation rows ``idx`` of freshly reset sub-environments (as DSS14Env.reset)."""
-        n = self._n
+    def _reset_rows(self, idx: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
+        """Observation rows and info of freshly reset sub-environments ``idx`` (as DSS14Env.reset)."""
+        k = self.constants
         tr = {key: v[idx] for key, v in self._traj.items()}
         c, cd = command(tr, np.zeros(idx.size))
-        theta = self._Y[idx, 0:2]
-        start = self._start[idx]
-        a = start + theta + self._ne0[idx] if self._sig else start + theta
-        if self._q:
-            a = self._q * np.floor(a * (1.0 / self._q) + 0.5)
-        rel = a - start
-        em = (c - rel) * R2MD
+        Y, start = self._Y[idx], self._start[idx]
+        theta = Y[:, 0:2]
+        rel = read_encoders(theta, start, self._ne0[idx], k)
+        em = servo_errors(c, rel)
         self._em[idx] = em
-        obs = np.empty((idx.size, 12))
-        obs[:, 0:2] = np.clip(em * self._inv_es, -OBS_ERROR_BOUND, OBS_ERROR_BOUND)
-        obs[:, 2:4] = 0.0
-        obs[:, 4:6] = c * R2D
-        obs[:, 6:8] = cd * (1.0 / self._rl)
-        obs[:, 8:10] = rel * R2D
-        obs[:, 10:12] = self._rp[idx] * (1.0 / self._rl)
-        return obs.astype(np.float32)
+        obs = observation(em, None, c * R2D, cd * (1.0 / k.rate_limit), rel, self._rp[idx], True, k)
+        info = step_info(servo_errors(c, theta), em, c, Y[:, 2:4], self.plants.xel_scale, self._wind[idx],
+                         np.full((idx.size, 2), np.nan), self._rp[idx], np.zeros(idx.size, bool),
+                         np.zeros(idx.size, bool), self._hits[idx])
+        return obs, {key: info[key] for key in _RESET_KEYS}
 
-    def _reset_info(self) -> dict[str, Any]:
-        n = self._n
-        c, _ = command(self._traj, np.zeros(self.num_envs))
-        y = self._Y
-        e = (c - y[:, 0:2]) * R2MD
-        return {"servo_error_az_mdeg": e[:, 0], "servo_error_el_mdeg": e[:, 1],
-                "measured_error_az_mdeg": self._em[:, 0].copy(), "measured_error_el_mdeg": self._em[:, 1].copy(),
-                "pointing_error_el_mdeg": y[:, 2] * R2MD, "pointing_error_xel_mdeg": y[:, 3] * R2MD,
-                "wind_speed_mps": self._wind[:, 0].copy(), "wind_direction_rad": self._wind[:, 1].copy(),
-                "rate_command_az_deg_s": self._rp[:, 0] * R2D, "rate_command_el_deg_s": self._rp[:, 1] * R2D,
-                "start_az_deg": self._start[:, 0] * R2D, "start_el_deg": self._start[:, 1] * R2D}
+    def _reset_obs(self, idx: np.ndarray) -> np.ndarray:
+        """Observation rows of freshly reset sub-environments ``idx`` (:meth:`_reset_rows`)."""
+        return self._reset_rows(idx)[0]
 
     @property
     def n_rate_limited(self) -> np.ndarray:
@@ -291,39 +280,13 @@ class DSS14VectorEnv(VectorEnv):
         return x.copy() if self._perm is None else x[self._inv]
 
     # ------------------------------------------------------------------ step
-    def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
-        """Step every sub-environment (autoreset the ones that ended on the previous step).
-
-        :param actions: ``(N, 2)``, finite
-        :raises ValueError: on a NaN/inf action or a wrong shape
-        """
-        if self._Zs is None:
-            raise RuntimeError("call reset() before step()")
-        N, n, k = self.num_envs, self._n, self._k_rank
-        try:
-            A = np.array(actions, dtype=np.float64)
-        except (TypeError, ValueError) as exc:
-            raise ValueError(f"actions must be a numeric array of shape ({N}, 2)") from exc
-        if A.shape != (N, 2):
-            raise ValueError(f"actions must have shape ({N}, 2), got shape {A.shape}")
-        if not np.isfinite(A.sum()) and not np.isfinite(A).all():
-            raise ValueError(f"actions must be finite; non-finite in sub-environment(s) "
-                             f"{np.flatnonzero(~np.isfinite(A).all(axis=1)).tolist()}")
-        done = self._prev_done
-        any_done = bool(done.any())
-        # ---- command limiter
-        C = np.clip(A, -1.0, 1.0)
-        Q = C * self._scale
-        rate_hit = np.abs(Q) > self._rl
-        np.clip(Q, -self._rl, self._rl, out=Q)
-        rp = self._rp
-        Qa = np.clip(Q, rp - self._dr, rp + self._dr)
-        acc_hit = Qa != Q
-        Q = Qa
-        # ---- this step's rows: command at t[k+1] and noise (block_rows; a sub-environment that
-        # is about to be reset draws nothing)
+    def _rows(self, done: np.ndarray) -> np.ndarray:
+        """This step's rows of :func:`dss14_env.envs.scenarios.block_rows` (command at t[k+1],
+        encoder noise, normals), drawing the next noise blocks where due (not for the
+        sub-environments about to be reset)."""
+        N, k, kc = self.num_envs, self._k_rank, self.constants
         j = self._j
-        enc = self._sig > 0.0
+        enc = kc.encoder_sigma > 0.0
         if self._j_uniform:
             j0 = int(j[0])
             if j0 >= NOISE_BLOCK:
@@ -332,29 +295,34 @@ class DSS14VectorEnv(VectorEnv):
                     if not done[i]:
                         normals[:, i] = draw_noise_block(self._rngs[i], k, enc)
                 tr = {key: v[None] for key, v in self._traj.items()}
-                block_rows(tr, int(self._k[0]), self._dt, self._rl, normals, self._sig, out=self._blocks)
+                block_rows(tr, int(self._k[0]), kc.dt, kc.rate_limit, normals, kc.encoder_sigma,
+                           out=self._blocks)
                 j0 = 0
                 j[:] = 0
             row = self._blocks[j0]
-            j += 1
         else:
             full = j >= NOISE_BLOCK
             if full.any():
                 for i in np.flatnonzero(full & ~done).tolist():
                     tr = {key: v[i] for key, v in self._traj.items()}
-                    block_rows(tr, int(self._k[i]), self._dt, self._rl, draw_noise_block(self._rngs[i], k, enc),
-                               self._sig, out=self._blocks[:, i])
+                    block_rows(tr, int(self._k[i]), kc.dt, kc.rate_limit,
+                               draw_noise_block(self._rngs[i], k, enc), kc.encoder_sigma,
+                               out=self._blocks[:, i])
                     j[i] = 0
                 np.minimum(j, NOISE_BLOCK - 1, out=j)
             row = self._blocks[j, self._arange]
-            j += 1
-        Xi = row[:, 6:6 + k]
-        # ---- plant: one matrix product per plant
+        j += 1
+        return row
+
+    def _advance(self, R: np.ndarray, Xi: np.ndarray) -> np.ndarray:
+        """The plant map of every sub-environment (one matrix product per plant): the outputs
+        ``(N, 4)`` at the step's end."""
+        n, k = self._n, self._k_rank
         Zs, Os, perm = self._Zs, self._Os, self._perm
         if perm is None:
-            Zs[:, n:n + 2] = Q
+            Zs[:, n:n + 2] = R
         else:
-            np.take(Q, perm, axis=0, out=Zs[:, n:n + 2])
+            np.take(R, perm, axis=0, out=Zs[:, n:n + 2])
         if self._any_noise:
             Xk = Xi if perm is None else np.take(Xi, perm, axis=0)
             np.multiply(Xk, self._kappa_s[:, :1], out=Zs[:, n + 4:n + 4 + k])
@@ -367,102 +335,95 @@ class DSS14VectorEnv(VectorEnv):
                 np.matmul(Zs[a:b], MT, out=Os[a:b])
             Y = np.take(Os[:, n:], self._inv, axis=0)
         Zs[:, :n] = Os[:, :n]
-        self._Y = Y
-        # ---- command and measurement at t[k+1]
-        kk = self._k
-        kk += 1
-        c = row[:, 0:2]
-        theta = Y[:, :2]
-        start = self._start
-        if self._sig:
-            a = start + theta
-            a += row[:, 6 + k:]
-        else:
-            a = start + theta
-        if self._q:
-            a *= 1.0 / self._q
-            a += 0.5
-            np.floor(a, out=a)
-            a *= self._q
-        rel = a
-        rel -= start
-        em = c - rel
-        em *= R2MD
-        e = c - theta
-        e *= R2MD
-        # ---- episode end and reward
-        e0, e1 = e[:, 0], e[:, 1]
-        ib = self._inv_es
-        ab = theta + start
-        me = self._max_e
-        terminated = ((np.abs(e0) > me) | (np.abs(e1) > me) | (ab[:, 1] < self._el_lo) | (ab[:, 1] > self._el_hi)
-                      | (np.abs(ab[:, 0] - self._az_c) > self._az_h))
-        any_term = bool(terminated.any())
-        d = C - self._ap
-        d0, d1 = d[:, 0], d[:, 1]
-        cost = (e0 * e0 + e1 * e1) * (ib * ib) + self._w * (d0 * d0 + d1 * d1)
-        if any_term:
-            cost += terminated * self.config.termination_penalty
-        reward = np.negative(cost, out=cost)
-        # ---- observation (float32 written directly; bounds only reachable when terminating)
-        obs = np.empty((N, 12), np.float32)
-        np.multiply(em, ib, out=obs[:, 0:2], casting="same_kind")
-        np.multiply(em - self._em, self._rb, out=obs[:, 2:4], casting="same_kind")
-        obs[:, 4:8] = row[:, 2:6]
-        np.multiply(rel, R2D, out=obs[:, 8:10], casting="same_kind")
-        np.multiply(Q, 1.0 / self._rl, out=obs[:, 10:12], casting="same_kind")
-        if any_term or self._clamp_always:
-            o = np.empty((N, 4))
-            np.multiply(em, ib, out=o[:, 0:2])
-            np.multiply(em - self._em, self._rb, out=o[:, 2:4])
-            np.clip(o, self._obs_low64[:4], self._obs_high64[:4], out=o)
-            obs[:, 0:4] = o
-        truncated = (kk >= self.max_episode_steps) if self.max_episode_steps is not None else np.zeros(N, bool)
-        self._em = em
-        self._ap = C
-        self._rp = Q
-        rate_any = rate_hit[:, 0] | rate_hit[:, 1]
-        acc_any = acc_hit[:, 0] | acc_hit[:, 1]
-        self._hits[:, 0] += rate_any
-        self._hits[:, 1] += acc_any
-        info = {"servo_error_az_mdeg": e0, "servo_error_el_mdeg": e1,
-                "measured_error_az_mdeg": em[:, 0].copy(), "measured_error_el_mdeg": em[:, 1].copy(),
-                "pointing_error_el_mdeg": Y[:, 2] * R2MD, "pointing_error_xel_mdeg": Y[:, 3] * R2MD,
-                "wind_speed_mps": self._wind[:, 0].copy(), "wind_direction_rad": self._wind[:, 1].copy(),
-                "action_unclipped": A,
-                "rate_command_az_deg_s": Q[:, 0] * R2D, "rate_command_el_deg_s": Q[:, 1] * R2D,
-                "rate_limited": rate_any, "accel_limited": acc_any,
-                "n_rate_limited": self._hits[:, 0].copy(), "n_accel_limited": self._hits[:, 1].copy()}
-        if self._info_state:
-            info["plant_state"] = self.plant_states()
-        # ---- autoreset (NEXT_STEP): sub-environments that ended on the previous step
-        if any_done:
+        return Y
+
+    def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
+        """Step every sub-environment (autoreset the ones that ended on the previous step).
+
+        :param actions: ``(N, 2)`` finite real numbers
+        :raises ValueError: a bad action (:func:`dss14_env.envs.core.as_actions`), before
+            anything changes
+        """
+        if self._Zs is None:
+            raise RuntimeError("call reset() before step()")
+        kc = self.constants
+        A = as_actions(actions, (self.num_envs, 2))
+        done = self._prev_done
+        a, R, rate_hit, acc_hit = limit_commands(A, self._rp, kc)
+        row = self._rows(done)
+        self._Y = Y = self._advance(R, row[:, 8:])
+        self._k += 1
+        # encoders, errors, episode end, reward, observation and info at t[k+1]
+        c, theta = row[:, 0:2], Y[:, 0:2]
+        rel = read_encoders(theta, self._start, row[:, 6:8], kc)
+        em, e = servo_errors(c, rel), servo_errors(c, theta)
+        term = terminated(e, theta, self._start, self._max_e, kc)
+        any_term = bool(term.any())
+        rew = reward(e, a, self._ap, term, kc)
+        obs = observation(em, self._em, row[:, 2:4], row[:, 4:6], rel, R, any_term or self._clamp_always, kc)
+        if not np.isfinite(rew.sum()):
+            bad = np.flatnonzero(~np.isfinite(rew)).tolist()
+            raise FloatingPointError(f"the reward became non-finite in sub-environment(s) {bad}: the plant "
+                                     "left the range it is meant for")
+        trunc = (self._k >= self.max_episode_steps) if self.max_episode_steps is not None else np.zeros(
+            self.num_envs, bool)
+        self._em, self._ap, self._rp = em, a, R
+        self._hits[:, 0] += rate_hit
+        self._hits[:, 1] += acc_hit
+        info = step_info(e, em, c, Y[:, 2:4], self.plants.xel_scale, self._wind, A, R, rate_hit, acc_hit,
+                         self._hits)
+        # autoreset (NEXT_STEP): sub-environments that ended on the previous step
+        if done.any():
             idx = np.flatnonzero(done)
             self._reset_envs(idx, self.config)
-            obs[idx] = self._reset_obs(idx)
-            reward[idx] = 0.0
-            terminated[idx] = False
-            truncated[idx] = False
-            Yr = self._Y[idx]
-            tr = {key: v[idx] for key, v in self._traj.items()}
-            cr, _ = command(tr, np.zeros(idx.size))
-            er = (cr - Yr[:, :2]) * R2MD
-            info["servo_error_az_mdeg"][idx], info["servo_error_el_mdeg"][idx] = er[:, 0], er[:, 1]
-            info["measured_error_az_mdeg"][idx] = self._em[idx, 0]
-            info["measured_error_el_mdeg"][idx] = self._em[idx, 1]
-            info["pointing_error_el_mdeg"][idx] = Yr[:, 2] * R2MD
-            info["pointing_error_xel_mdeg"][idx] = Yr[:, 3] * R2MD
-            info["wind_speed_mps"][idx], info["wind_direction_rad"][idx] = self._wind[idx, 0], self._wind[idx, 1]
-            info["rate_command_az_deg_s"][idx] = self._rp[idx, 0] * R2D
-            info["rate_command_el_deg_s"][idx] = self._rp[idx, 1] * R2D
+            obs[idx], reset_info = self._reset_rows(idx)
+            rew[idx] = 0.0
+            term[idx] = False
+            trunc[idx] = False
+            for key, v in reset_info.items():
+                info[key][idx] = v
             info["rate_limited"][idx] = info["accel_limited"][idx] = False
             info["n_rate_limited"][idx] = info["n_accel_limited"][idx] = 0
-            if self._info_state:
-                info["plant_state"] = self.plant_states()
-            self._prev_done = terminated | truncated
-        elif terminated.any() or truncated.any():
-            self._prev_done = terminated | truncated
-        return obs, reward, terminated, truncated, info
+            self._prev_done = term | trunc
+        elif any_term or trunc.any():
+            self._prev_done = term | trunc
+        if self.config.info_state:
+            info["plant_state"] = self.plant_states()
+        return obs, rew, term, trunc, info
+
+    # ------------------------------------------------------------------ copies and state
+    #: the attributes of the dynamic state (:meth:`get_state`)
+    _STATE = ("_Zs", "_Os", "_Y", "_kappa", "_kappa_s", "_start", "_traj", "_k", "_j", "_blocks", "_rp",
+              "_ap", "_em", "_ne0", "_hits", "_max_e", "_wind", "_pid", "_plants", "_groups", "_prev_done",
+              "_j_uniform", "_any_noise", "_clamp_always", "_perm", "_inv", "_rngs", "_np_random",
+              "_np_random_seed")
+
+    def get_state(self) -> EnvState:
+        """A snapshot of every sub-environment's dynamic state that :meth:`set_state` restores:
+        the environment then continues bit for bit as from the snapshot.
+
+        :raises RuntimeError: before the first reset
+        """
+        if self._Zs is None:
+            raise RuntimeError("call reset() before get_state()")
+        shared = tuple(self._plants) + tuple(g[0] for g in self._groups)
+        return snapshot(self, self.__dict__, tuple(n for n in self._STATE if n in self.__dict__), shared)
+
+    def set_state(self, state: EnvState) -> None:
+        """Restore a snapshot of :meth:`get_state` (of this environment or a copy of it).
+
+        :raises ValueError: not such a snapshot
+        """
+        shared = ()
+        if isinstance(state, EnvState) and "_plants" in state.data:
+            shared = tuple(state.data["_plants"]) + tuple(g[0] for g in state.data["_groups"])
+        self.__dict__.update(restore(self, state, shared))
 
     def close_extras(self, **kwargs: Any) -> None:
         """Nothing to release."""
+
+
+#: the keys of the reset info
+_RESET_KEYS = ("servo_error_az_mdeg", "servo_error_el_mdeg", "measured_error_az_mdeg",
+               "measured_error_el_mdeg", "pointing_error_el_mdeg", "pointing_error_xel_mdeg",
+               "wind_speed_mps", "wind_direction_rad", "rate_command_az_deg_s", "rate_command_el_deg_s")

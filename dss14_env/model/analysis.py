@@ -11,7 +11,7 @@ exact DC gains and the poles of a channel.
 
 from __future__ import annotations
 
-from typing import Mapping, Sequence
+from collections.abc import Mapping, Sequence
 
 import control as ct
 import numpy as np

@@ -13,6 +13,7 @@ from functools import cached_property, lru_cache
 import control as ct
 import numpy as np
 
+from dss14_env.core.threads import single_threaded
 from dss14_env.core.units import AXES
 from dss14_env.model.calibration import Calibration, calibrate, drive_params, structure_models
 from dss14_env.model.config import ModelConfig, load_model_config
@@ -88,10 +89,17 @@ class DSS14Model:
         return out
 
 
+@single_threaded
 def build_model(cfg: ModelConfig | None = None) -> DSS14Model:
-    """Load (default config if ``None``), calibrate and assemble the model (about 2 s)."""
+    """Load (default config if ``None``), calibrate and assemble the model (about 2 s).
+
+    Built with one BLAS thread (:func:`dss14_env.core.threads.single_threaded`), structure and
+    rate loop included, so the model is bit-for-bit the same whatever the caller's threads.
+    """
     cfg = cfg if cfg is not None else load_model_config()
-    return DSS14Model(cfg, calibrate(cfg))
+    model = DSS14Model(cfg, calibrate(cfg))
+    model.rate_loop  # noqa: B018  (builds the structures and the rate loop now)
+    return model
 
 
 @lru_cache(maxsize=1)

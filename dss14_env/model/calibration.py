@@ -194,7 +194,7 @@ def calibrate_drives(cfg: ModelConfig, structure_ss, iterations: int = 4) -> tup
     f_flat = t.rate_loop_flat_freq
     for _ in range(iterations):
         for ax in AXES:
-            def flat(loglam: float) -> float:
+            def flat(loglam: float, ax: str = ax) -> float:
                 lam_try = dict(lam, **{ax: float(np.exp(loglam))})
                 rl = _rate_loop(cfg, structure_ss, lam_try, kappa, k_g)
                 h = rate_response(rl, ax, [1e-4, f_flat])
@@ -204,7 +204,7 @@ def calibrate_drives(cfg: ModelConfig, structure_ss, iterations: int = 4) -> tup
             kappa[ax] *= t.rate_loop_dc / rate_response(rl, ax, [1e-4])[0]
             target = t.gearbox_peak[ax]
 
-            def peak(logk: float) -> float:
+            def peak(logk: float, ax: str = ax, target: float = target) -> float:
                 rl = _rate_loop(cfg, structure_ss, lam, kappa, dict(k_g, **{ax: float(np.exp(logk))}))
                 return np.log(peak_frequency(rl, ax, 0.5 * target, 2.0 * target) / target)
             k0 = np.log(k_g[ax])

@@ -16,9 +16,10 @@ naming the field and the file.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 from dss14_env.core.schema import ConfigError, Param, load_section, read_config, spec
 
@@ -146,7 +147,7 @@ class ModelConfig:
     params: dict  # "block.name" or "block.name.axis" -> Param
     path: str
 
-    def replace(self, **overrides: float) -> "ModelConfig":
+    def replace(self, **overrides: float) -> ModelConfig:
         """Return a copy with some scalar parameters replaced (SI values).
 
         :param overrides: ``{"hydraulics__zeta_o": 0.6, ...}`` (block and field joined by a

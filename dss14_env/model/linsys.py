@@ -12,7 +12,7 @@ by name.
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import control as ct
 import numpy as np

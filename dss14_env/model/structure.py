@@ -69,21 +69,25 @@ class LumpedStructure:
         add = self._dof
         cE, phis = np.cos(c.elevation_angle), self.rib_angles
         # --- azimuth -------------------------------------------------------------------
-        add("az.n1x", c.m_node_az); add("az.n1y", c.m_node_az)
+        add("az.n1x", c.m_node_az)
+        add("az.n1y", c.m_node_az)
         add("az.ring", c.j_ring)
         levels = [f"az.alidade{i + 1}" for i in range(len(c.j_alidade))]
-        for name, j in zip(levels, c.j_alidade):
+        for name, j in zip(levels, c.j_alidade, strict=True):
             add(name, j)
         add("az.tip", c.j_tip_az)
         ta, na = self.tangent("az"), self.normal("az")
         self._spring(c.k_mesh_az, {"az.n1x": ta[0], "az.n1y": ta[1], "az.ring": -c.r_rail_az})
         self._spring(c.k_radial_az, {"az.n1x": na[0], "az.n1y": na[1]})
         chain = ["az.ring"] + levels + ["az.tip"]
-        for k, (a, b) in zip(c.k_az_chain, zip(chain[:-1], chain[1:])):
+        for k, (a, b) in zip(c.k_az_chain, zip(chain[:-1], chain[1:], strict=True), strict=True):
             self._spring(k, {b: 1.0, a: -1.0})
         # --- elevation -----------------------------------------------------------------
-        add("el.n1x", c.m_node_el); add("el.n1y", c.m_node_el)
-        add("el.wheel", c.j_wheel_el); add("el.tip", c.j_tip_el); add("el.cw", c.j_counterweight)
+        add("el.n1x", c.m_node_el)
+        add("el.n1y", c.m_node_el)
+        add("el.wheel", c.j_wheel_el)
+        add("el.tip", c.j_tip_el)
+        add("el.cw", c.j_counterweight)
         te, ne = self.tangent("el"), self.normal("el")
         self._spring(c.k_mesh_el, {"el.n1x": te[0], "el.n1y": te[1], "el.wheel": -c.r_rail_el,
                                    levels[-1]: -c.el_drive_lever, "az.tip": c.el_drive_lever})
@@ -91,8 +95,8 @@ class LumpedStructure:
         self._spring(c.k_wheel_el, {"el.tip": 1.0, "el.wheel": -1.0})
         self._spring(c.k_counterweight, {"el.cw": 1.0, "el.tip": -1.0})
         # --- dish ribs: axial displacement w, deformation relative to the rigid hub --------
-        for j, phi in enumerate(phis):
-            for k, r in enumerate(self.rib_radii):
+        for j in range(len(phis)):
+            for k in range(len(self.rib_radii)):
                 add(f"rib{j}.{k}", c.rib_node_mass)
 
         def rel(j: int, k: int) -> dict[str, float]:
@@ -270,7 +274,7 @@ class ModalModel:
     def n_modes(self) -> int:
         return self.omega.size
 
-    def select(self, modes) -> "ModalModel":
+    def select(self, modes) -> ModalModel:
         """Keep the listed modes (rigid modes must be among them to stay rigid)."""
         modes = np.asarray(modes)
         rigid = tuple(int(np.flatnonzero(modes == r)[0]) for r in self.rigid if r in modes)

@@ -61,7 +61,7 @@ def stability_sweep(model: DSS14Model, params=SWEEP_PARAMS, levels: int = 3) -> 
         kp, ki = model.gains(gname)
         worst, worst_combo, unstable = -np.inf, None, []
         for combo in combos:
-            vals = dict(zip(params, combo))
+            vals = dict(zip(params, combo, strict=True))
             pl = position_loop(perturbed_rate_loop(model, vals), kp, ki)
             a = float(np.max(np.linalg.eigvals(pl.A).real))
             if a > worst:
@@ -82,7 +82,8 @@ PI_LOOP_MARGIN = 0.01
 _MAX_DRAWS = 200
 
 
-def draw_stable_params(rng: np.random.Generator, gain_set: str = "kp1") -> dict[str, float]:
+def draw_stable_params(rng: np.random.Generator, gain_set: str = "kp1",
+                       model: DSS14Model | None = None) -> dict[str, float]:
     """Draw the uncertain hydraulic parameters over the report's ranges, stable part only.
 
     Each parameter of :data:`dss14_env.model.uncertainty.SWEEP_PARAMS` is drawn log-uniformly over its
@@ -94,9 +95,11 @@ def draw_stable_params(rng: np.random.Generator, gain_set: str = "kp1") -> dict[
 
     :param rng: the only source of randomness
     :param gain_set: PI gain set of the stability test
+    :param model: the model whose ranges and rate loop are used, default
+        :func:`dss14_env.model.default_model`
     :return: ``{name: value}`` in SI
     """
-    model = default_model()
+    model = model if model is not None else default_model()
     kp, ki = model.gains(gain_set)
     for _ in range(_MAX_DRAWS):
         vals = {}

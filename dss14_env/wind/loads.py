@@ -11,12 +11,12 @@ torques (the structure's ``Tw_az``, ``Tw_el`` inputs, N*m)::
 
 ``u`` is the Davenport gust (:mod:`dss14_env.wind.gusts`), fully coherent over the dish (the
 report's assumption; W. Gawronski, "Wind Gust Models Derived from Field Data", TDA PR 42-123,
-1995, notes that full coherence under-predicts the azimuth error in front wind).  The moment coefficients ``C_front``, ``C_side`` come
-from wind-tunnel pressure data that are not public, so :func:`calibrate_wind_loads` fixes
-them in code: the four numbers are solved so that the PI loop (gain set ``kp1``) gives the
-four 3-sigma encoder servo errors of Table 4 at 50 km/h.  Everything else (the U^2 and U
-scalings, the Davenport spectrum at each speed, the cos/sin interpolation over direction)
-then predicts other speeds and directions.
+1995, notes that full coherence under-predicts the azimuth error in front wind).  The moment
+coefficients ``C_front``, ``C_side`` come from wind-tunnel pressure data that are not
+public, so :func:`calibrate_wind_loads` fixes them in code: the four numbers are solved so that
+the PI loop (gain set ``kp1``) gives the four 3-sigma encoder servo errors of Table 4 at
+50 km/h.  Everything else (the U^2 and U scalings, the Davenport spectrum at each speed, the
+cos/sin interpolation over direction) then predicts other speeds and directions.
 
 Servo errors.  :func:`wind_error_covariance` computes the stationary covariance of closed-loop
 outputs in wind exactly (a Lyapunov equation of the loop augmented with the shaping filter);
@@ -34,16 +34,17 @@ True
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
-from typing import Sequence
 
 import control as ct
 import numpy as np
 from scipy import linalg, optimize, signal
 
 from dss14_env.core.schema import ConfigError, Param, load_section, read_config, spec
+from dss14_env.core.threads import single_threaded
 from dss14_env.core.units import rad_to_mdeg
 from dss14_env.model.assembly import DSS14Model, default_model
 from dss14_env.model.linsys import balance, discretize, noise_factor
@@ -163,7 +164,8 @@ class WindLoads:
     def gust_gain(self, mean_speed: float, direction: str | float) -> np.ndarray:
         """Gust torque per gust speed, N*m per m/s: ``d T / d U = rho U A D C``."""
         u = _speed(mean_speed)
-        return self.cfg.air_density * u * self.dish_area * self.cfg.dish_diameter * self.coefficients(direction)
+        return (self.cfg.air_density * u * self.dish_area * self.cfg.dish_diameter
+                * self.coefficients(direction))
 
     def gust_filter(self, mean_speed: float) -> signal.StateSpace:
         """Davenport shaping filter (unit white noise -> gust m/s) with this config's constants."""
@@ -226,7 +228,8 @@ def wind_error_covariance(sys: ct.StateSpace, loads: WindLoads, mean_speed: floa
 def three_sigma_mdeg(sys: ct.StateSpace, loads: WindLoads, mean_speed: float,
                      direction: str | float, outputs: Sequence[str] = ERROR_OUTPUTS) -> np.ndarray:
     """3-sigma of ``outputs`` (rad signals) in mdeg, from :func:`wind_error_covariance`."""
-    return rad_to_mdeg(3.0 * np.sqrt(np.diag(wind_error_covariance(sys, loads, mean_speed, direction, outputs))))
+    cov = wind_error_covariance(sys, loads, mean_speed, direction, outputs)
+    return rad_to_mdeg(3.0 * np.sqrt(np.diag(cov)))
 
 
 def simulate_wind_response(sys: ct.StateSpace, loads: WindLoads, mean_speed: float,
@@ -287,6 +290,7 @@ class WindCalibrationError(RuntimeError):
     """The wind-load coefficients cannot reproduce Table 4 within its accepted ranges."""
 
 
+@single_threaded
 def calibrate_wind_loads(model: DSS14Model | None = None, wcfg: WindConfig | None = None,
                          gain_set: str = "kp1") -> WindLoads:
     """Solve the four moment coefficients so the PI loop reproduces [R] Table 4.
@@ -311,14 +315,14 @@ def calibrate_wind_loads(model: DSS14Model | None = None, wcfg: WindConfig | Non
         target = rad_to_mdeg(np.array([getattr(t4, f"az_{d}"), getattr(t4, f"el_{d}")]))
         c0 = np.zeros(2)
 
-        def errors(c: np.ndarray, d: str = d) -> np.ndarray:
+        def errors(c: np.ndarray, d: str = d, c0: np.ndarray = c0) -> np.ndarray:
             probe = WindLoads(np.asarray(c) if d == "front" else c0, np.asarray(c) if d == "side" else c0,
                               wcfg.loads)
             return three_sigma_mdeg(pl, probe, t4.speed, d)
 
         # first guess: each axis alone (the 3-sigma value is proportional to its coefficient)
         unit = np.array([errors(np.array([1.0, 0.0]))[0], errors(np.array([0.0, 1.0]))[1]])
-        sol = optimize.least_squares(lambda c: errors(c) / target - 1.0, target / unit,
+        sol = optimize.least_squares(lambda c, target=target: errors(c) / target - 1.0, target / unit,
                                      bounds=(0.0, np.inf), x_scale=target / unit, xtol=1e-12, ftol=1e-12)
         coeffs[d] = sol.x
         achieved = errors(sol.x)

@@ -1,0 +1,561 @@
+"""``dss14 campaign``: how each controller holds up over many plants drawn from the report's
+parameter ranges -- a Monte-Carlo robustness campaign in independent, resumable chunks.
+
+The grid is *plants x wind conditions x controllers*:
+
+* **plants** ``first_plant .. first_plant + plants - 1``: plant ``k`` has the hydraulic
+  parameters :func:`plant_params` ``(k)`` -- :func:`dss14_env.model.uncertainty.draw_stable_params`
+  (log-uniform over the report's ranges, [R] Tables 1-3, stable part only, as the environment's
+  ``randomize_params`` draws them) from the generator ``numpy.random.default_rng((k, 0))`` --
+  and every episode on it is reset with the seed :func:`episode_seed` ``(k) = k`` (start
+  position and gust realisation), the same for every controller and wind condition (common
+  random numbers: the controllers are compared on the same gusts);
+* **wind conditions**: every mean speed (km/h) x direction (``front``, ``side`` or degrees
+  from the boresight), a ``hold`` episode each (the scenario of [R] Table 4);
+* **controllers**: names of :data:`dss14_env.bench.runner.CONTROLLERS` or ``ppo``.  Each is
+  built from an environment of the *nominal* plant (same keys, no ``params``) and never sees
+  the drawn parameters; each episode is scored by :func:`dss14_env.bench.runner.run_episode`,
+  exactly as the bench scores it.
+
+The plants are cut into chunks of ``chunk_size`` consecutive plants.  A chunk is one work item
+(:func:`run_chunk`) of an executor (:mod:`dss14_env.core.parallel`: in-process, or a Ray task on
+a local Ray or a cluster); it builds its own controllers, so its result depends on nothing but
+the campaign's options and its plants -- the same numbers in-process, on Ray, in any order,
+and after a restart, bit for bit when each process builds the cached model with the executors'
+single BLAS thread (as ``dss14 campaign`` does; ``docs/scale.md``).  Each finished chunk is
+written at once as JSON (``chunks/chunk-NNNNN.json``, atomically); ``resume=True`` reads the
+finished chunks back instead of recomputing them, and refuses a folder whose ``campaign.json``
+holds other options.
+The statistics, ``results.json``, ``results.md`` and the CDF figures come from all chunks at the
+end (:mod:`dss14_env.bench.campaign_report`).
+
+>>> spec = CampaignSpec(controllers=("pi_kp1",), plants=2, wind_speeds_kmh=(50.0,),
+...                     directions=("side",), steps=300, chunk_size=1)
+>>> [c.key for c in spec.conditions], spec.chunks()
+(['50kmh_side'], [[0], [1]])
+>>> ep = run_chunk({"spec": spec.as_dict(), "chunk": 0, "plants": [0]})["episodes"][0]
+>>> ep["plant"], ep["controller"], ep["condition"], ep["terminated"]
+(0, 'pi_kp1', '50kmh_side', False)
+"""
+
+from __future__ import annotations
+
+import difflib
+import hashlib
+import json
+import math
+import os
+import platform
+import time
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import asdict, dataclass, field
+from datetime import datetime, timezone
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from dss14_env.bench import runner
+from dss14_env.core.outdir import OutputDirError, atomic_write_text, prepare_output_dir
+from dss14_env.core.parallel import Executor, SerialExecutor
+from dss14_env.core.units import DEG, WIND_DIRECTIONS
+
+#: the controllers of a campaign by default
+DEFAULT_CONTROLLERS = ("pi_kp1", "lqg", "mpc")
+DEFAULT_PLANTS = 200
+DEFAULT_WIND_SPEEDS_KMH = (50.0,)
+DEFAULT_DIRECTIONS = ("front", "side")
+#: episode length by default, control periods (50 per second): 30 s, of which the first
+#: :data:`WARMUP_S` are left out -- long enough for a 3-sigma over many gust time constants,
+#: short enough for 200 plants x 3 controllers x 2 directions in minutes
+DEFAULT_STEPS = 1500
+WARMUP_S = 5.0
+DEFAULT_CHUNK_SIZE = 5
+#: files and folders a campaign writes into its output folder
+OWNED = ("campaign.json", "chunks", "results.json", "results.md", "cdf_*.png")
+#: version of the chunk and campaign file layout
+FORMAT = 1
+
+
+class CampaignOptionError(ValueError):
+    """A bad campaign option; the message starts with the option's name."""
+
+
+def known_controllers() -> tuple[str, ...]:
+    """The controllers a campaign knows: :data:`dss14_env.bench.runner.CONTROLLERS` and ``ppo``."""
+    return (*runner.CONTROLLERS, "ppo")
+
+
+# ---------------------------------------------------------------------------- plants
+@lru_cache(maxsize=512)
+def _plant_params(k: int) -> tuple[tuple[str, float], ...]:
+    from dss14_env.model.uncertainty import draw_stable_params
+    return tuple(sorted(draw_stable_params(np.random.default_rng((k, 0))).items()))
+
+
+def plant_params(k: int) -> dict[str, float]:
+    """The hydraulic parameters of plant ``k`` (SI; names of
+    :data:`dss14_env.model.uncertainty.SWEEP_PARAMS`): a stable draw over the report's ranges
+    from ``numpy.random.default_rng((k, 0))``.  A pure function of ``k`` (remembered)."""
+    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 0:
+        raise ValueError(f"plant index must be a non-negative integer, got {k!r}")
+    return dict(_plant_params(int(k)))
+
+
+def episode_seed(k: int) -> int:
+    """The reset seed of every episode on plant ``k``: ``k``."""
+    return int(k)
+
+
+# ---------------------------------------------------------------------------- options
+@dataclass(frozen=True)
+class Condition:
+    """One wind condition: mean speed (km/h) and direction (``"front"``, ``"side"`` or degrees
+    from the boresight)."""
+
+    speed_kmh: float
+    direction: str | float
+
+    @property
+    def key(self) -> str:
+        d = self.direction if isinstance(self.direction, str) else f"{self.direction:g}deg"
+        return f"{self.speed_kmh:g}kmh_{d}"
+
+    @property
+    def label(self) -> str:
+        d = self.direction if isinstance(self.direction, str) else f"{self.direction:g}°"
+        return f"{self.speed_kmh:g} km/h {d}"
+
+    def env_keys(self) -> dict[str, Any]:
+        """The environment keys of this condition's hold episodes."""
+        d = self.direction if isinstance(self.direction, str) else float(self.direction) * DEG
+        return {"scenario": "hold", "wind_speed_kmh": float(self.speed_kmh), "wind_direction": d}
+
+
+@dataclass(frozen=True)
+class CampaignSpec:
+    """Everything that determines a campaign's episodes (its chunks depend on nothing else).
+
+    :param controllers: names of :func:`known_controllers`
+    :param plants: number of plants
+    :param first_plant: index of the first plant (plants ``first_plant`` ... ``+ plants - 1``)
+    :param wind_speeds_kmh: mean wind speeds, km/h
+    :param directions: wind directions, ``"front"``, ``"side"`` or degrees from the boresight
+    :param steps: control periods per episode
+    :param warmup_s: seconds at the start left out of the statistics
+    :param chunk_size: plants per chunk (one work item)
+    :param ppo_model: the ``ppo`` policy (None: the shipped one)
+    """
+
+    controllers: tuple[str, ...] = DEFAULT_CONTROLLERS
+    plants: int = DEFAULT_PLANTS
+    first_plant: int = 0
+    wind_speeds_kmh: tuple[float, ...] = DEFAULT_WIND_SPEEDS_KMH
+    directions: tuple[str | float, ...] = DEFAULT_DIRECTIONS
+    steps: int = DEFAULT_STEPS
+    warmup_s: float = WARMUP_S
+    chunk_size: int = DEFAULT_CHUNK_SIZE
+    ppo_model: str | None = None
+    format: int = field(default=FORMAT)
+
+    def __post_init__(self) -> None:
+        for name in ("controllers", "wind_speeds_kmh", "directions"):
+            object.__setattr__(self, name, tuple(getattr(self, name)))
+        check_spec(self)
+        # numbers as floats, so that the options and their fingerprint survive a JSON round trip
+        object.__setattr__(self, "wind_speeds_kmh", tuple(float(s) for s in self.wind_speeds_kmh))
+        object.__setattr__(self, "directions", tuple(d if isinstance(d, str) else float(d)
+                                                     for d in self.directions))
+        object.__setattr__(self, "warmup_s", float(self.warmup_s))
+
+    @property
+    def conditions(self) -> list[Condition]:
+        """Speeds x directions, in this order."""
+        return [Condition(s, d) for s in self.wind_speeds_kmh for d in self.directions]
+
+    @property
+    def plant_indices(self) -> list[int]:
+        return list(range(self.first_plant, self.first_plant + self.plants))
+
+    def chunks(self) -> list[list[int]]:
+        """The plants of each chunk: consecutive runs of ``chunk_size``."""
+        k = self.plant_indices
+        return [k[i:i + self.chunk_size] for i in range(0, len(k), self.chunk_size)]
+
+    @property
+    def n_episodes(self) -> int:
+        return self.plants * len(self.conditions) * len(self.controllers)
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready (``campaign.json``)."""
+        d = asdict(self)
+        for name in ("controllers", "wind_speeds_kmh", "directions"):
+            d[name] = list(d[name])
+        return d
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> CampaignSpec:
+        known = {f for f in cls.__dataclass_fields__}
+        unknown = sorted(set(d) - known)
+        if unknown:
+            raise CampaignOptionError(f"campaign options: unknown keys {unknown}")
+        return cls(**dict(d))
+
+    def fingerprint(self) -> str:
+        """SHA-256 of the canonical JSON of :meth:`as_dict` (stamped on every chunk file)."""
+        text = json.dumps(self.as_dict(), sort_keys=True, separators=(",", ":"))
+        return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _positive_int(v: Any, option: str, lo: int = 1) -> int:
+    if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
+        raise CampaignOptionError(f"{option}: must be an integer >= {lo}, got {v!r}")
+    return int(v)
+
+
+def _check_controllers(names: Sequence[str]) -> None:
+    if not names:
+        raise CampaignOptionError("--controllers: give at least one controller")
+    known = known_controllers()
+    for n in names:
+        if n not in known:
+            near = difflib.get_close_matches(str(n), known, n=1)
+            hint = f" (did you mean {near[0]!r}?)" if near else ""
+            raise CampaignOptionError(f"--controllers: unknown controller {n!r}{hint}; known: "
+                                      f"{', '.join(known)}")
+    dup = sorted({n for n in names if list(names).count(n) > 1})
+    if dup:
+        raise CampaignOptionError(f"--controllers: controller named twice: {', '.join(dup)}")
+
+
+def check_spec(spec: CampaignSpec) -> None:
+    """Raise :class:`CampaignOptionError` naming the first bad option."""
+    _check_controllers(spec.controllers)
+    _positive_int(spec.plants, "--plants")
+    _positive_int(spec.first_plant, "--first-plant", 0)
+    _positive_int(spec.steps, "--steps")
+    _positive_int(spec.chunk_size, "--chunk-size")
+    if not spec.wind_speeds_kmh:
+        raise CampaignOptionError("--wind-speeds: give at least one speed in km/h")
+    for s in spec.wind_speeds_kmh:
+        if isinstance(s, bool) or not isinstance(s, (int, float)) or not (math.isfinite(s) and 0 < s <= 150):
+            raise CampaignOptionError(f"--wind-speeds: speeds are in km/h, > 0 and <= 150, got {s!r}")
+    if len(set(spec.wind_speeds_kmh)) != len(spec.wind_speeds_kmh):
+        raise CampaignOptionError(f"--wind-speeds: a speed is repeated: {list(spec.wind_speeds_kmh)}")
+    if not spec.directions:
+        raise CampaignOptionError("--directions: give at least one direction")
+    for d in spec.directions:
+        ok = d in WIND_DIRECTIONS if isinstance(d, str) else (
+            not isinstance(d, bool) and isinstance(d, (int, float)) and math.isfinite(d) and 0 <= d < 360)
+        if not ok:
+            raise CampaignOptionError(f"--directions: 'front', 'side' or degrees in [0, 360), got {d!r}")
+    if len(set(spec.directions)) != len(spec.directions):
+        raise CampaignOptionError(f"--directions: a direction is repeated: {list(spec.directions)}")
+    w = spec.warmup_s
+    if isinstance(w, bool) or not isinstance(w, (int, float)) or not (math.isfinite(w) and w >= 0):
+        raise CampaignOptionError(f"warmup_s: must be a finite number >= 0, got {w!r}")
+    if w >= spec.steps * 0.02:
+        raise CampaignOptionError(f"--steps: {spec.steps} steps (50 per second) leave nothing after "
+                                  f"the {w:g}-s warm-up")
+    if spec.ppo_model is not None and "ppo" not in spec.controllers:
+        raise CampaignOptionError("--ppo-model: given, but 'ppo' is not among --controllers")
+    if spec.format != FORMAT:
+        raise CampaignOptionError(f"campaign format {spec.format!r} is not {FORMAT}")
+
+
+def parse_directions(values: Iterable[str | float] | None) -> tuple[str | float, ...] | None:
+    """``--directions``: ``front``, ``side`` or a number of degrees (kept as a float)."""
+    if values is None:
+        return None
+    out: list[str | float] = []
+    for v in values:
+        if isinstance(v, str) and v in WIND_DIRECTIONS:
+            out.append(v)
+            continue
+        try:
+            out.append(float(v))
+        except (TypeError, ValueError):
+            raise CampaignOptionError(f"--directions: 'front', 'side' or degrees, got {v!r}") from None
+    return tuple(out)
+
+
+def parse_wind_speeds(values: Iterable[str | float] | None) -> tuple[float, ...] | None:
+    """``--wind-speeds``: numbers, km/h."""
+    if values is None:
+        return None
+    out = []
+    for v in values:
+        try:
+            out.append(float(v))
+        except (TypeError, ValueError):
+            raise CampaignOptionError(f"--wind-speeds: {v!r} is not a number (km/h)") from None
+    return tuple(out)
+
+
+# ---------------------------------------------------------------------------- one chunk
+def _factory(name: str, ppo_model: str | None) -> Callable[[Any], Any]:
+    if name == "ppo":
+        from dss14_env.bench.run import ppo_factory
+        return ppo_factory(ppo_model)
+    return runner.CONTROLLERS[name]
+
+
+#: per-episode entries of :func:`dss14_env.bench.runner.run_episode` a campaign leaves out:
+#: wall-clock timings (they differ from run to run) and the limiter's constants
+DROPPED_METRICS = ("controller_time_ms", "limits")
+
+
+def run_chunk(task: Mapping[str, Any]) -> dict[str, Any]:
+    """Run one chunk: every plant of it x every condition x every controller.
+
+    :param task: ``{"spec": CampaignSpec.as_dict(), "chunk": index, "plants": [k, ...]}``
+    :return: JSON-ready ``{"format", "fingerprint", "chunk", "plants": [{"index", "params",
+        "episode_seed"}], "episodes": [...]}``; each episode is
+        :func:`dss14_env.bench.runner.run_episode`'s metrics (less :data:`DROPPED_METRICS`)
+        plus ``plant``, ``controller``, ``condition``
+    """
+    from dss14_env.envs.env import DSS14Env
+
+    spec = CampaignSpec.from_dict(task["spec"])
+    plants = [int(k) for k in task["plants"]]
+    ctrls: dict[tuple[str, str], Any] = {}
+    for cond in spec.conditions:  # built on the NOMINAL plant, fresh for every chunk
+        nominal = DSS14Env(**cond.env_keys())
+        for name in spec.controllers:
+            ctrls[(name, cond.key)] = _factory(name, spec.ppo_model)(nominal)
+    episodes = []
+    for k in plants:
+        params = plant_params(k)
+        for cond in spec.conditions:
+            env = DSS14Env(**cond.env_keys(), params=params)
+            for name in spec.controllers:
+                m = runner.run_episode(ctrls[(name, cond.key)], env, episode_seed(k), spec.steps,
+                                       spec.warmup_s)
+                for key in DROPPED_METRICS:
+                    m.pop(key, None)
+                m.update({"plant": k, "controller": name, "condition": cond.key})
+                episodes.append(m)
+    return {"format": FORMAT, "fingerprint": spec.fingerprint(), "chunk": int(task["chunk"]),
+            "plants": [{"index": k, "params": plant_params(k), "episode_seed": episode_seed(k)}
+                       for k in plants],
+            "episodes": episodes}
+
+
+# ---------------------------------------------------------------------------- files
+class CampaignFileError(ValueError):
+    """A campaign or chunk file that cannot be used; the message names the file."""
+
+
+def chunk_path(out: str | os.PathLike, i: int) -> Path:
+    """Where chunk ``i`` of a campaign in ``out`` is written."""
+    return Path(out) / "chunks" / f"chunk-{i:05d}.json"
+
+
+def _read_json(path: Path) -> Any:
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise CampaignFileError(f"{path}: cannot be read as JSON ({exc})") from None
+
+
+def read_campaign(out: str | os.PathLike) -> CampaignSpec:
+    """The options of the campaign in ``out`` (its ``campaign.json``)."""
+    path = Path(out) / "campaign.json"
+    d = _read_json(path)
+    try:
+        return CampaignSpec.from_dict(d["spec"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise CampaignFileError(f"{path}: not a campaign file of this version ({exc})") from None
+
+
+def spec_differences(old: CampaignSpec, new: CampaignSpec) -> list[str]:
+    """``"name: old -> new"`` for every option that differs."""
+    a, b = old.as_dict(), new.as_dict()
+    return [f"{k}: {a[k]!r} -> {b[k]!r}" for k in a if a[k] != b.get(k)]
+
+
+def load_chunk(path: Path, spec: CampaignSpec, i: int, plants: Sequence[int]) -> dict[str, Any]:
+    """A finished chunk read back and checked against the campaign (fingerprint, index, plants
+    and number of episodes).
+
+    :raises CampaignFileError: naming the file
+    """
+    d = _read_json(path)
+    want = len(plants) * len(spec.conditions) * len(spec.controllers)
+    problems = []
+    if not isinstance(d, dict):
+        problems.append("not a JSON object")
+    else:
+        if d.get("fingerprint") != spec.fingerprint():
+            problems.append("written by a campaign with other options")
+        if d.get("chunk") != i:
+            problems.append(f"chunk index {d.get('chunk')!r}, expected {i}")
+        if [p.get("index") for p in d.get("plants", [])] != list(plants):
+            problems.append(f"plants differ from {list(plants)}")
+        if len(d.get("episodes", [])) != want:
+            problems.append(f"{len(d.get('episodes', []))} episodes, expected {want}")
+    if problems:
+        raise CampaignFileError(f"{path}: {'; '.join(problems)} -- remove it to recompute the chunk")
+    return d
+
+
+def finished_chunks(out: str | os.PathLike, spec: CampaignSpec) -> dict[int, dict[str, Any]]:
+    """The chunks of ``spec`` already written in ``out``, by index."""
+    done = {}
+    for i, plants in enumerate(spec.chunks()):
+        p = chunk_path(out, i)
+        if p.is_file():
+            done[i] = load_chunk(p, spec, i, plants)
+    return done
+
+
+def open_campaign(spec: CampaignSpec, out: str | os.PathLike, resume: bool = False,
+                  overwrite: bool = False) -> tuple[Path, dict[int, dict[str, Any]]]:
+    """Check the output folder before any work and return it with the chunks already done.
+
+    * a new campaign: the folder must hold none of :data:`OWNED` (``overwrite`` removes them,
+      :func:`dss14_env.core.outdir.prepare_output_dir`); ``campaign.json`` is written;
+    * ``resume`` and a ``campaign.json`` there: its options must equal ``spec`` (else
+      :class:`CampaignOptionError` listing the differences); the finished chunks are read back
+      (:func:`load_chunk`); ``resume`` in a folder without a campaign starts a new one.
+
+    :raises CampaignOptionError: ``resume`` with ``overwrite``, or other options
+    :raises dss14_env.core.outdir.OutputDirError: an unusable folder, or one with results
+        and neither ``resume`` nor ``overwrite``
+    """
+    if resume and overwrite:
+        raise CampaignOptionError("--resume and --overwrite: choose one (continue the campaign, or "
+                                  "replace it)")
+    out = Path(out)
+    cj = out / "campaign.json"
+    if cj.is_file() and not overwrite:
+        if not resume:
+            raise OutputDirError(f"output folder {out} already holds a campaign (campaign.json); "
+                                 f"pass --resume to continue it, --overwrite to replace it, or "
+                                 f"choose another folder")
+        old = read_campaign(out)
+        if old != spec:
+            raise CampaignOptionError(f"--resume: {out} holds a campaign with other options ("
+                                      f"{'; '.join(spec_differences(old, spec))}); pass the same "
+                                      f"options, --overwrite to replace it, or choose another folder")
+        prepare_output_dir(out, owned=())  # still a writable folder
+        (out / "chunks").mkdir(exist_ok=True)
+        return out, finished_chunks(out, spec)
+    prepare_output_dir(out, OWNED, overwrite=overwrite)
+    (out / "chunks").mkdir()
+    atomic_write_text(cj, json.dumps({"format": FORMAT, "spec": spec.as_dict(),
+                                      "fingerprint": spec.fingerprint()}, indent=1) + "\n")
+    return out, {}
+
+
+# ---------------------------------------------------------------------------- the campaign
+def _chunk_label(i: int, plants: Sequence[int]) -> str:
+    return f"chunk {i} (plants {plants[0]}-{plants[-1]})"
+
+
+def run_chunks(spec: CampaignSpec, out: Path, done: dict[int, dict[str, Any]], executor: Executor,
+               progress: bool = True) -> list[int]:
+    """Run the chunks not in ``done`` through ``executor``; write each one as it finishes and
+    add it to ``done``.
+
+    :return: the indices of the chunks computed now
+    """
+    from tqdm.auto import tqdm
+
+    chunks = spec.chunks()
+    todo = [i for i in range(len(chunks)) if i not in done]
+    tasks = [{"spec": spec.as_dict(), "chunk": i, "plants": chunks[i]} for i in todo]
+    labels = [_chunk_label(i, chunks[i]) for i in todo]
+    computed = []
+    with tqdm(total=len(chunks), initial=len(done), unit="chunk", disable=not progress,
+              dynamic_ncols=True, desc=f"campaign ({executor.kind})") as bar:
+        for j, res in executor.map_unordered(run_chunk, tasks, labels):
+            i = todo[j]
+            atomic_write_text(chunk_path(out, i), json.dumps(res) + "\n")
+            done[i] = res
+            computed.append(i)
+            bar.set_postfix_str(f"{labels[j]} done", refresh=False)
+            bar.update(1)
+    return computed
+
+
+def results_json(results: Mapping[str, Any]) -> str:
+    """results.json's text: indented, but one line per plant and per episode (thousands)."""
+    head = {k: v for k, v in results.items() if k not in ("plants", "episodes")}
+    text = json.dumps(head, indent=1)[:-2]  # without the closing "\n}"
+    for key in ("plants", "episodes"):
+        rows = ",\n  ".join(json.dumps(r, separators=(",", ":")) for r in results[key])
+        text += f',\n "{key}": [\n  {rows}\n ]'
+    return text + "\n}\n"
+
+
+def run_campaign(spec: CampaignSpec, out: str | os.PathLike = "campaign_out",
+                 executor: Executor | Callable[[], Executor] | None = None,
+                 requirements: Mapping[str, float] | None = None,
+                 resume: bool = False, overwrite: bool = False, figures: bool = True,
+                 progress: bool = True, command: str | None = None) -> dict[str, Any]:
+    """Run (or finish) a campaign and write its results into ``out``.
+
+    :param spec: the options (:class:`CampaignSpec`)
+    :param out: output folder
+    :param executor: where the chunks run (default: in-process,
+        :class:`dss14_env.core.parallel.SerialExecutor`), or a function that makes it: called
+        after the output folder was checked (a Ray start is work), and the executor it makes is
+        closed at the end
+    :param requirements: pointing requirements, name -> 3-sigma in mdeg (default
+        :data:`dss14_env.bench.campaign_report.DEFAULT_REQUIREMENTS`); they enter the
+        statistics only, so a resumed campaign may use others
+    :param resume: continue the campaign in ``out`` (:func:`open_campaign`)
+    :param overwrite: replace the campaign in ``out``
+    :param figures: draw the CDF figures
+    :param progress: progress bar (stderr), one tick per chunk
+    :param command: the command line, for the record
+    :return: ``results`` (results.json's content), ``markdown`` (results.md), ``table`` (the
+        main table), ``figures``, ``computed`` / ``resumed`` (chunk indices), ``out``
+    """
+    from dss14_env.bench import campaign_report as report
+
+    reqs = report.check_requirements(requirements)
+    t0 = time.perf_counter()
+    out, done = open_campaign(spec, out, resume=resume, overwrite=overwrite)
+    resumed = sorted(done)
+    owned = executor is None or (callable(executor) and not hasattr(executor, "map_unordered"))
+    ex = SerialExecutor() if executor is None else (executor() if owned else executor)
+    try:
+        computed = run_chunks(spec, out, done, ex, progress=progress)
+        description = ex.describe()
+    finally:
+        if owned:
+            ex.close()
+    t_run = time.perf_counter() - t0
+    chunks = [done[i] for i in range(len(spec.chunks()))]
+    plants = [p for c in chunks for p in c["plants"]]
+    episodes = [e for c in chunks for e in c["episodes"]]
+    results = {
+        "campaign": {"command": command, "spec": spec.as_dict(), "fingerprint": spec.fingerprint(),
+                     "requirements_mdeg": reqs, "executor": description,
+                     "chunks": {"total": len(chunks), "computed": len(computed), "resumed": len(resumed)},
+                     "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+                     "wall_time_s": {"chunks": t_run},
+                     "machine": {"platform": platform.platform(), "cpu_count": os.cpu_count()}},
+        "versions": report.package_versions(),
+        "summary": report.summarise(spec, episodes, reqs),
+        "plants": plants,
+        "episodes": episodes,
+    }
+    figs = report.draw_cdfs(results, out) if figures else []
+    results["campaign"]["figures"] = figs
+    results["campaign"]["wall_time_s"]["total"] = time.perf_counter() - t0
+    md = report.results_markdown(results)
+    atomic_write_text(out / "results.json", results_json(results))
+    atomic_write_text(out / "results.md", md)
+    return {"results": results, "markdown": md, "table": report.main_table(results), "figures": figs,
+            "computed": sorted(computed), "resumed": resumed, "out": out}
+
+
+__all__ = ["DEFAULT_CONTROLLERS", "DEFAULT_DIRECTIONS", "DEFAULT_PLANTS", "DEFAULT_STEPS",
+           "DEFAULT_WIND_SPEEDS_KMH", "CampaignFileError", "CampaignOptionError", "CampaignSpec",
+           "Condition", "chunk_path", "episode_seed", "finished_chunks", "known_controllers", "load_chunk",
+           "open_campaign", "parse_directions", "parse_wind_speeds", "plant_params", "read_campaign",
+           "results_json", "run_campaign", "run_chunk", "run_chunks", "spec_differences"]

@@ -1,0 +1,620 @@
+"""results.json, results.md and the tables of a bench run.
+
+:func:`assemble_results` turns :func:`dss14_env.bench.run.run_plan`'s output into results.json's
+content; :func:`results_markdown` renders results.md from it (and nothing else), so the tables
+can be regenerated from a results file at any time (``scripts/readme_tables.py`` renders the
+README's table from the committed default results).  Every figure is shown with its 95 %
+confidence interval as ``value ± half-width`` (:func:`fmt_ci`), ratios as ``value [low,
+high]`` with ``n.s.`` where the interval contains 1.
+
+results.json keeps every episode's metrics (``episodes[controller][scenario][metric] = [one
+value per episode]``, or ``{"same": value}`` when every episode has the same value;
+:func:`episode_columns`; 6 significant digits), so every interval can be recomputed
+(:func:`episode_rows` turns them back into the runner's episode dicts).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import platform
+from collections.abc import Mapping, Sequence
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from dss14_env.bench.plan import LOADED_AXES, STEPS_PER_S, SWEEP_DIRECTIONS, SWEEP_WARMUP_S, BenchPlan
+from dss14_env.bench.runner import flatten
+from dss14_env.core.outdir import atomic_write_text
+from dss14_env.core.units import AXES
+
+#: distributions whose versions go into results.json
+VERSIONED = ("numpy", "scipy", "gymnasium", "stable-baselines3", "torch", "cvxpy", "dss14-env")
+#: the files of a run besides the figures
+RESULT_FILES = ("results.json", "results.md")
+#: significant digits of the per-episode values in results.json
+EPISODE_DIGITS = 6
+
+
+# ------------------------------------------------------------------------------ results.json
+def package_versions() -> dict[str, str | None]:
+    """Versions of Python and the packages the results depend on (None: not installed)."""
+    from importlib import metadata
+
+    out: dict[str, str | None] = {"python": platform.python_version()}
+    for dist in VERSIONED:
+        try:
+            out[dist] = metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            out[dist] = None
+    return out
+
+
+def load_average() -> list[float] | None:
+    """The machine's 1, 5 and 15 minute load averages (None where the OS has none)."""
+    try:
+        return [round(x, 2) for x in os.getloadavg()]
+    except (AttributeError, OSError):
+        return None
+
+
+#: per-episode entries stored as one column per leaf (``servo_error_mdeg.az.three_sigma``);
+#: any other entry is one column of its own (e.g. ``fallback_log``, a list per episode)
+_NESTED = ("servo_error_mdeg", "pointing_error_mdeg", "rate_command_deg_s", "limit_hits",
+           "controller_time_ms", "step")
+
+
+def _flat(ep: Mapping[str, Any]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for k, v in ep.items():
+        if k in _NESTED and isinstance(v, Mapping):
+            out.update(flatten(v, f"{k}."))
+        else:
+            out[k] = v
+    return out
+
+
+def _round(x: Any) -> Any:
+    if isinstance(x, float) and math.isfinite(x) and x != 0.0:
+        return float(f"{x:.{EPISODE_DIGITS}g}")
+    return x
+
+
+#: per-episode entries not stored per episode (the same for every episode: in the config)
+_SKIP = ("controller", "scenario", "limits")
+
+
+def episode_columns(episodes: Sequence[Mapping[str, Any]]) -> dict[str, dict[str, dict[str, list]]]:
+    """The runner's episode dicts as ``{controller: {scenario: {metric path: [values]}}}``
+    (nested metrics flattened to dotted paths, e.g. ``servo_error_mdeg.el.three_sigma``)."""
+    out: dict[str, dict[str, dict[str, list]]] = {}
+    groups: dict[tuple[str, str], list[Mapping[str, Any]]] = {}
+    for ep in episodes:
+        groups.setdefault((ep["controller"], ep["scenario"]), []).append(ep)
+    for (c, s), eps in groups.items():
+        flats = [_flat({k: v for k, v in ep.items() if k not in _SKIP and k != "trace"}) for ep in eps]
+        keys: list[str] = []
+        for f in flats:
+            keys += [k for k in f if k not in keys]
+        cols: dict[str, Any] = {}
+        for k in keys:
+            vals = [_round(f.get(k)) for f in flats]
+            same = k != "seed" and len(vals) > 1 and all(json.dumps(v) == json.dumps(vals[0]) for v in vals)
+            cols[k] = {"same": vals[0]} if same else vals
+        out.setdefault(c, {})[s] = cols
+    return out
+
+
+def episode_rows(columns: Mapping[str, Mapping[str, Mapping[str, list]]]) -> list[dict[str, Any]]:
+    """:func:`episode_columns` back into the runner's episode dicts (with ``controller`` and
+    ``scenario``)."""
+    rows: list[dict[str, Any]] = []
+    for c, scens in columns.items():
+        for s, cols in scens.items():
+            n = len(cols["seed"])
+            for i in range(n):
+                ep: dict[str, Any] = {"controller": c, "scenario": s}
+                for path, vals in cols.items():
+                    v = vals["same"] if isinstance(vals, dict) else vals[i]
+                    if v is None and path.startswith("step."):
+                        continue
+                    d = ep
+                    *head, last = path.split(".")
+                    for h in head:
+                        d = d.setdefault(h, {})
+                    d[last] = v
+                rows.append(ep)
+    return rows
+
+
+def wind_sweep_curves(plan: BenchPlan, ran: Mapping[str, Any]) -> dict[str, Any]:
+    """The sweep per direction: the wind's axis' pooled 3σ cell (value, interval, episodes)
+    per controller and speed (None where the controller did not run), and the yardstick's
+    analytic expected 3σ."""
+    main, sweep = ran["main"], ran["sweep"]
+    curves: dict[str, Any] = {}
+    for d in plan.sweep_directions:
+        axis = SWEEP_DIRECTIONS[d][1]
+        i = AXES.index(axis)
+        yard: list[float | None] = []
+        ctrl: dict[str, list[Any]] = {c: [] for c in plan.controllers}
+        for name, dd, _, same in ran["sweep_points"]:
+            if dd != d:
+                continue
+            src, key = (main, same) if same is not None else (sweep, name)
+            ref = src["yardstick"].get(key)
+            yard.append(None if ref is None else float(ref["three_sigma_mdeg"][i]))
+            for c in plan.controllers:
+                cell = src["summary"].get(c, {}).get(key)
+                ctrl[c].append(None if cell is None else cell["servo_error_mdeg"][axis]["three_sigma"])
+        curves[d] = {"axis": axis, "speeds_kmh": list(plan.wind_speeds_kmh),
+                     "yardstick_three_sigma_mdeg": yard, "three_sigma_mdeg": ctrl}
+    return curves
+
+
+def assemble_results(plan: BenchPlan, ran: Mapping[str, Any], wall_time_s: float) -> dict[str, Any]:
+    """results.json's content (no time histories).
+
+    :param plan: the plan
+    :param ran: :func:`dss14_env.bench.run.run_plan`'s result
+    :param wall_time_s: the whole bench's wall time so far, s
+    """
+    main = ran["main"]
+    sweep: dict[str, Any] | None = None
+    if plan.sweep_directions:
+        s = ran["sweep"]
+        sweep = {"speeds_kmh": list(plan.wind_speeds_kmh), "directions": list(plan.sweep_directions),
+                 "steps": plan.sweep.steps, "seconds": plan.sweep.steps / STEPS_PER_S,
+                 "warmup_s": SWEEP_WARMUP_S, "seeds": list(plan.sweep.seeds),
+                 "sequential_seeds": list(plan.sweep.sequential_seeds),
+                 "points": {n: {"direction": d, "speed_kmh": v, "same_as": same}
+                            for n, d, v, same in ran["sweep_points"]},
+                 "curves": wind_sweep_curves(plan, ran),
+                 "summary": s["summary"] if s else {}, "yardstick": s["yardstick"] if s else {},
+                 "episodes": episode_columns(s["episodes"]) if s else {}}
+    meta = {k: v for k, v in main["meta"].items() if k != "statistics"}
+    return {
+        "bench": {"command": plan.command, "config": plan.as_dict(), "notes": list(plan.notes),
+                  "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+                  "wall_time_s": {**ran["wall_time_s"], "total": wall_time_s},
+                  "machine": {"platform": platform.platform(), "cpu_count": os.cpu_count(),
+                              "load_average_start": ran.get("load_average_start"),
+                              "load_average_end": load_average()}},
+        "versions": package_versions(),
+        "statistics": main["meta"].get("statistics"),
+        "meta": meta,
+        "summary": main["summary"],
+        "yardstick": main["yardstick"],
+        "wind_sweep": sweep,
+        "episodes": episode_columns(main["episodes"]),
+    }
+
+
+def _is_leafy(x: Any) -> bool:
+    """A dict or list with no dict or list inside but short lists of numbers: one line."""
+    vals = x.values() if isinstance(x, dict) else x
+    return all(not isinstance(v, (dict, list)) or (isinstance(v, list) and len(v) <= 4 and
+                                                   all(not isinstance(u, (dict, list)) for u in v))
+               for v in vals)
+
+
+def _dumps(x: Any, indent: str = "") -> str:
+    """JSON with one line per innermost dict (e.g. a figure with its interval) or per
+    controller x scenario of per-episode columns."""
+    if isinstance(x, dict) and x and not _is_leafy(x) and not _is_columns(x):
+        inner = indent + " "
+        items = ",\n".join(f"{inner}{json.dumps(str(k))}: {_dumps(v, inner)}" for k, v in x.items())
+        return "{\n" + items + "\n" + indent + "}"
+    if isinstance(x, list) and x and any(isinstance(v, (dict, list)) for v in x) and not _is_leafy(x):
+        inner = indent + " "
+        return "[\n" + ",\n".join(inner + _dumps(v, inner) for v in x) + "\n" + indent + "]"
+    compact = isinstance(x, dict) and _is_columns(x)
+    return json.dumps(x, separators=(",", ":") if compact else (", ", ": "))
+
+
+def _is_columns(x: dict) -> bool:
+    """Per-episode columns of one controller and scenario (they have a ``seed`` list)."""
+    return isinstance(x.get("seed"), list)
+
+
+def results_json(results: Mapping[str, Any]) -> str:
+    """results.json's text: indented down to one line per figure (value, interval, episodes)
+    and one line per controller and scenario of per-episode columns."""
+    return _dumps(dict(results)) + "\n"
+
+
+# ------------------------------------------------------------------------------ numbers
+def fmt(x: Any, digits: int = 3) -> str:
+    """A number for the tables: ``—`` for None/NaN, ``∞``, integers as they are, else
+    ``digits`` significant figures (no exponent; numbers below 0.01 with 4 decimals)."""
+    if x is None:
+        return "—"
+    if isinstance(x, (int, np.integer)) and not isinstance(x, bool):
+        return str(int(x))
+    x = float(x)
+    if math.isnan(x):
+        return "—"
+    if math.isinf(x):
+        return "∞" if x > 0 else "−∞"
+    if x == 0:
+        return "0"
+    if abs(x) >= 10 ** (digits - 1):
+        return f"{x:.0f}"
+    if abs(x) < 0.01:
+        return f"{x:.4f}"
+    return f"{x:#.{digits}g}".rstrip(".")
+
+
+def _decimals(hw: float) -> int:
+    """Decimals that show a half-width with 1 significant digit (2 when it starts with 1)."""
+    e = math.floor(math.log10(hw))
+    lead = hw / 10 ** e
+    return max(0, -e + (1 if lead < 1.95 else 0))
+
+
+def fmt_ci(cell: Mapping[str, Any] | None, digits: int = 3) -> str:
+    """``value ± half-width`` of an estimate ``{"value", "ci95", "n_episodes"}``, rounded to
+    the half-width's first significant digit (``2.80 ± 0.06``); a value without an interval
+    (one episode) is shown as ``0.50 (1 ep.)``."""
+    if cell is None:
+        return "—"
+    v = cell["value"]
+    lo, hi = (math.nan if x is None else float(x) for x in cell["ci95"])
+    if v is None or math.isnan(float(v)):
+        return "—"
+    v = float(v)
+    if math.isinf(v):
+        return fmt(v)
+    if math.isnan(lo) or math.isnan(hi) or math.isinf(lo) or math.isinf(hi):
+        n = cell.get("n_episodes", 0)
+        return f"{fmt(v, digits)} ({n} ep.)" if n == 1 else f"{fmt(v, digits)} (no CI)"
+    hw = 0.5 * (hi - lo)
+    if hw <= 0:
+        return f"{fmt(v, digits)} ± 0"
+    d = _decimals(hw)
+    if v != 0:  # at most 5 significant digits of the value
+        d = min(d, max(0, 4 - math.floor(math.log10(abs(v)))))
+    return f"{v:.{d}f} ± {hw:.{d}f}"
+
+
+def fmt_ratio(r: Mapping[str, Any] | None) -> str:
+    """A ratio with its interval, ``0.19 [0.18, 0.20]``, and ``n.s.`` when the interval
+    contains 1."""
+    if r is None or r.get("value") is None or math.isnan(float(r["value"])):
+        return "—"
+    lo, hi = (math.nan if x is None else float(x) for x in r["ci95"])
+    if math.isnan(lo) or math.isnan(hi):
+        return f"{fmt(r['value'], 2)} (no CI)"
+    hw = 0.5 * (hi - lo)
+    d = _decimals(hw) if hw > 0 else 2
+    d = max(d, 2) if abs(r["value"]) < 10 else d
+    txt = f"{r['value']:.{d}f} [{lo:.{d}f}, {hi:.{d}f}]"
+    return txt + (" n.s." if r.get("significant") is False else "")
+
+
+def _table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(r) + " |" for r in rows]
+    return "\n".join(lines)
+
+
+def _bold(text: str, yes: bool) -> str:
+    return f"**{text}**" if yes and text != "—" else text
+
+
+def _cell(results: Mapping[str, Any], c: str, s: str) -> Mapping[str, Any] | None:
+    return results["summary"].get(c, {}).get(s)
+
+
+# ------------------------------------------------------------------------------ tables
+def main_table(results: Mapping[str, Any]) -> str:
+    """3σ servo error az / el per controller and scenario, ``value ± 95 % half-width`` (the
+    wind's axis in bold), with the episodes behind each row, and the yardstick's analytic
+    expected value."""
+    ctrls, scens = results["meta"]["controllers"], results["meta"]["scenarios"]
+    yard = results["yardstick"]
+    header = ["controller"] + [f"{s} az / el" for s in scens] + ["episodes per scenario"]
+    rows = []
+    for c in ctrls:
+        r = [c]
+        for s in scens:
+            x = _cell(results, c, s)
+            if x is None:
+                r.append("—")
+                continue
+            r.append(" / ".join(_bold(fmt_ci(x["servo_error_mdeg"][ax]["three_sigma"]),
+                                      ax in LOADED_AXES.get(s, ())) for ax in AXES))
+        counts = sorted({_cell(results, c, s)["n_episodes"] for s in scens if _cell(results, c, s)})
+        r.append("–".join(str(n) for n in (counts[0], counts[-1])) if len(counts) > 1
+                 else (str(counts[0]) if counts else "0"))
+        rows.append(r)
+    if yard:
+        r = ["yardstick (analytic)"]
+        for s in scens:
+            if s in yard:
+                r.append(" / ".join(_bold(fmt(x), ax in LOADED_AXES.get(s, ()))
+                                    for x, ax in zip(yard[s]["three_sigma_mdeg"], AXES, strict=True)))
+            else:
+                r.append("—")
+        rows.append(r + ["exact"])
+    return _table(header, rows)
+
+
+def ratio_table(results: Mapping[str, Any]) -> str | None:
+    """The loaded axis of the hold scenarios (and the track's axes) over the reference
+    controller (paired, same seeds) and over the yardstick's analytic figure."""
+    scens = results["meta"]["scenarios"]
+    ref = results["meta"].get("reference")
+    cols = [(s, ax) for s in scens for ax in LOADED_AXES.get(s, ())]
+    if not cols:
+        return None
+    header = ["controller"]
+    if ref:
+        header += [f"{s} {ax} ÷ {ref}" for s, ax in cols]
+    header += [f"{s} {ax} ÷ yardstick" for s, ax in cols if s in results["yardstick"]]
+    if len(header) == 1:
+        return None
+    rows = []
+    for c in results["meta"]["controllers"]:
+        r = [c]
+        if ref:
+            r += [fmt_ratio((_cell(results, c, s) or {}).get("vs_reference", {}).get(ax)) if c != ref else "1"
+                  for s, ax in cols]
+        r += [fmt_ratio((_cell(results, c, s) or {}).get("vs_yardstick", {}).get(ax))
+              for s, ax in cols if s in results["yardstick"]]
+        rows.append(r)
+    return _table(header, rows)
+
+
+def precision_table(results: Mapping[str, Any]) -> str | None:
+    """The loaded axis' 3σ in the hold scenarios: value, 95 % interval, its half-width in %
+    of the value, episodes and seconds of data."""
+    cols = [(s, ax) for s in results["meta"]["scenarios"] for ax in LOADED_AXES.get(s, ())]
+    if not cols:
+        return None
+    header = ["controller"] + [f"{s} {ax}: 3σ [95 % CI], half-width, episodes × s" for s, ax in cols]
+    rows = []
+    for c in results["meta"]["controllers"]:
+        r = [c]
+        for s, ax in cols:
+            x = _cell(results, c, s)
+            if x is None:
+                r.append("—")
+                continue
+            t = x["servo_error_mdeg"][ax]["three_sigma"]
+            lo, hi = t["ci95"]
+            if lo is None or hi is None or math.isnan(lo):
+                r.append(f"{fmt(t['value'])}, no CI, {t['n_episodes']} ep.")
+                continue
+            hw = 50.0 * (hi - lo) / t["value"]
+            per = t["seconds"] / max(1, t["n_episodes"])
+            r.append(f"{fmt(t['value'])} [{fmt(lo)}, {fmt(hi)}], ±{hw:.1f} %, "
+                     f"{t['n_episodes']} × {per:g} s")
+        rows.append(r)
+    return _table(header, rows)
+
+
+def step_table(results: Mapping[str, Any], scenario: str = "step") -> str | None:
+    """Step response per controller: overshoot and 2 % settling time with their intervals."""
+    if scenario not in results["meta"]["scenarios"]:
+        return None
+    header = ["controller", "overshoot az / el (%)", "2 % settling az / el (s)",
+              "peak accel az / el (°/s²)", "limit hits rate / accel (total)"]
+    rows = []
+    for c in results["meta"]["controllers"]:
+        x = _cell(results, c, scenario)
+        if x is None:
+            rows.append([c, "—", "—", "—", "—"])
+            continue
+        st = x.get("step", {})
+        rows.append([c,
+                     " / ".join(fmt_ci(st[ax]["overshoot_pct"]) if ax in st else "—" for ax in AXES),
+                     " / ".join(fmt_ci(st[ax]["settling_time_s"]) if ax in st else "—" for ax in AXES),
+                     " / ".join(fmt_ci(x["rate_command_deg_s"][ax]["peak_accel_deg_s2"]) for ax in AXES),
+                     f"{x['limit_hits']['rate']} / {x['limit_hits']['accel']}"])
+    return _table(header, rows)
+
+
+def sweep_tables(results: Mapping[str, Any]) -> list[str]:
+    """One table per sweep direction: the wind's axis' 3σ per controller and speed."""
+    sw = results.get("wind_sweep")
+    if not sw:
+        return []
+    out = []
+    for d, cur in sw["curves"].items():
+        header = [f"{d} wind, 3σ {cur['axis']} (mdeg)"] + [f"{v:g} km/h" for v in cur["speeds_kmh"]]
+        rows = [[c] + [fmt_ci(v) for v in cells] for c, cells in cur["three_sigma_mdeg"].items()
+                if any(v is not None for v in cells)]
+        rows.append(["yardstick (analytic)"] + [fmt(v) for v in cur["yardstick_three_sigma_mdeg"]])
+        out.append(_table(header, rows))
+    return out
+
+
+def error_table(results: Mapping[str, Any]) -> str:
+    """Detail: servo errors (3σ, rms, peak) and the dish's true pointing error per controller
+    and scenario."""
+    header = ["controller", "scenario", "3σ az", "3σ el", "rms az", "rms el", "peak az", "peak el",
+              "pointing 3σ el", "pointing 3σ xel", "pointing peak el", "pointing peak xel"]
+    rows = []
+    for c in results["meta"]["controllers"]:
+        for s in results["meta"]["scenarios"]:
+            x = _cell(results, c, s)
+            if x is None:
+                continue
+            se, pe = x["servo_error_mdeg"], x["pointing_error_mdeg"]
+            rows.append([c, s] + [fmt_ci(se[ax][st]) for st in ("three_sigma", "rms", "max") for ax in AXES]
+                        + [fmt_ci(pe[ax][st]) for st in ("three_sigma", "max") for ax in ("el", "xel")])
+    return _table(header, rows)
+
+
+def command_table(results: Mapping[str, Any]) -> str:
+    """Detail: commands, limiter hits, decision time and health per controller and scenario."""
+    header = ["controller", "scenario", "peak rate az / el (°/s)", "limit hits per episode rate / accel",
+              "decision time median / p95 (ms)", "run", "fallbacks", "failures", "terminated"]
+    rows = []
+    for c in results["meta"]["controllers"]:
+        for s in results["meta"]["scenarios"]:
+            x = _cell(results, c, s)
+            if x is None:
+                continue
+            rc, lh = x["rate_command_deg_s"], x["limit_hits"]["per_episode"]
+            batched = results["meta"].get("batched", {}).get(c)
+            rows.append([c, s,
+                         " / ".join(fmt_ci(rc[ax]["peak"]) for ax in AXES),
+                         f"{fmt_ci(lh['rate'])} / {fmt_ci(lh['accel'])}",
+                         " / ".join(fmt(x["controller_time_ms"][k]["value"], 2) for k in ("median", "p95")),
+                         "batched" if batched else "one at a time",
+                         str(x["fallbacks"]), str(x["failures"]), str(x["terminated"])])
+    return _table(header, rows)
+
+
+def fallback_lines(results: Mapping[str, Any]) -> list[str]:
+    """One line per episode with solver fallbacks: controller, scenario, seed and statuses."""
+    out = []
+    for c, scens in results.get("episodes", {}).items():
+        for s, cols in scens.items():
+            def col(key: str, i: int, cols: Mapping[str, Any] = cols) -> Any:
+                v = cols.get(key)
+                return v["same"] if isinstance(v, dict) else (None if v is None else v[i])
+            for i in range(len(cols["seed"])):
+                n = col("fallbacks", i)
+                if not n:
+                    continue
+                log, st = col("fallback_log", i), col("fallback_statuses", i)
+                if log:
+                    detail = ", ".join(f"step {f['step']}: {f['status']}" for f in log[:10])
+                    detail += ", ..." if len(log) > 10 else ""
+                elif st:
+                    detail = ", ".join(f"{k} × {v}" for k, v in st.items())
+                else:
+                    detail = "statuses not given"
+                out.append(f"* {c}, {s}, seed {cols['seed'][i]}: {n} fallbacks ({detail})")
+    return out
+
+
+LEGEND = """\
+## How to read it
+
+* Every figure is **pooled over episodes** and shown as **value ± half-width of its 95 %
+  confidence interval** (percentile bootstrap over episodes: the episodes are independent,
+  each with its own seed; results.json has the interval's ends, the episodes and the seconds
+  of data behind it, and every episode's values).  Two figures whose intervals overlap may
+  not differ.
+* **3σ** is 3 × the standard deviation of the true servo error at the encoders (command −
+  axis angle, unquantised) about each episode's mean, pooled over the episodes as a root mean
+  square, after the warm-up (hold, track, sweep: 5 s): the report's Table 4 quantity.  **rms**
+  includes the mean; **peak** is each episode's largest |error|, averaged over the episodes.
+* **pointing** is the dish's true pointing error (command minus the structure's pointing
+  angle, elevation and cross-elevation, from the model's pointing outputs, deformation
+  included), the same statistics.
+* In **front** wind the wind loads **elevation**, in **side** wind **azimuth**: those axes are
+  in bold.
+* **÷ reference** (the report's PI, kp 1): the ratio of pooled 3σ on the seeds both
+  controllers ran, with a paired bootstrap interval (the same gusts in numerator and
+  denominator, so the ratio is much sharper than either figure).  **÷ yardstick**: over the
+  analytic expected 3σ of the H2-optimal full-order LQG for the scenario's wind
+  (`baselines/yardstick.py`), the best a linear controller can do on the model with white
+  quantisation noise; the interval is the controller's.  **n.s.**: not significant, the
+  interval contains 1.
+* Controllers that act on batches (PI, LQG, PPO with the batch interface) run many episodes
+  at once through the vector environment; the MPC runs one episode at a time on the first
+  seeds of the same list, so its intervals are wider (see the episodes column).  The same
+  seed is the same episode (start, wind direction, gusts, trajectory) for every controller.
+* **step**: 0.1° command step on both axes at 1 s, no wind; overshoot (%) and settling into
+  the 2 % band (s from the step; ∞: not settled; median over episodes).  **slew**: 5° on both
+  axes in 30 km/h wind; its 3σ and peak measure the commanded move.  **track**: slow
+  sinusoidal track in a random 30–70 km/h wind and direction (wide intervals by design).
+* **limit hits**: steps where the environment's limiter clipped the rate or its change
+  (0.25 °/s, 0.2 °/s²).  **decision time**: wall time of one control decision (a batched
+  controller's batch call divided by its rows), median over episodes.  **fallbacks**: MPC
+  solves replaced by the fallback law (each episode's solver statuses are listed below and in
+  results.json); **failures**: controller exceptions (the episode ends); **terminated**:
+  episodes that hit the 1° error bound or the travel limits.
+"""
+
+
+def _timing(b: Mapping[str, Any]) -> str:
+    """``Wall time 120 s (CPU 110 s) on 2 cores, load average 1.2 at the start``."""
+    cpu = b.get("cpu_time_s")
+    load = b["machine"].get("load_average_start")
+    return (f"Wall time {b['wall_time_s']['total']:.0f} s"
+            + (f" (CPU {cpu:.0f} s)" if cpu is not None else "")
+            + f" on {b['machine']['cpu_count']} cores"
+            + (f", load average {load[0]:.1f} at the start" if load else ""))
+
+
+def results_markdown(results: Mapping[str, Any]) -> str:
+    """results.md: the main table, ratios, precision, details, the sweep and the legend."""
+    b, m = results["bench"], results["meta"]
+    cfg = b["config"]
+    runs = "; ".join(f"{s} {r['seconds']:g} s × {len(r['seeds'])} (one at a time: "
+                     f"{len(r['sequential_seeds'])})" for s, r in cfg["runs"].items())
+    parts = ["# DSS-14 controller benchmark", "",
+             f"Controllers: {', '.join(m['controllers'])}. Episodes per scenario: {runs}. "
+             f"Plant: {'randomised' if cfg['env_kwargs'] else 'nominal'}. "
+             f"{'--quick. ' if cfg['quick'] else ''}{_timing(b)}.", ""]
+    if b["notes"]:
+        parts += [f"Note: {n}" for n in b["notes"]] + [""]
+    parts += ["## 3σ servo error (mdeg), az / el, 95 % confidence intervals", "", main_table(results), ""]
+    for title, t in (("## Ratios of the loaded axis' 3σ, 95 % confidence intervals", ratio_table(results)),
+                     ("## Precision of the hold figures", precision_table(results)),
+                     ("## Step response (Fig. 21 scenario)", step_table(results))):
+        if t:
+            parts += [title, "", t, ""]
+    sw = sweep_tables(results)
+    if sw:
+        s = results["wind_sweep"]
+        parts += [f"## 3σ error vs wind speed (hold, {s['seconds']:g}-s episodes, {len(s['seeds'])} "
+                  f"per point; the 50 km/h points are the hold scenarios)", ""]
+        for t in sw:
+            parts += [t, ""]
+    parts += ["## Errors in detail (mdeg)", "", error_table(results), "",
+              "## Commands, limits, timing, health", "", command_table(results), ""]
+    fl = fallback_lines(results)
+    if fl:
+        parts += ["### Solver fallbacks per episode", ""] + fl + [""]
+    parts += [LEGEND]
+    return "\n".join(parts)
+
+
+def readme_table(results: Mapping[str, Any]) -> str:
+    """The README's bench section tables: the main table, the ratios and the step response of
+    a default run, with a line on how it was run."""
+    b = results["bench"]
+    cfg = b["config"]
+    hold = cfg["runs"].get("hold_front") or next(iter(cfg["runs"].values()))
+    head = (f"The default run (`dss14 bench`; `docs/results/bench_default.json`): 3σ servo error in "
+            f"mdeg, `az / el`, **value ± 95 % CI half-width** (bootstrap over episodes), the loaded "
+            f"axis in bold; the batched controllers ran {len(hold['seeds'])} episodes of "
+            f"{hold['seconds']:g} s per hold scenario, the MPC {len(hold['sequential_seeds'])}. "
+            f"{_timing(b)}.")
+    parts = [head, "", main_table(results), ""]
+    rt = ratio_table(results)
+    if rt:
+        parts += ["Ratios of the loaded axis' 3σ with their 95 % CI (n.s.: not significant, the "
+                  "interval contains 1):", "", rt, ""]
+    st = step_table(results)
+    if st:
+        parts += ["The 0.1° step (Fig. 21 scenario), 95 % CI:", "", st, ""]
+    return "\n".join(parts)
+
+
+def write_results(results: Mapping[str, Any], out: str | Path) -> tuple[Path, Path]:
+    """Write results.json and results.md into ``out`` (an existing folder), atomically.
+
+    :return: their paths
+    """
+    out = Path(out)
+    pj, pm = out / RESULT_FILES[0], out / RESULT_FILES[1]
+    atomic_write_text(pj, results_json(results))
+    atomic_write_text(pm, results_markdown(results))
+    return pj, pm
+
+
+__all__ = ["LEGEND", "RESULT_FILES", "assemble_results", "command_table", "episode_columns",
+           "episode_rows", "error_table", "fmt", "fmt_ci", "fmt_ratio", "main_table", "package_versions",
+           "precision_table", "ratio_table", "readme_table", "results_json", "results_markdown",
+           "step_table", "sweep_tables", "wind_sweep_curves", "write_results"]

@@ -1,0 +1,134 @@
+"""Running a :class:`~dss14_env.bench.plan.BenchPlan` through the one runner.
+
+:func:`run_plan` calls :func:`dss14_env.bench.runner.run` once per scenario (each with its own
+episode length and seeds) and once per point of the error-vs-wind sweep, with a progress bar,
+and merges the runner's outputs.  A sweep point identical to a main scenario (same environment
+keys, episode length and warm-up: the 50 km/h points) is taken from it, not rerun.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from dss14_env.bench import runner
+from dss14_env.bench.plan import SWEEP_DIRECTIONS, BenchPlan, ScenarioRun, sweep_name, sweep_scenario
+from dss14_env.bench.runner import Scenario
+
+#: scenarios whose first seed's time histories the figures draw
+TRACED = ("hold_front", "hold_side", "step")
+
+
+def ppo_factory(path: str | Path | None = None) -> Callable[[Any], Any]:
+    """Factory of the ``"ppo"`` controller: :func:`dss14_env.agents.policy.load_policy` on the env.
+
+    :param path: the policy (None: the shipped one)
+    """
+    def make(env: Any) -> Any:
+        from dss14_env.agents.policy import load_policy
+        return load_policy(path, env=env)
+    return make
+
+
+def controller_entries(plan: BenchPlan) -> list[Any]:
+    """The runner's controller arguments: names, and a (name, factory) pair for PPO."""
+    return [("ppo", ppo_factory(plan.ppo_model)) if c == "ppo" else c for c in plan.controllers]
+
+
+def sweep_points(plan: BenchPlan) -> list[tuple[str, str, float, Scenario, str | None]]:
+    """(name, direction, speed, scenario, the main scenario it equals or None) per sweep point
+    (equal: same environment keys, episode length and warm-up)."""
+    pts = []
+    for d in plan.sweep_directions:
+        for v in plan.wind_speeds_kmh:
+            sc = sweep_scenario(d, v, plan.sweep.steps)
+            same = next((s for s in plan.scenarios if dict(plan.scenario(s).env) == dict(sc.env)
+                         and plan.runs[s].steps == sc.steps and plan.scenario(s).warmup_s == sc.warmup_s),
+                        None)
+            pts.append((sweep_name(d, v), d, v, sc, same))
+    return pts
+
+
+def _merge(parts: list[dict[str, Any]]) -> dict[str, Any]:
+    """One runner result from several (each one scenario or sweep point)."""
+    if not parts:
+        return {"meta": {}, "episodes": [], "summary": {}, "yardstick": {}}
+    meta: dict[str, Any] = {k: v for k, v in parts[0]["meta"].items()}
+    for key in ("scenarios",):
+        meta[key] = [s for p in parts for s in p["meta"][key]]
+    for key in ("steps", "warmup_s"):
+        meta[key] = {k: v for p in parts for k, v in p["meta"][key].items()}
+    meta["seeds"] = {s: p["meta"]["seeds"] for p in parts for s in p["meta"]["scenarios"]}
+    meta["sequential_seeds"] = {s: p["meta"]["sequential_seeds"]
+                                for p in parts for s in p["meta"]["scenarios"]}
+    meta["batched"] = {c: any(p["meta"]["batched"].get(c, False) for p in parts) for c in meta["controllers"]}
+    meta["wall_time_s"] = sum(p["meta"]["wall_time_s"] for p in parts)
+    meta["controller_wall_time_s"] = {
+        c: {s: t for p in parts for s, t in p["meta"]["controller_wall_time_s"][c].items()}
+        for c in meta["controllers"]}
+    summary: dict[str, dict[str, Any]] = {c: {} for c in meta["controllers"]}
+    for p in parts:
+        for c, cells in p["summary"].items():
+            summary[c].update(cells)
+    return {"meta": meta, "episodes": [ep for p in parts for ep in p["episodes"]], "summary": summary,
+            "yardstick": {k: v for p in parts for k, v in p["yardstick"].items()}}
+
+
+def _run_one(plan: BenchPlan, ctrls: list[Any], name: str, sc: Scenario, r: ScenarioRun,
+             cb: Callable[[str, int], None] | None, record: bool) -> dict[str, Any]:
+    return runner.run(ctrls, [(name, sc)], r.seeds, plan.env_kwargs, progress=cb, record=record,
+                      sequential_seeds=r.sequential, bootstrap_seed=plan.bootstrap_seed)
+
+
+def _expected_episodes(plan: BenchPlan, runs: list[ScenarioRun]) -> int:
+    """Episodes of the run, counting ``mpc`` as the one controller that runs one at a time
+    (the progress bar's total; corrected as the run goes)."""
+    n = 0
+    for r in runs:
+        for c in plan.controllers:
+            n += r.sequential if c == "mpc" else len(r.seeds)
+    return n
+
+
+def run_plan(plan: BenchPlan, progress: bool = True) -> dict[str, Any]:
+    """Run the plan: the main scenarios (with the first seed's time histories of the hold and
+    step scenarios) and the wind sweep.
+
+    :param plan: the plan (:func:`dss14_env.bench.plan.build_plan`)
+    :param progress: show a tqdm progress bar (stderr), one tick per episode
+    :return: ``{"main": runner result (episodes with ``trace``), "sweep": runner result of the
+        sweep points that ran (or None), "sweep_points": [(name, direction, speed, same_as)],
+        "wall_time_s": {"main", "sweep"}}``
+    """
+    from tqdm.auto import tqdm
+
+    ctrls = controller_entries(plan)
+    points = sweep_points(plan)
+    to_run = [(n, sc) for n, _, _, sc, same in points if same is None]
+    total = _expected_episodes(plan, list(plan.runs.values()) + [plan.sweep] * len(to_run))
+    t0 = time.perf_counter()
+    with tqdm(total=total, unit="ep", disable=not progress, dynamic_ncols=True,
+              desc="building the model") as bar:
+        def tick(line: str, n: int) -> None:
+            head, _, tail = line.partition(":")
+            bar.set_description_str(" ".join(head.split()), refresh=False)
+            bar.set_postfix_str(tail.strip(), refresh=False)
+            if bar.n + n > bar.total:
+                bar.total = bar.n + n
+            bar.update(n)
+
+        main = _merge([_run_one(plan, ctrls, s, plan.scenario(s), plan.runs[s], tick, s in TRACED)
+                       for s in plan.scenarios])
+        t1 = time.perf_counter()
+        sweep = _merge([_run_one(plan, ctrls, n, sc, plan.sweep, tick, False) for n, sc in to_run]) \
+            if to_run else None
+        bar.total = bar.n
+    t2 = time.perf_counter()
+    return {"main": main, "sweep": sweep,
+            "sweep_points": [(n, d, v, same) for n, d, v, _, same in points],
+            "wall_time_s": {"main": t1 - t0, "sweep": t2 - t1}}
+
+
+__all__ = ["TRACED", "controller_entries", "ppo_factory", "run_plan", "sweep_points", "SWEEP_DIRECTIONS"]

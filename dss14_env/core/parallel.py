@@ -1,0 +1,307 @@
+"""Independent work items run one after another in-process or as Ray tasks, locally or on a
+cluster.
+
+The training seeds of a learned agent, the points of a hyperparameter sweep and the chunks of a
+Monte-Carlo campaign are *embarrassingly parallel*: items that share nothing and return a small
+JSON-ready result.  An executor maps a function over such items and hands the results back as
+they finish, ``(index, result)``, so that the caller can write each one to disk at once (a
+resumable run) and tick a progress bar:
+
+* :class:`SerialExecutor` runs them one after another in this process;
+* :class:`RayExecutor` runs each as a Ray task (``num_cpus`` per task, 1 by default) on a local
+  Ray that it starts (``ray.init(num_cpus=n)``) or on a running cluster that it joins
+  (``address="auto"`` on a cluster node, or ``"ray://head:10001"``).  Ray is an optional
+  dependency, imported only here and only when a :class:`RayExecutor` is made; without it,
+  :func:`require_ray` raises :class:`RayNotInstalledError` with the install command.
+
+Both run every item inside :class:`pinned_threads`: BLAS and OpenMP thread pools (through
+threadpoolctl) and torch's intra-op threads limited to ``threads`` (1 by default) for the item
+and restored afterwards, and the Ray workers start with ``OMP_NUM_THREADS`` etc. set to the
+same number, so that two tasks on two CPUs do not fight over them -- and so that an item
+gives bit-for-bit the same result in-process and on Ray (a multi-threaded BLAS may sum in
+another order).  A function whose result depends only on its item therefore returns the same
+numbers with either executor.
+
+>>> with SerialExecutor() as ex:
+...     sorted(ex.map_unordered(abs, [-2, 3, -5]))
+[(0, 2), (1, 3), (2, 5)]
+
+A task that raises stops the run: the executor cancels what has not started and raises
+:class:`TaskFailedError` naming the item (the results handed back before stay valid).
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from typing import Any, Protocol
+
+#: the command that installs the optional Ray dependency (the ``ray`` extra of the package)
+RAY_INSTALL = 'pip install -e ".[ray]"  (from a source checkout) or  pip install "dss14-env[ray]"'
+#: environment variables that size the thread pools of BLAS, OpenMP and torch in a worker
+THREAD_ENV_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+class RayNotInstalledError(RuntimeError):
+    """Ray was asked for but is not installed; the message says how to install it."""
+
+
+class TaskFailedError(RuntimeError):
+    """One work item raised; the message names the item and the exception."""
+
+
+def require_ray() -> Any:
+    """Import and return the ``ray`` module.
+
+    :raises RayNotInstalledError: if Ray is not installed (one line with the install command)
+    """
+    try:
+        import ray
+    except ImportError:
+        raise RayNotInstalledError(f"Ray is not installed; install it with {RAY_INSTALL}") from None
+    return ray
+
+
+class pinned_threads:
+    """Context manager: limit the thread pools of BLAS, OpenMP and torch to ``n``, restore on
+    exit.
+
+    numpy and scipy are loaded first so that both of their BLAS libraries are limited
+    (threadpoolctl acts on the libraries loaded when it is entered).  torch's intra-op threads
+    are set when torch is already imported, or always with ``torch=True`` (which imports it);
+    torch imported later inside the block reads ``OMP_NUM_THREADS``, which the Ray workers get
+    from :class:`RayExecutor`.
+
+    :param n: threads per pool (>= 1)
+    :param torch: ``True``: import torch and set its threads; ``None`` (default): set them if
+        torch is already imported; ``False``: leave torch alone
+    """
+
+    def __init__(self, n: int = 1, torch: bool | None = None) -> None:
+        if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+            raise ValueError(f"threads: must be an integer >= 1, got {n!r}")
+        self.n = n
+        self.torch = torch
+        self._limiter: Any = None
+        self._torch_threads: int | None = None
+
+    def __enter__(self) -> pinned_threads:
+        import numpy  # noqa: F401  (load both BLAS libraries before limiting them)
+        import scipy.linalg  # noqa: F401
+        from threadpoolctl import threadpool_limits
+
+        self._limiter = threadpool_limits(limits=self.n)
+        if self.torch or (self.torch is None and "torch" in sys.modules):
+            import torch
+
+            self._torch_threads = torch.get_num_threads()
+            torch.set_num_threads(self.n)
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        if self._torch_threads is not None:
+            sys.modules["torch"].set_num_threads(self._torch_threads)
+            self._torch_threads = None
+        if self._limiter is not None:
+            self._limiter.restore_original_limits()
+            self._limiter = None
+
+
+def call_pinned(fn: Callable[[Any], Any], item: Any, threads: int = 1, torch: bool | None = None) -> Any:
+    """``fn(item)`` inside :class:`pinned_threads` -- what every executor runs per item."""
+    with pinned_threads(threads, torch):
+        return fn(item)
+
+
+class Executor(Protocol):
+    """What the campaign and the multi-seed training need from an executor."""
+
+    #: ``"serial"`` or ``"ray"``
+    kind: str
+
+    @property
+    def n_workers(self) -> int:
+        """Items that can run at the same time."""
+
+    def map_unordered(self, fn: Callable[[Any], Any], items: Iterable[Any],
+                      labels: Sequence[str] | None = None) -> Iterator[tuple[int, Any]]:
+        """``(index, fn(item))`` for every item, in the order they finish."""
+
+    def describe(self) -> dict[str, Any]:
+        """JSON-ready description (kind, workers, address) for a results file."""
+
+    def close(self) -> None:
+        """Release what the executor started."""
+
+
+def _label(labels: Sequence[str] | None, i: int) -> str:
+    return labels[i] if labels is not None else f"item {i}"
+
+
+class SerialExecutor:
+    """Every item in this process, one after another, in order.
+
+    :param threads: thread-pool size while an item runs (:class:`pinned_threads`)
+    :param torch: torch's threads too (see :class:`pinned_threads`)
+    """
+
+    kind = "serial"
+
+    def __init__(self, threads: int = 1, torch: bool | None = None) -> None:
+        pinned_threads(threads)  # checks the value
+        self.threads = threads
+        self.torch = torch
+
+    @property
+    def n_workers(self) -> int:
+        return 1
+
+    def map_unordered(self, fn: Callable[[Any], Any], items: Iterable[Any],
+                      labels: Sequence[str] | None = None) -> Iterator[tuple[int, Any]]:
+        """``(index, fn(item))`` in order; an exception becomes :class:`TaskFailedError`."""
+        for i, item in enumerate(items):
+            try:
+                res = call_pinned(fn, item, self.threads, self.torch)
+            except Exception as exc:  # noqa: BLE001 - re-raised with the item's name
+                raise TaskFailedError(f"{_label(labels, i)} failed: {type(exc).__name__}: {exc}") from exc
+            yield i, res
+
+    def describe(self) -> dict[str, Any]:
+        return {"kind": self.kind, "workers": 1, "threads_per_task": self.threads}
+
+    def close(self) -> None:
+        pass
+
+    def __enter__(self) -> SerialExecutor:
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+
+def check_ray_options(address: str | None = None, num_cpus: int | None = None,
+                      cpus_per_task: int = 1) -> None:
+    """Check the options of a :class:`RayExecutor` without starting anything.
+
+    :raises ValueError: naming the bad option
+    """
+    if address is not None and (not isinstance(address, str) or not address.strip()):
+        raise ValueError(f"--address: must be 'auto' or a Ray cluster address, got {address!r}")
+    if num_cpus is not None:
+        if isinstance(num_cpus, bool) or not isinstance(num_cpus, int) or num_cpus < 1:
+            raise ValueError(f"--num-cpus: must be an integer >= 1, got {num_cpus!r}")
+        if address is not None:
+            raise ValueError("--num-cpus: sizes a local Ray; a cluster (--address) has its own CPUs")
+    if isinstance(cpus_per_task, bool) or not isinstance(cpus_per_task, int) or cpus_per_task < 1:
+        raise ValueError(f"cpus_per_task: must be an integer >= 1, got {cpus_per_task!r}")
+
+
+class RayExecutor:
+    """Every item as a Ray task, ``cpus_per_task`` CPUs each.
+
+    A Ray that is already running in this process (``ray.is_initialized()``) is used as it is
+    and left running; otherwise the executor starts one -- a local Ray with ``num_cpus`` CPUs
+    (default: all of the machine's) when ``address`` is None, else it joins the cluster at
+    ``address`` (``"auto"``: the cluster this machine belongs to) -- and shuts it down in
+    :meth:`close`.  The workers import ``dss14_env`` from their own Python environment: on a
+    local Ray that is this one; on a cluster the package must be installed on every node
+    (``docs/scale.md``).
+
+    :param address: None (local Ray), ``"auto"`` or a cluster address
+    :param num_cpus: CPUs of the local Ray (only without ``address``)
+    :param cpus_per_task: Ray's ``num_cpus`` of each task
+    :param threads: thread-pool size inside each task (:class:`pinned_threads`), default
+        ``cpus_per_task``
+    :param torch: torch's threads too (see :class:`pinned_threads`)
+    :raises RayNotInstalledError: without Ray
+    :raises ValueError: on a bad option (named)
+    """
+
+    kind = "ray"
+
+    def __init__(self, address: str | None = None, num_cpus: int | None = None, cpus_per_task: int = 1,
+                 threads: int | None = None, torch: bool | None = None) -> None:
+        check_ray_options(address, num_cpus, cpus_per_task)
+        self.threads = cpus_per_task if threads is None else threads
+        pinned_threads(self.threads)  # checks the value
+        self.torch = torch
+        self.cpus_per_task = cpus_per_task
+        self.address = address
+        ray = self._ray = require_ray()
+        self._owned = not ray.is_initialized()
+        if self._owned:
+            env = {"env_vars": {v: str(self.threads) for v in THREAD_ENV_VARS}}
+            kwargs: dict[str, Any] = {"address": address} if address is not None else {"num_cpus": num_cpus}
+            ray.init(include_dashboard=False, runtime_env=env, logging_level="WARNING", **kwargs)
+
+    @property
+    def n_workers(self) -> int:
+        cpus = int(self._ray.cluster_resources().get("CPU", 1))
+        return max(1, cpus // self.cpus_per_task)
+
+    def map_unordered(self, fn: Callable[[Any], Any], items: Iterable[Any],
+                      labels: Sequence[str] | None = None) -> Iterator[tuple[int, Any]]:
+        """Submit every item, then ``(index, result)`` as each task finishes.
+
+        A failed task cancels the others that have not finished and raises
+        :class:`TaskFailedError`; so does closing the iterator early (no task is left running).
+        """
+        ray = self._ray
+        remote = ray.remote(num_cpus=self.cpus_per_task, max_retries=0)(call_pinned)
+        fn_ref = ray.put(fn)
+        pending = {remote.remote(fn_ref, item, self.threads, self.torch): i for i, item in enumerate(items)}
+        try:
+            while pending:
+                done, _ = ray.wait(list(pending), num_returns=1)
+                for ref in done:
+                    i = pending.pop(ref)
+                    try:
+                        res = ray.get(ref)
+                    except ray.exceptions.RayTaskError as exc:
+                        cause = exc.cause if exc.cause is not None else exc
+                        raise TaskFailedError(f"{_label(labels, i)} failed: {type(cause).__name__}: "
+                                              f"{cause}") from None
+                    yield i, res
+        finally:
+            for ref in pending:
+                ray.cancel(ref, force=True)
+
+    def describe(self) -> dict[str, Any]:
+        res = self._ray.cluster_resources()
+        return {"kind": self.kind, "address": self.address, "workers": self.n_workers,
+                "cluster_cpus": float(res.get("CPU", 0.0)), "nodes": len(self._ray.nodes()),
+                "cpus_per_task": self.cpus_per_task, "threads_per_task": self.threads,
+                "ray_version": self._ray.__version__}
+
+    def close(self) -> None:
+        """Shut down the Ray this executor started (a Ray that was running is left alone)."""
+        if self._owned and self._ray.is_initialized():
+            self._ray.shutdown()
+        self._owned = False
+
+    def __enter__(self) -> RayExecutor:
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+
+def make_executor(ray: bool = False, address: str | None = None, num_cpus: int | None = None,
+                  threads: int = 1, torch: bool | None = None) -> SerialExecutor | RayExecutor:
+    """The executor the command-line options ask for.
+
+    :param ray: Ray tasks (``--ray``) instead of the in-process loop
+    :param address: a Ray cluster to join (``--address``; implies ``ray``)
+    :param num_cpus: CPUs of a local Ray (``--num-cpus``; implies ``ray``)
+    :param threads: thread-pool size per item
+    :param torch: torch's threads too (see :class:`pinned_threads`)
+    """
+    if ray or address is not None or num_cpus is not None:
+        return RayExecutor(address=address, num_cpus=num_cpus, cpus_per_task=threads, threads=threads,
+                           torch=torch)
+    return SerialExecutor(threads=threads, torch=torch)
+
+
+__all__ = ["RAY_INSTALL", "Executor", "RayExecutor", "RayNotInstalledError", "SerialExecutor",
+           "TaskFailedError", "call_pinned", "check_ray_options", "make_executor", "pinned_threads",
+           "require_ray"]

@@ -1,0 +1,523 @@
+"""The step of the DSS14 environments, once: input checks, command limiter, encoders, servo and
+pointing errors, episode end, reward, observation and info.
+
+Every piece is a function of ``(N, ...)`` numpy arrays (N sub-environments); the vector
+environment (:mod:`dss14_env.envs.vector`) calls them.  The single environment
+(:mod:`dss14_env.envs.env`) runs one step in a few microseconds, where a numpy call costs about
+one, so it calls the *scalar twins* of the pieces (suffix ``_1``: the same formulas on Python
+floats, in the same order of operations).  ``tests/test_env_core.py`` holds each twin equal to
+its batched piece, bit for bit, on random inputs (hypothesis), limiter edges, quantisation
+and termination boundaries and clamping included.
+
+The pieces, in the order of a step (SI inside; mdeg and deg at the interface)::
+
+    a      = clip(action, -1, 1)                                       action units
+    q      = clip(a * action_scale, +-rate_limit)                      rad/s (rate clip)
+    r      = clip(q, r_prev - rate_step, r_prev + rate_step)           acceleration limit
+    x+, y+ = plant map (exact discretisation, :mod:`dss14_env.envs.plant`)
+    reading = q_enc * floor((start + theta + noise) / q_enc + 1/2)      encoder (absolute angle)
+    e      = (c - theta) * R2MD,   e_meas = (c - (reading - start)) * R2MD      servo errors, mdeg
+    terminated = |e| > max_error on an axis, or the antenna leaves its travel
+    reward = -((e_az^2 + e_el^2) / error_scale^2 + w ||a - a_prev||^2) [- penalty if terminated]
+    pointing error = [c_el - point_el, c_az cos(E) - point_xel] * R2MD
+
+>>> import numpy as np
+>>> from dss14_env.envs.config import load_env_config
+>>> k = StepConstants.from_config(load_env_config())
+>>> a, r, rate_hit, acc_hit = limit_commands(np.array([[2.0, -0.01]]), np.zeros((1, 2)), k)
+>>> a.tolist(), (r * R2D).round(6).tolist(), acc_hit.tolist()
+([[1.0, -0.01]], [[0.004, -0.0025]], [True])
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from dss14_env.core.units import DEG, MDEG, R2D, R2MD
+from dss14_env.envs.config import EnvConfig
+
+#: observation names, in order
+OBS_NAMES = ("error_az", "error_el", "error_rate_az", "error_rate_el", "command_az", "command_el",
+             "command_rate_az", "command_rate_el", "encoder_az", "encoder_el",
+             "prev_rate_az", "prev_rate_el")
+#: bounds of the observation (see the table in DSS14Env); errors and error rates are clamped to
+#: them, which without encoder noise can only act on a terminating step
+OBS_ERROR_BOUND = 1.0e4
+OBS_ERROR_RATE_BOUND = 1.0e6
+OBS_POSITION_BOUND_DEG = 720.0
+OBS_HIGH = np.array([OBS_ERROR_BOUND] * 2 + [OBS_ERROR_RATE_BOUND] * 2 + [OBS_POSITION_BOUND_DEG] * 2
+                    + [1.0] * 2 + [OBS_POSITION_BOUND_DEG] * 2 + [1.0] * 2, dtype=np.float32)
+_LOW4, _HIGH4 = -OBS_HIGH[:4].astype(np.float64), OBS_HIGH[:4].astype(np.float64)
+#: the info keys of every step, in order
+INFO_KEYS = ("servo_error_az_mdeg", "servo_error_el_mdeg", "measured_error_az_mdeg",
+             "measured_error_el_mdeg", "pointing_error_el_mdeg", "pointing_error_xel_mdeg",
+             "wind_speed_mps", "wind_direction_rad", "action_unclipped", "rate_command_az_deg_s",
+             "rate_command_el_deg_s", "rate_limited", "accel_limited", "n_rate_limited",
+             "n_accel_limited")
+
+
+@dataclass(frozen=True)
+class StepConstants:
+    """The configuration's constants of a step, in SI (built by :meth:`from_config`).
+
+    :param dt: control period, s
+    :param action_scale: rate command at action 1, rad/s
+    :param rate_limit: rate-command clip, rad/s
+    :param rate_step: largest change of the rate command per step, rad/s
+    :param rate_clip: the rate clip can act (``action_scale > rate_limit``)
+    :param quantum: encoder count, rad (0: exact readings)
+    :param encoder_sigma: encoder noise std, rad
+    :param error_scale: observation unit of the servo errors, mdeg
+    :param action_change_weight: weight of ``||a - a_prev||^2`` in the cost
+    :param termination_penalty: extra cost of the terminating step
+    :param el_limits: elevation travel ``(low, high)``, rad
+    :param az_centre: azimuth cable-wrap centre, rad
+    :param az_half_range: azimuth travel about the centre, rad
+    """
+
+    dt: float
+    action_scale: float
+    rate_limit: float
+    rate_step: float
+    rate_clip: bool
+    quantum: float
+    encoder_sigma: float
+    error_scale: float
+    action_change_weight: float
+    termination_penalty: float
+    el_limits: tuple[float, float]
+    az_centre: float
+    az_half_range: float
+
+    @classmethod
+    def from_config(cls, c: EnvConfig) -> StepConstants:
+        """The constants of a checked configuration."""
+        scale, rl = c.action_scale_deg_s * DEG, c.rate_limit_deg_s * DEG
+        return cls(c.dt, scale, rl, c.accel_limit_deg_s2 * DEG * c.dt, scale > rl,
+                   (2.0 * math.pi / 2 ** c.encoder_bits) if c.encoder_bits else 0.0,
+                   c.encoder_noise_mdeg * MDEG, c.error_scale_mdeg, c.action_change_weight,
+                   c.termination_penalty, (c.el_limits_deg[0] * DEG, c.el_limits_deg[1] * DEG),
+                   c.az_wrap_centre_deg * DEG, c.az_wrap_half_range_deg * DEG)
+
+    @property
+    def inv_quantum(self) -> float:
+        """``1 / quantum`` (0 for exact readings)."""
+        return 1.0 / self.quantum if self.quantum else 0.0
+
+    @property
+    def inv_error_scale(self) -> float:
+        return 1.0 / self.error_scale
+
+    @property
+    def error_rate_scale(self) -> float:
+        """Observation factor of the error difference of one step: ``1 / (error_scale dt)``."""
+        return (1.0 / self.error_scale) * (1.0 / self.dt)
+
+    @property
+    def inv_rate_limit(self) -> float:
+        return 1.0 / self.rate_limit
+
+    def clamp_always(self, max_error_mdeg: float) -> bool:
+        """Whether the observation bounds can be passed without terminating (encoder noise, or
+        bounds tighter than the error bound plus one count): then every step clamps."""
+        me_q = max_error_mdeg + self.quantum * R2MD
+        return (bool(self.encoder_sigma) or me_q / self.error_scale > OBS_ERROR_BOUND
+                or 2.0 * me_q * self.error_rate_scale > OBS_ERROR_RATE_BOUND)
+
+
+# ------------------------------------------------------------------------------ input checks
+def _describe(x: Any) -> str:
+    text = repr(x)
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
+def as_actions(actions: Any, shape: tuple[int, ...]) -> np.ndarray:
+    """The action(s) as a new float64 array of ``shape``, checked.
+
+    Accepted: real numbers (bool, complex, strings and objects are not), of the given shape,
+    all finite.
+
+    :raises ValueError: ``action must be ...``, naming what was wrong
+    """
+    try:
+        a = np.asarray(actions)
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f"action must be an array of real numbers of shape {shape}, got "
+                         f"{_describe(actions)}") from None
+    if a.dtype.kind not in "iuf":
+        raise ValueError(f"action must be an array of real numbers of shape {shape}, got dtype "
+                         f"{a.dtype}: {_describe(actions)}")
+    if a.shape != shape:
+        raise ValueError(f"action must have shape {shape}, got shape {a.shape}")
+    if a.dtype.itemsize > 8:  # longdouble: may overflow float64
+        with np.errstate(over="ignore"):
+            a = a.astype(np.float64)
+    else:
+        a = a.astype(np.float64)
+    if not np.isfinite(a).all():
+        bad = np.flatnonzero(~np.isfinite(a).reshape(a.shape[0] if a.ndim > 1 else 1, -1).all(axis=1))
+        where = f" (sub-environment(s) {bad.tolist()})" if a.ndim > 1 else ""
+        raise ValueError(f"action must be finite, got {_describe(a.tolist())}{where}")
+    return a
+
+
+def check_seed(seed: Any) -> int | None:
+    """``seed``: None or a non-negative integer (Python or numpy); returned as ``int``.
+
+    :raises ValueError: ``seed must be ...``
+    """
+    if seed is None:
+        return None
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be None or a non-negative integer, got {_describe(seed)}")
+    return int(seed)
+
+
+def check_seeds(seed: Any, n: int) -> list[int | None]:
+    """The seeds of ``n`` sub-environments: ``seed + i`` for an integer, the entries of a
+    sequence of ``n`` seeds, or ``n`` times None.
+
+    :raises ValueError: ``seed must be ...``
+    """
+    if seed is None:
+        return [None] * n
+    if isinstance(seed, (list, tuple, np.ndarray)):
+        if len(seed) != n:
+            raise ValueError(f"seed must be None, a non-negative integer or a sequence of num_envs = {n} "
+                             f"seeds, got a sequence of {len(seed)}")
+        return [check_seed(s) for s in seed]
+    try:
+        s = check_seed(seed)
+    except ValueError:
+        raise ValueError(f"seed must be None, a non-negative integer or a sequence of num_envs = {n} "
+                         f"seeds, got {_describe(seed)}") from None
+    return [s + i for i in range(n)]  # type: ignore[operator]
+
+
+# ------------------------------------------------------------------------------ batched pieces
+def limit_commands(a: np.ndarray, r_prev: np.ndarray, k: StepConstants
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The command limiter.
+
+    :param a: actions ``(N, 2)`` (finite)
+    :param r_prev: previous applied rate commands ``(N, 2)``, rad/s
+    :return: ``(a_clipped, r, rate_hit, acc_hit)``: the actions clipped to [-1, 1], the applied
+        rate commands (rad/s), and per row whether the rate clip / acceleration limit acted
+    """
+    # clip(x, lo, hi) = minimum(maximum(x, lo), hi), as np.clip, without its Python wrapper
+    c = np.maximum(a, -1.0)
+    np.minimum(c, 1.0, out=c)
+    q = c * k.action_scale
+    if k.rate_clip:
+        hit = np.abs(q) > k.rate_limit
+        rate_hit = hit[:, 0] | hit[:, 1]
+        np.maximum(q, -k.rate_limit, out=q)
+        np.minimum(q, k.rate_limit, out=q)
+    else:
+        rate_hit = np.zeros(a.shape[0], bool)
+    r = np.maximum(q, r_prev - k.rate_step)
+    np.minimum(r, r_prev + k.rate_step, out=r)
+    hit = r != q
+    return c, r, rate_hit, hit[:, 0] | hit[:, 1]
+
+
+def start_action(r0: np.ndarray, k: StepConstants) -> np.ndarray:
+    """The action ``a[-1]`` before the first step: the one that reproduces the start rate
+    command ``r0`` (rad/s), clipped to [-1, 1] as every action is."""
+    return np.clip(r0 / k.action_scale, -1.0, 1.0)
+
+
+def quantise(angle: np.ndarray, quantum: float) -> np.ndarray:
+    """Round absolute angles (rad) to the nearest encoder count (``quantum`` 0: unchanged)."""
+    if not quantum:
+        return np.array(angle, float)
+    x = angle * (1.0 / quantum)
+    x += 0.5
+    np.floor(x, out=x)
+    x *= quantum
+    return x
+
+
+def read_encoders(theta: np.ndarray, start: np.ndarray, noise: np.ndarray | None, k: StepConstants
+                  ) -> np.ndarray:
+    """Encoder readings relative to the start, rad: the absolute angle ``start + theta`` plus
+    the noise, quantised.
+
+    :param theta: encoder angles relative to the start ``(N, 2)``, rad (plant outputs)
+    :param start: absolute start positions ``(N, 2)``, rad
+    :param noise: encoder noise ``(N, 2)``, rad (ignored without ``encoder_sigma``)
+    """
+    a = start + theta
+    if k.encoder_sigma:
+        a += noise
+    a = quantise(a, k.quantum) if k.quantum else a
+    a -= start
+    return a
+
+
+def servo_errors(c: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """Servo errors ``c - theta`` in mdeg (true with plant angles, measured with readings)."""
+    d = c - theta
+    d *= R2MD
+    return d
+
+
+def terminated(e: np.ndarray, theta: np.ndarray, start: np.ndarray, max_error: np.ndarray | float,
+               k: StepConstants) -> np.ndarray:
+    """Episode end: the true servo error beyond ``max_error`` (mdeg; per row or one) on an axis,
+    or the antenna outside its travel (elevation limits, azimuth half-range about the wrap
+    centre).
+
+    :return: ``(N,)`` bool
+    """
+    big = np.abs(e) > np.reshape(max_error, (-1, 1))
+    el = start[:, 1] + theta[:, 1]
+    az_off = (start[:, 0] - k.az_centre) + theta[:, 0]
+    return (big[:, 0] | big[:, 1] | (el < k.el_limits[0]) | (el > k.el_limits[1])
+            | (np.abs(az_off) > k.az_half_range))
+
+
+def reward(e: np.ndarray, a: np.ndarray, a_prev: np.ndarray, term: np.ndarray, k: StepConstants
+           ) -> np.ndarray:
+    """``-((e_az^2 + e_el^2) / error_scale^2 + w ||a - a_prev||^2)``, less the termination
+    penalty where ``term``.
+
+    :param e: true servo errors ``(N, 2)``, mdeg
+    :param a: clipped actions ``(N, 2)``; ``a_prev`` the previous ones
+    """
+    ib = 1.0 / k.error_scale
+    d = a - a_prev
+    e0, e1, d0, d1 = e[:, 0], e[:, 1], d[:, 0], d[:, 1]
+    cost = (e0 * e0 + e1 * e1) * (ib * ib) + k.action_change_weight * (d0 * d0 + d1 * d1)
+    if term.any():
+        cost += term * k.termination_penalty
+    return np.negative(cost, out=cost)
+
+
+def observation(em: np.ndarray, em_prev: np.ndarray | None, c_deg: np.ndarray, cd_scaled: np.ndarray,
+                rel: np.ndarray, r: np.ndarray, clamp: bool, k: StepConstants) -> np.ndarray:
+    """The observation ``(N, 12)`` float32 (layout :data:`OBS_NAMES`).
+
+    :param em: measured servo errors ``(N, 2)``, mdeg; ``em_prev`` those of the step before
+        (None at a reset: error rates 0)
+    :param c_deg: commanded positions relative to the start, deg
+    :param cd_scaled: commanded rates in units of the rate limit
+    :param rel: encoder readings relative to the start, rad
+    :param r: applied rate commands, rad/s
+    :param clamp: clamp the errors and error rates to their bounds
+    """
+    out = np.empty((em.shape[0], 12), np.float32)
+    if clamp:
+        o = np.empty((em.shape[0], 4))
+        np.multiply(em, 1.0 / k.error_scale, out=o[:, 0:2])
+        if em_prev is None:
+            o[:, 2:4] = 0.0
+        else:
+            np.multiply(em - em_prev, k.error_rate_scale, out=o[:, 2:4])
+        np.maximum(o, _LOW4, out=o)
+        np.minimum(o, _HIGH4, out=o)
+        out[:, 0:4] = o
+    else:
+        np.multiply(em, 1.0 / k.error_scale, out=out[:, 0:2], casting="same_kind")
+        if em_prev is None:
+            out[:, 2:4] = 0.0
+        else:
+            np.multiply(em - em_prev, k.error_rate_scale, out=out[:, 2:4], casting="same_kind")
+    out[:, 4:6] = c_deg
+    out[:, 6:8] = cd_scaled
+    np.multiply(rel, R2D, out=out[:, 8:10], casting="same_kind")
+    np.multiply(r, 1.0 / k.rate_limit, out=out[:, 10:12], casting="same_kind")
+    return out
+
+
+def pointing_errors(c: np.ndarray, point: np.ndarray, xel_scale: float) -> np.ndarray:
+    """The dish's pointing errors ``[el, xel]`` in mdeg: the command less the structure's
+    pointing angles (deformation included); the cross-elevation command is the azimuth command
+    times ``xel_scale = cos(E)``, as in the structure model's xel output.
+
+    :param c: commands ``[az, el]`` relative to the start ``(N, 2)``, rad
+    :param point: pointing outputs ``[point_el, point_xel]`` ``(N, 2)``, rad
+    """
+    out = np.empty_like(point)
+    np.subtract(c[:, 1], point[:, 0], out=out[:, 0])
+    np.multiply(c[:, 0], xel_scale, out=out[:, 1])
+    out[:, 1] -= point[:, 1]
+    out *= R2MD
+    return out
+
+
+def step_info(e: np.ndarray, em: np.ndarray, c: np.ndarray, point: np.ndarray, xel_scale: float,
+              wind: np.ndarray, a_raw: np.ndarray, r: np.ndarray, rate_hit: np.ndarray,
+              acc_hit: np.ndarray, hits: np.ndarray) -> dict[str, Any]:
+    """The info of a step (keys :data:`INFO_KEYS`), arrays of shape ``(N,)`` (``action_unclipped``
+    ``(N, 2)``).
+
+    :param e: true servo errors (mdeg); ``em`` measured
+    :param c: commands relative to the start, rad; ``point`` the pointing outputs
+        ``[point_el, point_xel]`` (rad) and ``xel_scale`` as for :func:`pointing_errors`
+    :param wind: ``[speed (m/s), direction (rad)]`` per row
+    :param a_raw: the actions as given
+    :param r: applied rate commands, rad/s
+    :param rate_hit: the rate clip acted; ``acc_hit`` the acceleration limit
+    :param hits: the episode's limiter hit counts ``[rate, accel]``
+    """
+    pe = pointing_errors(c, point, xel_scale)
+    rd = r * R2D
+    return {"servo_error_az_mdeg": e[:, 0], "servo_error_el_mdeg": e[:, 1],
+            "measured_error_az_mdeg": em[:, 0].copy(), "measured_error_el_mdeg": em[:, 1].copy(),
+            "pointing_error_el_mdeg": pe[:, 0], "pointing_error_xel_mdeg": pe[:, 1],
+            "wind_speed_mps": wind[:, 0].copy(), "wind_direction_rad": wind[:, 1].copy(),
+            "action_unclipped": a_raw, "rate_command_az_deg_s": rd[:, 0], "rate_command_el_deg_s": rd[:, 1],
+            "rate_limited": rate_hit, "accel_limited": acc_hit,
+            "n_rate_limited": hits[:, 0].copy(), "n_accel_limited": hits[:, 1].copy()}
+
+
+# ------------------------------------------------------------------------------ scalar twin
+# The single environment's step on Python floats: the pieces above in one function (a call
+# costs as much as a piece here), in the same order of operations, so that the results are
+# the same bit for bit; tests/test_env_core.py holds each of its results against the batched
+# piece it replaces.
+def step_constants(k: StepConstants, start: tuple[float, float], max_error: float, xel_scale: float,
+                   wind_speed: float, wind_direction: float) -> tuple:
+    """The constants of :func:`step_1` for one episode.
+
+    :param start: absolute start position ``(az, el)``, rad
+    :param max_error: servo error bound, mdeg (also decides whether every step clamps the
+        observation, :meth:`StepConstants.clamp_always`)
+    :param xel_scale: ``cos(E)`` of the structure model (:func:`pointing_errors`)
+    :param wind_speed: the episode's mean wind, m/s; ``wind_direction`` its direction, rad
+    """
+    s_az, s_el = float(start[0]), float(start[1])
+    return (k.action_scale, k.rate_clip, k.rate_limit, k.rate_step, s_az, s_el, k.quantum, k.inv_quantum,
+            max_error, s_az - k.az_centre, k.el_limits[0], k.el_limits[1], k.az_half_range,
+            k.inv_error_scale * k.inv_error_scale, k.action_change_weight, k.termination_penalty,
+            k.inv_error_scale, k.error_rate_scale, k.inv_rate_limit, k.clamp_always(max_error), xel_scale,
+            wind_speed, wind_direction)
+
+
+def _clamp(x: float, b: float) -> float:
+    return b if x > b else (-b if x < -b else x)
+
+
+_dot, _array, _f32, _floor = np.dot, np.array, np.float32, math.floor  # the hot path's names
+
+
+_F32, _F64 = np.dtype(np.float32), np.dtype(np.float64)
+
+
+def step_1(action: Any, st: tuple, M: np.ndarray, row: list, sc: tuple) -> tuple:
+    """One step of one environment on floats: :func:`as_actions` (a fast path for float32 and
+    float64 arrays of shape (2,), the same rule), :func:`limit_commands`, the plant map
+    (:meth:`dss14_env.envs.plant.Plant.episode_map`), :func:`read_encoders`, :func:`servo_errors`,
+    :func:`terminated`, :func:`reward`, :func:`observation` and :func:`step_info` (with
+    :func:`pointing_errors`).
+
+    :param action: the action as given
+    :param st: the state ``(cur, nxt, r_prev_az, r_prev_el, a_prev_az, a_prev_el, em_prev_az,
+        em_prev_el, j, n_rate, n_acc)``: the step buffers' views
+        (:func:`dss14_env.envs.plant.buffer_views`; ``cur`` holds the plant state), the
+        previous applied rate command (rad/s), clipped action and measured servo error (mdeg),
+        the step's row in its block and the episode's limiter hit counts
+    :param M: the episode's plant map (:meth:`dss14_env.envs.plant.Plant.episode_map`)
+    :param row: the step's row ``[c_az, c_el, c_az_deg, c_el_deg, cd_az, cd_el, n_az, n_el, xi...]``
+        of :func:`dss14_env.envs.scenarios.block_rows`: command at the step's end (rad, deg), its
+        rate in units of the rate limit, encoder noise (rad), standard normals of the gust noise
+    :param sc: :func:`step_constants`
+    :return: ``(obs, reward, terminated, info, st_next)``
+    :raises ValueError: a bad action (:func:`as_actions`), before anything changes
+    :raises FloatingPointError: the plant state became non-finite (it left the range it is
+        meant for)
+    """
+    try:  # fast path: a float32 or float64 array of two finite numbers
+        dt = action.dtype
+        a0, a1 = action.tolist() if dt is _F32 or dt is _F64 else (None, None)
+        if type(a0) is not float or type(a1) is not float or a0 - a0 != 0.0 or a1 - a1 != 0.0:
+            a0, a1 = as_actions(action, (2,)).tolist()  # x - x is NaN for NaN and +-inf
+    except (AttributeError, TypeError, ValueError):
+        a0, a1 = as_actions(action, (2,)).tolist()
+    cur, nxt, rp0, rp1, ap0, ap1, em0_az, em0_el, j, n_rate, n_acc = st
+    (scale, rate_clip, rl, dr, s_az, s_el, quantum, inv_q, me, az_off0, el_lo, el_hi, az_h, inv_es2, w,
+     penalty, inv_es, rate_scale, inv_rl, clamp_always, xel_scale, wind_speed, wind_direction) = sc
+    # command limiter
+    c0 = 1.0 if a0 > 1.0 else (-1.0 if a0 < -1.0 else a0)
+    c1 = 1.0 if a1 > 1.0 else (-1.0 if a1 < -1.0 else a1)
+    r0 = c0 * scale
+    r1 = c1 * scale
+    rate_hit = False
+    if rate_clip and (r0 > rl or r0 < -rl or r1 > rl or r1 < -rl):
+        rate_hit = True
+        n_rate += 1
+        r0 = rl if r0 > rl else (-rl if r0 < -rl else r0)
+        r1 = rl if r1 > rl else (-rl if r1 < -rl else r1)
+    acc_hit = False
+    b = rp0 + dr
+    if r0 > b:
+        r0, acc_hit = b, True
+    else:
+        b = rp0 - dr
+        if r0 < b:
+            r0, acc_hit = b, True
+    b = rp1 + dr
+    if r1 > b:
+        r1, acc_hit = b, True
+    else:
+        b = rp1 - dr
+        if r1 < b:
+            r1, acc_hit = b, True
+    if acc_hit:
+        n_acc += 1
+    # the plant map: [u+, y+] = M [r, 1, xi, u], the exact discretisation (Plant.episode_map)
+    z = cur[0]
+    z[0] = r0
+    z[1] = r1
+    try:  # the 4 normals of the default 4-state gust filter
+        c_az, c_el, c_deg_az, c_deg_el, cd_az, cd_el, n_az, n_el, z[3], z[4], z[5], z[6] = row
+    except ValueError:
+        c_az, c_el, c_deg_az, c_deg_el, cd_az, cd_el, n_az, n_el = row[:8]
+        z[3:len(row) - 5] = row[8:]
+    _dot(M, cur[1], nxt[2])
+    th_az, th_el, p_el, p_xel = nxt[3].tolist()
+    # encoders (absolute angle, quantised) and servo errors
+    if n_az or n_el:
+        a_az, a_el = s_az + th_az + n_az, s_el + th_el + n_el
+    else:
+        a_az, a_el = s_az + th_az, s_el + th_el
+    if quantum:
+        a_az = quantum * _floor(a_az * inv_q + 0.5)
+        a_el = quantum * _floor(a_el * inv_q + 0.5)
+    rel_az, rel_el = a_az - s_az, a_el - s_el
+    em_az, em_el = (c_az - rel_az) * R2MD, (c_el - rel_el) * R2MD
+    e_az, e_el = (c_az - th_az) * R2MD, (c_el - th_el) * R2MD
+    # episode end and reward
+    el = s_el + th_el
+    az_off = az_off0 + th_az
+    term = (e_az > me or e_az < -me or e_el > me or e_el < -me or el < el_lo or el > el_hi
+            or az_off > az_h or az_off < -az_h)
+    d0, d1 = c0 - ap0, c1 - ap1
+    cost = (e_az * e_az + e_el * e_el) * inv_es2 + w * (d0 * d0 + d1 * d1)
+    if term:
+        cost += penalty
+    if not cost < 1.0e300:  # NaN or inf
+        raise FloatingPointError(f"the reward became {-cost} (servo errors {e_az}, {e_el} mdeg): the "
+                                 "plant left the range it is meant for")
+    # observation and info
+    o0, o1 = em_az * inv_es, em_el * inv_es
+    o2, o3 = (em_az - em0_az) * rate_scale, (em_el - em0_el) * rate_scale
+    if term or clamp_always:
+        o0, o1 = _clamp(o0, OBS_ERROR_BOUND), _clamp(o1, OBS_ERROR_BOUND)
+        o2, o3 = _clamp(o2, OBS_ERROR_RATE_BOUND), _clamp(o3, OBS_ERROR_RATE_BOUND)
+    obs = _array((o0, o1, o2, o3, c_deg_az, c_deg_el, cd_az, cd_el, rel_az * R2D, rel_el * R2D,
+                  r0 * inv_rl, r1 * inv_rl), _f32)
+    info = {"servo_error_az_mdeg": e_az, "servo_error_el_mdeg": e_el,
+            "measured_error_az_mdeg": em_az, "measured_error_el_mdeg": em_el,
+            "pointing_error_el_mdeg": (c_el - p_el) * R2MD,
+            "pointing_error_xel_mdeg": (c_az * xel_scale - p_xel) * R2MD,
+            "wind_speed_mps": wind_speed, "wind_direction_rad": wind_direction,
+            "action_unclipped": (a0, a1), "rate_command_az_deg_s": r0 * R2D,
+            "rate_command_el_deg_s": r1 * R2D, "rate_limited": rate_hit, "accel_limited": acc_hit,
+            "n_rate_limited": n_rate, "n_accel_limited": n_acc}
+    return obs, -cost, term, info, (nxt, cur, r0, r1, c0, c1, em_az, em_el, j + 1, n_rate, n_acc)
