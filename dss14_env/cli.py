@@ -235,7 +235,8 @@ def main(argv: list[str] | None = None) -> int:
                    help="episodes of the controllers that run one at a time (MPC): the first M seeds "
                    "of every scenario and sweep point (default: each scenario's, e.g. 16 for hold)")
     p.add_argument("--controllers", nargs="+", metavar="NAME", default=None,
-                   help="pi_kp1 pi_kp0.7 lqg mpc ppo yardstick (default: all but yardstick)")
+                   help="pi_kp1 pi_kp0.7 lqg mpc ppo ppo_plain ppo_residual_lqg yardstick "
+                   "(default: all but yardstick)")
     p.add_argument("--scenarios", nargs="+", metavar="NAME", default=None,
                    help="hold_front hold_side step track slew (default: all)")
     p.add_argument("--wind-speeds", nargs="+", metavar="KMH", default=None,

@@ -50,8 +50,13 @@ AGENTS = {
     "ppo_residual_lqg": ("model-informed PPO (residual on the LQG)", "ppo_residual_lqg",
                          "ppo_residual_lqg"),
     "sac": ("SAC", "sac", "sac"),
-    "ppo_residual_pi": ("residual PPO on the PI", "ppo_residual_pi", "residual_pi"),
+    "ppo_residual_pi": ("residual PPO on the PI", "ppo_residual_pi", None),
+    "ppo_residual_pi_hold": ("residual PPO on the PI, benchmark wind", "ppo_residual_pi_hold", None),
 }
+#: single policies scored like the campaigns' (one training seed: an interval over test seeds
+#: only): key -> (label, shipped folder)
+SINGLE_POLICIES = {"residual_pi_shipped": ("residual PPO on the PI, the policy shipped first "
+                                           "(one training seed)", "residual_pi")}
 TEST_SEEDS = list(range(10))
 
 
@@ -132,6 +137,14 @@ def build(runs: Path, out: Path, refs: Path, figures: Path) -> None:
             "protocol": "training seeds 10000 + 1000 k (k = 0-4), validation seeds 1000-1005 "
                         "(2000-step holds, select_by three_sigma), test seeds 0-9 (3000-step "
                         "holds, 5-s warm-up); the validation-selected policy (eval/best) is scored"}
+    from dss14_env.agents.evaluation import DSS14_TASKS, run_task
+    from dss14_env.agents.policy import load_policy, shipped_policy
+
+    for key, (label, folder) in SINGLE_POLICIES.items():
+        ctrl = load_policy(shipped_policy(folder))  # scored as the campaigns score (10 seeds at once)
+        values = {t.name: run_task(ctrl, t, ref["test_seeds"], 3000)["three_sigma_mdeg"].tolist()
+                  for t in DSS14_TASKS}
+        references_[key] = (label, values)
     analytic = {"yardstick_analytic": ("yardstick, expected value (H2 analysis)",
                                        ref["yardstick_analytic_three_sigma_mdeg"])}
     results = build_results(agents, references_, ref["test_seeds"], meta, analytic)

@@ -80,7 +80,8 @@ def test_missing_ppo_policy(monkeypatch, tmp_path) -> None:
     import dss14_env.agents.policy
     monkeypatch.setattr(dss14_env.agents.policy, "DEFAULT_POLICY", tmp_path / "none")
     plan = P.build_plan()  # default run: a warning, and the others run
-    assert "ppo" not in plan.controllers and plan.controllers == ["pi_kp1", "pi_kp0.7", "lqg", "mpc"]
+    assert "ppo" not in plan.controllers
+    assert plan.controllers == [c for c in P.DEFAULT_CONTROLLERS if c != "ppo"]
     assert len(plan.notes) == 1 and str(tmp_path / "none") in plan.notes[0]
     with pytest.raises(P.BenchOptionError, match="--controllers ppo: .*none"):
         P.build_plan(controllers=["pi_kp1", "ppo"])  # asked for: an error

@@ -67,7 +67,8 @@ QUICK_BUDGETS: dict[str, Budget] = {
 }
 QUICK_SWEEP = Budget(15.0, 8, 0)
 #: controllers of a run without ``--controllers``
-DEFAULT_CONTROLLERS: tuple[str, ...] = ("pi_kp1", "pi_kp0.7", "lqg", "mpc", "ppo")
+DEFAULT_CONTROLLERS: tuple[str, ...] = ("pi_kp1", "pi_kp0.7", "lqg", "mpc", "ppo", "ppo_plain",
+                                         "ppo_residual_lqg")
 #: scenarios of a run without ``--scenarios`` (all of :data:`dss14_env.bench.runner.SCENARIOS`)
 DEFAULT_SCENARIOS: tuple[str, ...] = ("hold_front", "hold_side", "step", "track", "slew")
 #: wind speeds (km/h) of the error-vs-wind sweep without ``--wind-speeds``

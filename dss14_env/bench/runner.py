@@ -130,6 +130,15 @@ def _lazy(module: str, cls: str) -> Callable[[Any], Controller]:
     return make
 
 
+def _shipped(name: str) -> Callable[[Any], Controller]:
+    """A policy shipped with the package (:func:`dss14_env.agents.policy.shipped_policy`)."""
+    def make(env: Any) -> Controller:
+        from dss14_env.agents.policy import load_policy, shipped_policy
+        return load_policy(shipped_policy(name), env=env, name=name)
+    make.controller_class = ("dss14_env.agents.policy", "PolicyController")  # type: ignore[attr-defined]
+    return make
+
+
 def known_unbatchable(factory: Callable[[Any], Controller]) -> bool:
     """True when the factory's controller class is known and not batchable (then a scenario
     that gives such controllers no episodes need not build it)."""
@@ -146,6 +155,9 @@ CONTROLLERS: dict[str, Callable[[Any], Controller]] = {
     "lqg": _lazy("dss14_env.baselines.lqg", "LQGController"),
     "mpc": _lazy("dss14_env.baselines.mpc", "MPCController"),
     "yardstick": _lazy("dss14_env.baselines.yardstick", "YardstickController"),
+    # the learned agents shipped in agents/policies (docs/rl.md: recipes, seeds, results)
+    "ppo_plain": _shipped("ppo_plain"),
+    "ppo_residual_lqg": _shipped("ppo_residual_lqg"),
 }
 
 #: how each per-episode metric is pooled over episodes (:data:`dss14_env.core.stats.POOLINGS`)
