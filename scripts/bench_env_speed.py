@@ -28,7 +28,6 @@ import json
 import os
 import platform
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -37,7 +36,6 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))  # the repository's dss14_env first
 import dss14_env  # noqa: E402,F401  (registers DSS14-v0)
 from dss14_env.core.outdir import atomic_write_text  # noqa: E402
 from dss14_env.core.stats import bootstrap_ci  # noqa: E402

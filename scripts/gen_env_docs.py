@@ -20,7 +20,6 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))  # the repository's dss14_env first
 from dss14_env.envs import vector  # noqa: E402
 from dss14_env.envs.env import DSS14Env  # noqa: E402
 

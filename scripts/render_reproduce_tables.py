@@ -21,7 +21,6 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 
 from dss14_env.reproduce import doc_blocks, fill_blocks, find_blocks  # noqa: E402
 

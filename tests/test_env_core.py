@@ -11,11 +11,10 @@ errors beyond the observation bounds (clamping).
 from __future__ import annotations
 
 import math
-import os
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from dss14_env.core.units import R2D, R2MD
@@ -37,12 +36,7 @@ from dss14_env.envs.core import (
 )
 from dss14_env.envs.plant import buffer_views, step_buffers
 
-settings.register_profile("dss14-default", max_examples=100, deadline=None,
-                          suppress_health_check=[HealthCheck.too_slow])
-settings.register_profile("dss14-slow", max_examples=1000, deadline=None,
-                          suppress_health_check=[HealthCheck.too_slow])
-settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "dss14-default"))
-SLOW = settings(max_examples=1500, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+SLOW = settings.get_profile("dss14-slow")  # tests/conftest.py
 
 M_STATES, K_NOISE = 5, 4  # a small plant map of the right layout (the formulas do not care)
 finite = st.floats(-1e3, 1e3, allow_nan=False)

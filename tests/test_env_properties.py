@@ -13,13 +13,12 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
-import os
 import re
 
 import numpy as np
 import pytest
 import yaml
-from hypothesis import HealthCheck, event, given, settings
+from hypothesis import event, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
@@ -29,13 +28,7 @@ from dss14_env.envs.core import as_actions, check_seed
 from dss14_env.envs.env import DSS14Env
 from dss14_env.envs.vector import DSS14VectorEnv
 
-settings.register_profile("dss14-default", max_examples=100, deadline=None,
-                          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
-settings.register_profile("dss14-slow", max_examples=1000, deadline=None,
-                          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
-settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "dss14-default"))
-SLOW = settings(max_examples=1000, deadline=None,
-                suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+SLOW = settings.get_profile("dss14-slow")  # tests/conftest.py
 
 KEYS = [f.name for f in dataclasses.fields(EnvConfig)]
 # a few plants serve all examples (wind speed, dt and parameters pick the plant)

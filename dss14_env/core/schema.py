@@ -279,7 +279,7 @@ def documented_param(s: Spec, raw: Any, name: str, source: str) -> Param:
     if not isinstance(raw, Mapping) or "value" not in raw or "source" not in raw:
         need = "'value', 'unit' and 'source'" if s.unit is not None else "'value' and 'source'"
         raise ConfigError(f"{where}: must be a mapping with {need}, got {raw!r}")
-    extra = set(raw) - {"value", "unit", "source", "range", "note"}
+    extra = {str(k) for k in raw} - {"value", "unit", "source", "range", "note"}
     if extra:
         raise ConfigError(f"{where}: unknown key(s) {sorted(extra)} (allowed: value, unit, source, "
                           f"range, note)")
@@ -287,7 +287,7 @@ def documented_param(s: Spec, raw: Any, name: str, source: str) -> Param:
         return Param(name, check_value(s, raw["value"], where), s.unit or "", str(raw["source"]),
                      None, str(raw.get("note", "")))
     unit = raw.get("unit")
-    if unit not in UNITS:
+    if not isinstance(unit, str) or unit not in UNITS:
         raise ConfigError(f"{where}: unit must be one of the known units, got {unit!r}")
     if s.unit is not None and si_unit(unit) != s.unit:
         raise ConfigError(f"{where}: unit must be a {s.unit} quantity, got {unit!r}")

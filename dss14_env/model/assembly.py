@@ -13,13 +13,20 @@ from functools import cached_property, lru_cache
 import control as ct
 import numpy as np
 
+from dss14_env.core.schema import ConfigError
 from dss14_env.core.threads import single_threaded
 from dss14_env.core.units import AXES
-from dss14_env.model.calibration import Calibration, calibrate, drive_params, structure_models
+from dss14_env.model.calibration import (
+    Calibration,
+    CalibrationError,
+    calibrate,
+    drive_params,
+    structure_models,
+)
 from dss14_env.model.config import ModelConfig, load_model_config
 from dss14_env.model.drive import DriveParams, drive_ss
 from dss14_env.model.loops import position_loop, rate_loop
-from dss14_env.model.structure import ModalModel
+from dss14_env.model.structure import ModalModel, StructureError
 
 
 @dataclass
@@ -97,8 +104,11 @@ def build_model(cfg: ModelConfig | None = None) -> DSS14Model:
     rate loop included, so the model is bit-for-bit the same whatever the caller's threads.
     """
     cfg = cfg if cfg is not None else load_model_config()
-    model = DSS14Model(cfg, calibrate(cfg))
-    model.rate_loop  # noqa: B018  (builds the structures and the rate loop now)
+    try:
+        model = DSS14Model(cfg, calibrate(cfg))
+        model.rate_loop  # noqa: B018  (builds the structures and the rate loop now)
+    except (StructureError, CalibrationError) as exc:  # name the file the problem comes from
+        raise ConfigError(f"{cfg.path}: {exc}") from None
     return model
 
 

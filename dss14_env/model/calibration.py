@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.optimize
 
+from dss14_env.core.schema import ConfigError
 from dss14_env.core.units import AXES
 from dss14_env.model.analysis import step
 from dss14_env.model.board import board_dc_gains, board_ss
@@ -153,6 +154,10 @@ def structure_models(cfg: ModelConfig, chain_scale, j_az_el: float = 0.0
                      ) -> tuple[ModalModel, ModalModel, np.ndarray]:
     """Full (150-mode) and reduced modal models and the kept mode indices."""
     full = modal_model(lumped_structure(cfg, chain_scale, j_az_el), cfg.structure.modal_damping)
+    n_flexible = full.n_modes - len(full.rigid)
+    if cfg.reduction.n_flexible_modes > n_flexible:
+        raise ConfigError(f"{cfg.path}: field 'reduction.n_flexible_modes': must be at most the "
+                          f"structure's {n_flexible} flexible modes, got {cfg.reduction.n_flexible_modes}")
     red, keep = reduce_modes(full, cfg.reduction.n_flexible_modes, **reduction_scales(cfg, full))
     return full, red, keep
 

@@ -294,6 +294,10 @@ class ModalModel:
                   list(self.inputs), list(self.outputs), name=name, states=states)
 
 
+class StructureError(ValueError):
+    """The structure section describes no antenna with exactly the two rigid-body modes."""
+
+
 def modal_model(struct: LumpedStructure, zeta: float) -> ModalModel:
     """Modal data of the lumped structure: Eqs. (39)-(43).
 
@@ -306,7 +310,10 @@ def modal_model(struct: LumpedStructure, zeta: float) -> ModalModel:
     scale = np.max(np.abs(w2))
     n_rigid = int(np.sum(w2 < 1e-9 * scale))
     if n_rigid != 2:
-        raise RuntimeError(f"expected 2 rigid-body modes, found {n_rigid}")
+        raise StructureError(
+            f"section 'structure': {n_rigid} rigid-body modes instead of 2 (free azimuth and "
+            f"elevation): a stiffness of the section (k_mesh_*, k_radial_*, k_az_chain, k_wheel_el, "
+            f"k_counterweight, k_rib, k_hoop, k_quad) is too small to connect its part")
     flex = vecs[:, 2:] / np.max(np.abs(vecs[:, 2:]), axis=0)
     r_az, r_el = struct.rigid_mode("az"), struct.rigid_mode("el")
     # M-orthogonalise the el rigid mode against the az one (they couple through j_az_el)
