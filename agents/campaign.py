@@ -15,6 +15,10 @@ of different runs never share a seed), then scores every run's final and best
                         seeds with its 95 % bootstrap band, and every seed's curve
     config.yaml         the configuration the runs share (seed: the base seed)
 
+An interrupted campaign continues with ``resume=True`` (``dss14 train ... --seeds ...
+--continue``): the seeds whose run finished with the campaign's configuration are scored
+again, not retrained; the others are trained anew.
+
 The interval resamples training seeds (the independent units); with fewer than 5 seeds it is
 wide, and the project reports learned agents with at least 5.
 """
@@ -106,16 +110,59 @@ def _aggregate(values: list[float]) -> dict[str, Any]:
             "max": float(np.max(values)), "per_seed": [float(v) for v in values]}
 
 
-def train_one_seed(item: Mapping[str, Any]) -> dict[str, Any]:
-    """One seed index of :func:`train_seeds`: train into ``<folder>/seed_<k>/``, then score the
-    final and best policies -- one work item of an executor (:mod:`dss14_env.core.parallel`).
+def _as_yaml_data(cfg: TrainConfig) -> Any:
+    return yaml.safe_load(yaml.safe_dump(cfg.to_dict(), sort_keys=False))
 
-    :param item: ``config`` (:class:`TrainConfig`), ``k``, ``folder``, ``test_seeds``, ``test_steps``
+
+def finished_run(cfg: TrainConfig, run: Path) -> bool:
+    """Whether ``run`` holds a finished training run of ``cfg``: its ``train_summary.json``
+    (written last) reports at least ``cfg.total_timesteps`` steps and its ``config.yaml``
+    is ``cfg``."""
+    try:
+        ts = json.loads((run / "train_summary.json").read_text())
+        saved = yaml.safe_load((run / "config.yaml").read_text())
+    except (OSError, ValueError, yaml.YAMLError):
+        return False
+    return saved == _as_yaml_data(cfg) and int(ts.get("num_timesteps", -1)) >= cfg.total_timesteps
+
+
+def _continue_campaign(cfg: TrainConfig, out: str | Path, seeds: Sequence[int]) -> tuple[Path, set[int]]:
+    """The folder of the interrupted campaign and the seed indices whose run finished; the
+    unfinished seeds' folders and the campaign's summary and curves are removed."""
+    folder = Path(out)
+    try:
+        saved = yaml.safe_load((folder / "config.yaml").read_text())
+    except (OSError, yaml.YAMLError):
+        raise ValueError(f"--continue: {folder} holds no campaign to continue (no readable "
+                         f"config.yaml)") from None
+    if saved != _as_yaml_data(cfg):
+        raise ValueError(f"--continue: {folder / 'config.yaml'} is another configuration than "
+                         f"{cfg.source}; continue with the campaign's own --config")
+    prepare_output_dir(folder, ("summary.json", "curves_*.png"), True, "--out")
+    finished = set()
+    for k in seeds:
+        run = folder / f"seed_{k}"
+        if finished_run(cfg.replace(seed=training_seed(cfg, k)), run):
+            finished.add(k)
+        elif run.exists():
+            prepare_output_dir(folder, (run.name,), True, "--out")
+    return folder, finished
+
+
+def train_one_seed(item: Mapping[str, Any]) -> dict[str, Any]:
+    """One seed index of :func:`train_seeds`: train into ``<folder>/seed_<k>/`` (or, with
+    ``finished``, take the run there), then score the final and best policies -- one work item
+    of an executor (:mod:`dss14_env.core.parallel`).
+
+    :param item: ``config`` (:class:`TrainConfig`), ``k``, ``folder``, ``test_seeds``,
+        ``test_steps``, optional ``finished``
     :return: the seed's entry of ``summary.json``'s ``per_seed``
     """
     cfg, k = as_config(item["config"]), int(item["k"])
     tasks, test_seeds, test_steps = _tasks(cfg), item["test_seeds"], item["test_steps"]
-    run = train(cfg.replace(seed=training_seed(cfg, k)), run_dir=Path(item["folder"]) / f"seed_{k}")
+    run = Path(item["folder"]) / f"seed_{k}"
+    if not item.get("finished", False):
+        run = train(cfg.replace(seed=training_seed(cfg, k)), run_dir=run)
     ts = json.loads((run / "train_summary.json").read_text())
     entry: dict[str, Any] = {"seed_index": k, "training_seed": training_seed(cfg, k),
                              "run": run.name, "wall_s": ts["wall_s"],
@@ -129,7 +176,7 @@ def train_one_seed(item: Mapping[str, Any]) -> dict[str, Any]:
 def train_seeds(config: TrainConfig | Mapping[str, Any] | str | Path, seeds: Sequence[int],
                 out: str | Path, overwrite: bool = False, test_seeds: Sequence[int] = TEST_SEEDS,
                 test_steps: int = TEST_STEPS, figures: bool = True,
-                executor: Executor | None = None) -> Path:
+                executor: Executor | None = None, resume: bool = False) -> Path:
     """Train one run per seed index and score them (see the module doc).
 
     :param config: the shared configuration (its ``seed`` is the base seed)
@@ -143,17 +190,22 @@ def train_seeds(config: TrainConfig | Mapping[str, Any] | str | Path, seeds: Seq
         another in this process; a Ray executor runs them as Ray tasks (the same numbers: every
         seed runs with one BLAS thread either way); ``out`` must then be a folder every Ray node
         can write
+    :param resume: continue the interrupted campaign in ``out`` (same configuration): the seeds
+        whose run finished are scored, not retrained
     :return: the campaign folder
     """
     cfg = as_config(config)
     seeds = [int(k) for k in seeds]
-    folder = prepare_output_dir(out, CAMPAIGN_FILES, overwrite, "--out")
-    atomic_write_text(folder / "config.yaml", f"# shared configuration of the campaign (from "
-                      f"{cfg.source}); run k trains with seed {cfg.seed} + {SEED_STRIDE} k\n"
-                      + yaml.safe_dump(cfg.to_dict(), sort_keys=False))
+    if resume:
+        folder, finished = _continue_campaign(cfg, out, seeds)
+    else:
+        folder, finished = prepare_output_dir(out, CAMPAIGN_FILES, overwrite, "--out"), set()
+        atomic_write_text(folder / "config.yaml", f"# shared configuration of the campaign (from "
+                          f"{cfg.source}); run k trains with seed {cfg.seed} + {SEED_STRIDE} k\n"
+                          + yaml.safe_dump(cfg.to_dict(), sort_keys=False))
     tasks = _tasks(cfg)
     items = [{"config": cfg, "k": k, "folder": str(folder), "test_seeds": [int(s) for s in test_seeds],
-              "test_steps": int(test_steps)} for k in seeds]
+              "test_steps": int(test_steps), "finished": k in finished} for k in seeds]
     ex = executor if executor is not None else SerialExecutor()
     done = dict(ex.map_unordered(train_one_seed, items, labels=[f"seed {k}" for k in seeds]))
     per_seed = [done[i] for i in range(len(seeds))]
@@ -257,5 +309,5 @@ def write_curves(folder: Path, runs: Sequence[Path], tasks: Sequence[EvalTask]) 
     return written
 
 
-__all__ = ["CAMPAIGN_FILES", "SEED_STRIDE", "learning_curves", "parse_seeds", "train_one_seed",
+__all__ = ["CAMPAIGN_FILES", "SEED_STRIDE", "finished_run", "learning_curves", "parse_seeds", "train_one_seed",
            "train_seeds", "training_seed", "write_curves"]

@@ -52,19 +52,24 @@ def _train(args: argparse.Namespace) -> int:
         parse_seeds(args.seeds)
         check_ray_options(args.address, args.num_cpus)
         require_ray()
-        prepare_output_dir(args.out, CAMPAIGN_FILES, args.overwrite)
+        if not args.continue_:
+            prepare_output_dir(args.out, CAMPAIGN_FILES, args.overwrite)
     try:
         if args.seeds is not None:
             if args.resume is not None or args.seed is not None:
                 raise ValueError("--seeds trains fresh runs: without --resume and --seed")
             if args.out is None:
                 raise ValueError("--seeds needs --out (the campaign folder)")
+            if args.continue_ and args.overwrite:
+                raise ValueError("--continue keeps the finished runs in --out: without --overwrite")
             with make_executor(use_ray, address=args.address, num_cpus=args.num_cpus) as ex:
                 out = train_seeds(cfg, parse_seeds(args.seeds), args.out, overwrite=args.overwrite,
-                                  executor=ex)
+                                  executor=ex, resume=args.continue_)
             print(f"{len(parse_seeds(args.seeds))} runs, summary.json and learning curves "
                   f"written to {out}")
             return 0
+        if args.continue_:
+            raise ValueError("--continue continues a campaign: give --seeds and --out")
         run = train(cfg, run_dir=args.out, resume=args.resume, overwrite=args.overwrite,
                     trust_pickle=args.trust_pickle)
     except TrainingInterrupted as exc:
@@ -214,6 +219,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seeds", nargs="+", default=None, metavar="K",
                    help="one run per seed index into --out/seed_<k>/ (0-4, or 0 3 7), then "
                    "summary.json and learning curves")
+    p.add_argument("--continue", dest="continue_", action="store_true",
+                   help="with --seeds: continue the interrupted campaign in --out (same config): "
+                   "finished runs are scored, not retrained; the others train anew")
     p.add_argument("--ray", action="store_true",
                    help="with --seeds: the runs as Ray tasks, on a local Ray by default (docs/scale.md)")
     p.add_argument("--address", default=None,

@@ -168,3 +168,39 @@ def test_rl_zoo3_trains_with_the_shipped_hyperparameters(tmp_path: Path, env_id:
         capture_output=True, text=True, timeout=600)
     assert res.returncode == 0, res.stderr[-2000:]
     assert list(tmp_path.rglob(f"{env_id}.zip"))
+
+
+def test_interrupted_campaign_continues(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    cfg = {**COMMON, **RUNS["ppo_frame_stack"], "checkpoint_freq": 0, "total_timesteps": 200,
+           "eval_freq": 0}
+    path = tmp_path / "c.yaml"
+    path.write_text(yaml.safe_dump(cfg))
+    kw = dict(test_seeds=(0,), test_steps=260, figures=False)
+    whole = json.loads((train_seeds(str(path), [0, 1], tmp_path / "whole", **kw)
+                        / "summary.json").read_text())
+    out = tmp_path / "cut"
+    train_seeds(str(path), [0, 1], out, **kw)
+    # interrupted: seed 1 stopped before its last file, the summary never written
+    (out / "seed_1" / "train_summary.json").unlink()
+    (out / "summary.json").unlink()
+    kept = (out / "seed_0" / "policy.pt").stat().st_mtime_ns
+    with pytest.raises(ValueError, match="--overwrite"):
+        train_seeds(str(path), [0, 1], out, **kw)
+    train_seeds(str(path), [0, 1], out, resume=True, **kw)
+    assert (out / "seed_0" / "policy.pt").stat().st_mtime_ns == kept  # scored, not retrained
+    cont = json.loads((out / "summary.json").read_text())
+    for s in (whole, cont):
+        for e in s["per_seed"]:
+            e.pop("wall_s")
+    assert cont["per_seed"] == whole["per_seed"] and cont["aggregate"] == whole["aggregate"]
+    # another configuration is refused, naming the campaign's file
+    other = tmp_path / "other.yaml"
+    other.write_text(yaml.safe_dump({**cfg, "total_timesteps": 400}))
+    with pytest.raises(ValueError, match="config.yaml is another configuration"):
+        train_seeds(str(other), [0, 1], out, resume=True, **kw)
+    assert main(["train", "ppo", "--config", str(path), "--seeds", "0", "--continue",
+                 "--overwrite", "--out", str(out)]) == 2
+    assert "--continue" in capsys.readouterr().err
+    assert main(["train", "ppo", "--config", str(path), "--seeds", "0", "--continue",
+                 "--out", str(tmp_path / "empty")]) == 2
+    assert "no campaign to continue" in capsys.readouterr().err
