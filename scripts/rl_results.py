@@ -30,10 +30,9 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+from dss14_env.agents.results import HOLDS, build_results, rl_tables
 
-from dss14_env.agents.results import HOLDS, build_results, rl_tables  # noqa: E402
+ROOT = Path(__file__).resolve().parents[1]
 
 RESULTS = ROOT / "docs" / "results" / "rl_results.json"
 REFERENCES = ROOT / "docs" / "results" / "rl_references.json"
@@ -43,6 +42,11 @@ DOCUMENTS = {ROOT / "README.md": ("rl-table",), ROOT / "docs" / "rl.md": ("rl-ta
 #: the reference controllers: runner name -> label
 REFERENCE_CONTROLLERS = {"pi_kp1": "PI (report: kp 1, ki 0.3)", "lqg": "LQG", "mpc": "MPC",
                          "yardstick": "yardstick (H2-optimal, knows the wind)"}
+#: the references in the table: the yardstick's simulated run is kept in the references file
+#: but not tabled (it is a bound of the linear model: under the plant's 0.2 deg/s^2
+#: acceleration limit, which its design ignores, it saturates on some seeds -- front hold,
+#: test seed 3: 2342 of 3000 steps at the limit, 245 mdeg); the table shows its analytic value
+TABLE_REFERENCES = ("pi_kp1", "lqg", "mpc")
 #: the agents: key -> (label, campaign folder under --runs, shipped policy folder or None)
 AGENTS = {
     "ppo_plain": ("plain PPO", "ppo_plain", "ppo_plain"),
@@ -108,7 +112,7 @@ def _best_validation(run: Path) -> float:
 def build(runs: Path, out: Path, refs: Path, figures: Path) -> None:
     """The results file from the campaigns' summaries and the reference runs; the curves."""
     ref = json.loads(refs.read_text())
-    references_ = {k: (ref["labels"][k], ref["three_sigma_mdeg"][k]) for k in REFERENCE_CONTROLLERS}
+    references_ = {k: (ref["labels"][k], ref["three_sigma_mdeg"][k]) for k in TABLE_REFERENCES}
     agents = {}
     figures.mkdir(parents=True, exist_ok=True)
     for key, (label, folder, shipped) in AGENTS.items():
@@ -136,7 +140,12 @@ def build(runs: Path, out: Path, refs: Path, figures: Path) -> None:
             "yardstick_analytic_three_sigma_mdeg": ref.get("yardstick_analytic_three_sigma_mdeg"),
             "protocol": "training seeds 10000 + 1000 k (k = 0-4), validation seeds 1000-1005 "
                         "(2000-step holds, select_by three_sigma), test seeds 0-9 (3000-step "
-                        "holds, 5-s warm-up); the validation-selected policy (eval/best) is scored"}
+                        "holds, 5-s warm-up); the validation-selected policy (eval/best) is scored",
+            "yardstick_simulated_three_sigma_mdeg": ref["three_sigma_mdeg"].get("yardstick"),
+            "yardstick_note": "the yardstick simulated (references file) is not tabled: its design "
+                              "ignores the 0.2 deg/s^2 acceleration limit, and on front-hold test "
+                              "seeds 1 and 3 it saturates (548 and 2342 of 3000 steps at the "
+                              "limit; 1.47 and 245 mdeg); the table gives its analytic value"}
     from dss14_env.agents.evaluation import DSS14_TASKS, run_task
     from dss14_env.agents.policy import load_policy, shipped_policy
 

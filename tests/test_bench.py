@@ -493,7 +493,11 @@ def test_cli_quick_end_to_end(tmp_path, capsys) -> None:
     js = json.loads((out / "results.json").read_text())
     assert js["meta"]["scenarios"] == list(P.DEFAULT_SCENARIOS)
     assert js["bench"]["command"].startswith("dss14 bench --quick")
-    assert sum(v["failures"] + v["terminated"] for c in js["summary"].values() for v in c.values()) == 0
+    assert sum(v["failures"] for c in js["summary"].values() for v in c.values()) == 0
+    # plain PPO, trained in holds only, leaves the error bound in slews (docs/rl.md); the
+    # designed controllers and the residual agents never terminate
+    assert sum(v["terminated"] for name, c in js["summary"].items() if name != "ppo_plain"
+               for v in c.values()) == 0
     for f in ("results.md",) + F.FIGURES:
         assert (out / f).stat().st_size > 0, f
     # a second run into the same folder is refused

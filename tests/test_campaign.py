@@ -350,27 +350,6 @@ def test_killed_command_resumes_to_the_same_result(fresh, tmp_path) -> None:
     assert numbers(res) == numbers(fresh)
 
 
-# ------------------------------------------------------------------ the manual's examples
-def _doc_blocks() -> list[str]:
-    import re
-    from pathlib import Path
-
-    text = (Path(__file__).resolve().parents[1] / "docs" / "scale.md").read_text()
-    return re.findall(r"^```python\n(.*?)^```", text, re.M | re.S)
-
-
-@pytest.mark.parametrize("index", range(len(_doc_blocks())))
-def test_scale_manual_examples_run(index, tmp_path, monkeypatch, capsys) -> None:
-    import re
-
-    code = _doc_blocks()[index]
-    monkeypatch.chdir(tmp_path)
-    exec(compile(code, f"docs/scale.md[{index}]", "exec"), {"__name__": "__docs__"})
-    printed = capsys.readouterr().out
-    for expected in re.findall(r"^# prints: (.+)$", code, re.M):
-        assert expected.strip() in printed
-
-
 # ------------------------------------------------------------------ the measured campaign in the manual
 def test_committed_campaign_matches_its_statistics_and_the_manual() -> None:
     """docs/results/campaign_200.json: its statistics follow from its stored episodes, and the

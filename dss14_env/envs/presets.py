@@ -80,6 +80,9 @@ PRESETS: Mapping[str, Preset] = MappingProxyType({
 #: (:data:`dss14_env.agents.AGENT_ENV_IDS`), with what they are for (for the manual's table;
 #: ``tests/test_env_docs.py`` fails when a registered id is missing here)
 WRAPPED_IDS: Mapping[str, str] = MappingProxyType({
+    "DSS14-Plain-v0": "plain RL: the policy alone sets the rate command, seeing the encoders and "
+                      "the command without the absolute angles, with an 8-step history "
+                      "(dss14_env.agents.envs)",
     "DSS14-Residual-v0": "PPO residual on the report's PI: a policy adds a small correction to the "
                          "PI's rate command and sees the PI's integral (dss14_env.agents.residual)",
     "DSS14-ResidualLQG-v0": "residual on the LQG: a policy corrects the LQG's rate command and sees "
