@@ -123,14 +123,14 @@ def test_every_shipped_policy_is_a_campaign_seed_chosen_on_validation(results: d
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("key", ["ppo_plain", "ppo_residual_lqg", "sac", "ppo_residual_pi"])
-def test_shipped_policy_reproduces_its_test_scores(results: dict, key: str) -> None:
-    """The shipped folder, scored again on the test seeds, gives the results file's numbers."""
-    row = results["rows"].get(key)
-    if row is None or not row.get("shipped"):
-        pytest.skip(f"{key} is not shipped")
-    ctrl = load_policy(ROOT / row["shipped"]["folder"])
-    i = row["training_seeds"].index(row["shipped"]["training_seed"])
-    for task in DSS14_TASKS:
-        got = run_task(ctrl, task, results["test_seeds"], 3000)["three_sigma_mdeg"]
-        np.testing.assert_allclose(got, row["holds"][task.name]["per_test_seed"][i], rtol=1e-6)
+def test_shipped_policies_reproduce_their_test_scores(results: dict) -> None:
+    """Every shipped folder, scored again on the test seeds, gives the results file's numbers."""
+    shipped = _shipped(results)
+    assert shipped
+    for key, row in shipped:
+        ctrl = load_policy(ROOT / row["shipped"]["folder"])
+        i = row["training_seeds"].index(row["shipped"]["training_seed"])
+        for task in DSS14_TASKS:
+            got = run_task(ctrl, task, results["test_seeds"], 3000)["three_sigma_mdeg"]
+            np.testing.assert_allclose(got, row["holds"][task.name]["per_test_seed"][i], rtol=1e-6,
+                                       err_msg=f"{key} {task.name}")
