@@ -11,6 +11,13 @@ ValueError) in the project's one style, ``<file>: field '<name>': ...``.  Shippe
 configurations are addressable by name (``ppo_plain`` is ``configs/ppo_plain.yaml``); a path
 works too.
 
+A top-level ``sweep`` mapping (configuration keys -> lists of values) makes the file a
+hyperparameter sweep: the grid of every combination of the values, each point the rest of the
+file with those values set (:meth:`TrainConfig.points`; a dotted key such as
+``env_kwargs.action_scale_deg_s`` sets one entry of a mapping).  Every point is validated as a
+configuration of its own when the file is read; ``dss14 train --seeds`` trains one campaign per
+point (:mod:`dss14_env.agents.sweep`).
+
 >>> cfg = TrainConfig.from_dict({"env_id": "Pendulum-v1", "n_envs": 2, "n_steps": 64,
 ...                              "batch_size": 64})
 >>> cfg.algo, cfg.n_envs, cfg.n_steps, cfg.vec_env
@@ -28,7 +35,10 @@ dss14_env.core.schema.ConfigError: <dict>: field 'n_epochs': is not a setting of
 from __future__ import annotations
 
 import dataclasses
+import difflib
+import itertools
 import json
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,7 +46,16 @@ from typing import Any
 
 import numpy as np
 
-from dss14_env.core.schema import ConfigError, Spec, load_section, read_config, shipped_configs, spec
+from dss14_env.core.schema import (
+    ConfigError,
+    Spec,
+    check_value,
+    field_spec,
+    load_section,
+    read_config,
+    shipped_configs,
+    spec,
+)
 
 #: the algorithms ``dss14 train`` knows
 ALGOS = ("ppo", "recurrent_ppo", "sac")
@@ -48,6 +67,12 @@ SELECT_BY = ("return", "three_sigma")
 VEC_ENVS = ("auto", "batched", "dummy", "subproc")
 
 _INT = Spec("1", "integer", lo=0)
+#: keys a sweep cannot vary: the seeds come from ``--seeds``, the algorithm fixes the key set
+NOT_SWEPT = ("algo", "seed", "sweep")
+#: most points of a sweep's grid
+MAX_SWEEP_POINTS = 1000
+#: longest readable point label (a folder name); longer or clashing labels become ``point_NN``
+MAX_LABEL_CHARS = 120
 
 
 def _int(lo: int, default: int, hi: int | None = None) -> Any:
@@ -172,20 +197,172 @@ def _plain(o: Any) -> Any:
     return o.item() if hasattr(o, "item") else str(o)
 
 
+# ------------------------------------------------------------------------------ sweeps
+@dataclass(frozen=True)
+class SweepPoint:
+    """One point of a sweep's grid.
+
+    :param label: the point's folder name (``learning_rate=0.0001,log_std_init=-2.5``, or
+        ``point_NN`` when the readable labels are too long or clash)
+    :param values: swept key -> this point's value (plain YAML types)
+    :param config: the configuration of the point (no ``sweep``)
+    """
+
+    label: str
+    values: dict[str, Any]
+    config: TrainConfig
+
+
+def _label_value(v: Any) -> str:
+    if isinstance(v, bool) or v is None:
+        return json.dumps(v)
+    if isinstance(v, float):
+        return repr(v)
+    text = v if isinstance(v, str) else json.dumps(v, separators=(",", ":"), sort_keys=True)
+    return re.sub(r"[^A-Za-z0-9.+-]+", "_", text).strip("_") or "_"
+
+
+def point_labels(points: list[dict[str, Any]]) -> list[str]:
+    """Folder names of sweep points: ``key=value`` joined by commas (floats in their shortest
+    round-trip form, other characters than letters, digits and ``.+-`` replaced by ``_``), or
+    ``point_00``, ``point_01``, ... for all points when one such label is longer than
+    :data:`MAX_LABEL_CHARS` or two of them are equal.
+
+    >>> point_labels([{"learning_rate": 1e-4, "net_arch": [64, 64]},
+    ...               {"learning_rate": 3e-4, "net_arch": [64, 64]}])
+    ['learning_rate=0.0001,net_arch=64_64', 'learning_rate=0.0003,net_arch=64_64']
+    """
+    labels = [",".join(f"{k}={_label_value(v)}" for k, v in p.items()) for p in points]
+    if len(set(labels)) == len(labels) and all(len(x) <= MAX_LABEL_CHARS for x in labels):
+        return labels
+    width = max(2, len(str(len(points) - 1)))
+    return [f"point_{i:0{width}d}" for i in range(len(points))]
+
+
+def _set_dotted(values: dict[str, Any], key: str, v: Any, where: str) -> None:
+    head, *rest = key.split(".")
+    if not rest:
+        values[head] = v
+        return
+    inner = values.get(head)
+    if inner is None:
+        inner = {}
+    if not isinstance(inner, Mapping):
+        raise ConfigError(f"{where}: '{head}' is not a mapping in this configuration, got {inner!r}")
+    inner = dict(inner)
+    _set_dotted(inner, ".".join(rest), v, where)
+    values[head] = inner
+
+
+def _sweep_value_spec(key: str, algo: str, source: str) -> Spec | None:
+    """The spec of a swept key (None: any value, checked with the whole point)."""
+    where = f"{source}: field 'sweep.{key}'"
+    head, *rest = key.split(".")
+    if not key or not all(key.split(".")):
+        raise ConfigError(f"{source}: field 'sweep': keys must be configuration keys, got {key!r}")
+    if head in NOT_SWEPT:
+        why = ("the seeds of a sweep are --seeds" if head == "seed" else
+               "a sweep cannot be swept" if head == "sweep" else "a sweep keeps one algorithm")
+        raise ConfigError(f"{where}: cannot be swept ({why})")
+    fields = {f.name: f for f in dataclasses.fields(SETTINGS[algo])}
+    if head not in fields:
+        owners = [a for a in ALGOS if head in keys_of(a)]
+        if owners:
+            raise ConfigError(f"{where}: is not a setting of algo {algo!r} (it belongs to "
+                              f"{', '.join(owners)})")
+        near = difflib.get_close_matches(head, list(fields), n=1)
+        hint = f" (did you mean {near[0]!r}?)" if near else ""
+        raise ConfigError(f"{where}: unknown key {head!r}{hint}")
+    s = field_spec(fields[head])
+    if rest:
+        if s.kind != "mapping":
+            raise ConfigError(f"{where}: a dotted key must name an entry of a mapping key "
+                              f"(env_kwargs, eval_env_kwargs), {head!r} is not one")
+        return None
+    return s if s.kind != "any" else None
+
+
+def check_sweep(sweep: Any, base: Mapping[str, Any], source: str) -> dict[str, list]:
+    """A sweep specification checked against the configuration it varies.
+
+    :param sweep: ``{key: [value, ...]}`` (a dotted key sets one entry of a mapping key)
+    :param base: the configuration's own values (validated)
+    :param source: the file, for messages
+    :return: the specification with every value normalised (``"1e-4"`` -> ``0.0001``)
+    :raises ConfigError: not a non-empty mapping of keys to non-empty lists of distinct values;
+        a key that is unknown, of another algorithm, ``seed``, ``algo`` or ``sweep``, or given
+        twice (``env_kwargs`` and ``env_kwargs.x``); a value that is bad for its key; a point
+        that is not a valid configuration; more than :data:`MAX_SWEEP_POINTS` points
+    """
+    if not isinstance(sweep, Mapping) or not sweep:
+        raise ConfigError(f"{source}: field 'sweep': must be a mapping of configuration keys to "
+                          f"lists of values, got {sweep!r}")
+    out: dict[str, list] = {}
+    for key, values in sweep.items():
+        if not isinstance(key, str):
+            raise ConfigError(f"{source}: field 'sweep': keys must be configuration keys, got "
+                              f"{key!r}")
+        s = _sweep_value_spec(key, base["algo"], source)
+        where = f"{source}: field 'sweep.{key}'"
+        if not isinstance(values, (list, tuple)) or not values:
+            raise ConfigError(f"{where}: must be a non-empty list of values, got {values!r}")
+        norm = [check_value(s, v, where) if s is not None else v for v in values]
+        norm = json.loads(json.dumps(norm, default=_plain))
+        dumped = [json.dumps(v, sort_keys=True) for v in norm]
+        if len(set(dumped)) != len(dumped):
+            raise ConfigError(f"{where}: values must be distinct, got {values!r}")
+        for other in out:
+            if key.startswith(other + ".") or other.startswith(key + "."):
+                raise ConfigError(f"{where}: overlaps 'sweep.{other}' (sweep a mapping or its "
+                                  f"entries, not both)")
+        out[key] = norm
+    n = int(np.prod([len(v) for v in out.values()]))
+    if n > MAX_SWEEP_POINTS:
+        raise ConfigError(f"{source}: field 'sweep': must have at most {MAX_SWEEP_POINTS} points, "
+                          f"got a grid of {n}")
+    return out
+
+
+def sweep_grid(sweep: Mapping[str, list]) -> list[dict[str, Any]]:
+    """Every combination of a sweep's values (the Cartesian product, the last key fastest).
+
+    >>> sweep_grid({"learning_rate": [1e-4, 3e-4], "log_std_init": [-2.5, -1.5]})
+    ... # doctest: +NORMALIZE_WHITESPACE
+    [{'learning_rate': 0.0001, 'log_std_init': -2.5}, {'learning_rate': 0.0001, 'log_std_init': -1.5},
+     {'learning_rate': 0.0003, 'log_std_init': -2.5}, {'learning_rate': 0.0003, 'log_std_init': -1.5}]
+    """
+    keys = list(sweep)
+    return [dict(zip(keys, combo, strict=True)) for combo in itertools.product(*sweep.values())]
+
+
+def _points(base: Mapping[str, Any], sweep: Mapping[str, list], source: str) -> list[SweepPoint]:
+    grid = sweep_grid(sweep)
+    out = []
+    for label, point in zip(point_labels(grid), grid, strict=True):
+        values = json.loads(json.dumps(dict(base)))
+        for key, v in point.items():
+            _set_dotted(values, key, v, f"{source}: field 'sweep.{key}'")
+        out.append(SweepPoint(label, point, TrainConfig(values, f"{source} [sweep point {label}]")))
+    return out
+
+
 class TrainConfig:
     """Everything one training run needs (see the module doc and ``docs/rl.md``).
 
     Read the values as attributes (``cfg.n_steps``); build with :meth:`from_dict` or
     :func:`load_config`; change with :meth:`replace` (validated again).
 
-    :param values: key -> value; missing keys take the defaults of ``values["algo"]``
+    :param values: key -> value; missing keys take the defaults of ``values["algo"]``; an
+        optional ``sweep`` makes it a sweep (:meth:`points`)
     :param source: file the values came from (error messages only)
     """
 
-    __slots__ = ("_values", "source")
+    __slots__ = ("_sweep", "_values", "source")
 
     def __init__(self, values: Mapping[str, Any] | None = None, source: str = "<dict>") -> None:
         values = dict(values or {})
+        has_sweep = "sweep" in values
+        sweep = values.pop("sweep", None)
         object.__setattr__(self, "source", source)
         algo = values.get("algo", "ppo")
         if algo not in ALGOS:
@@ -207,6 +384,9 @@ class TrainConfig:
                 raise ConfigError(f"{source}: field 'batch_size': must divide n_steps * n_envs = "
                                   f"{rollout}, got {out['batch_size']}")
         object.__setattr__(self, "_values", out)
+        object.__setattr__(self, "_sweep", check_sweep(sweep, out, source) if has_sweep else {})
+        if self._sweep:
+            _points(out, self._sweep, source)  # every point is a valid configuration
 
     # -- access -----------------------------------------------------------------------------
     def __getattr__(self, name: str) -> Any:
@@ -219,16 +399,27 @@ class TrainConfig:
         raise AttributeError("TrainConfig is immutable; use replace()")
 
     def __eq__(self, other: object) -> bool:
-        return isinstance(other, TrainConfig) and self._values == other._values
+        return (isinstance(other, TrainConfig) and self._values == other._values
+                and self._sweep == other._sweep)
 
     def __hash__(self) -> int:
-        return hash(json.dumps(self._values, sort_keys=True))
+        return hash(json.dumps(self.to_dict(), sort_keys=True))
 
     def __repr__(self) -> str:
-        return f"TrainConfig({self._values!r})"
+        return f"TrainConfig({self.to_dict()!r})"
 
-    def __reduce__(self) -> Any:  # SubprocVecEnv workers receive the config
-        return (TrainConfig, (self._values, self.source))
+    def __reduce__(self) -> Any:  # SubprocVecEnv workers and Ray tasks receive the config
+        return (TrainConfig, (self.to_dict(), self.source))
+
+    @property
+    def sweep(self) -> dict[str, list]:
+        """The sweep specification (swept key -> its values); empty for a single configuration."""
+        return json.loads(json.dumps(self._sweep))
+
+    def points(self) -> list[SweepPoint]:
+        """The points of the sweep's grid (empty without a sweep), in grid order
+        (:func:`sweep_grid`), each with its label, values and configuration."""
+        return _points(self._values, self._sweep, self.source) if self._sweep else []
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], source: str = "<dict>") -> TrainConfig:
@@ -244,9 +435,11 @@ class TrainConfig:
     def replace(self, source: str | None = None, **changes: Any) -> TrainConfig:
         """Copy with some values changed (validated again), e.g. ``cfg.replace(seed=3)``.
 
-        Changing ``algo`` keeps the common keys and drops the old algorithm's.
+        Changing ``algo`` keeps the common keys and drops the old algorithm's.  The sweep is
+        kept (its points validated again with the new values); ``sweep={}`` drops it.
         """
         values = dict(self._values)
+        sweep = changes.pop("sweep", self._sweep)
         if "algo" in changes and changes["algo"] != values["algo"]:
             common = {f.name for f in dataclasses.fields(CommonSettings)}
             new_defaults = {f.name for f in dataclasses.fields(SETTINGS.get(changes["algo"],
@@ -255,11 +448,15 @@ class TrainConfig:
                             f.default != getattr(CommonSettings, f.name, f.default)}
             values = {k: v for k, v in values.items() if k in common and k not in new_defaults}
         values.update(changes)
+        if sweep:
+            values["sweep"] = sweep
         return TrainConfig(values, source or self.source)
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain-YAML mapping of every key (loads back with :meth:`from_dict`)."""
-        return json.loads(json.dumps(self._values, default=_plain))
+        """Plain-YAML mapping of every key, and ``sweep`` last when there is one (loads back
+        with :meth:`from_dict`)."""
+        out = {**self._values, **({"sweep": self._sweep} if self._sweep else {})}
+        return json.loads(json.dumps(out, default=_plain))
 
 
 #: the name of the earlier PPO-only configuration class
@@ -311,7 +508,8 @@ def as_config(config: TrainConfig | Mapping[str, Any] | str | Path) -> TrainConf
                      f"{type(config).__name__}")
 
 
-__all__ = ["ACTIVATIONS", "ALGOS", "SELECT_BY", "CommonSettings", "PPOConfig", "PPOSettings",
-           "RecurrentPPOSettings", "SACSettings", "SETTINGS", "TrainConfig", "VEC_ENVS",
-           "as_config", "default_config_path", "keys_of", "load_config", "shipped_config_path",
-           "shipped_training_configs"]
+__all__ = ["ACTIVATIONS", "ALGOS", "MAX_LABEL_CHARS", "MAX_SWEEP_POINTS", "NOT_SWEPT", "SELECT_BY",
+           "CommonSettings", "PPOConfig", "PPOSettings", "RecurrentPPOSettings", "SACSettings",
+           "SETTINGS", "SweepPoint", "TrainConfig", "VEC_ENVS", "as_config", "check_sweep",
+           "default_config_path", "keys_of", "load_config", "point_labels", "shipped_config_path",
+           "shipped_training_configs", "sweep_grid"]

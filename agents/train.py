@@ -433,8 +433,9 @@ def train(config: TrainConfig | Mapping[str, Any] | str | Path, run_dir: str | P
     :param overwrite: a new run may replace the run files in ``run_dir``
     :param trust_pickle: allow a foreign (pickled) resume source
     :return: the run folder
-    :raises ValueError: bad config, unusable folder, unmakeable environment, missing or refused
-        checkpoint, budget already reached, or an architecture that differs from the checkpoint's
+    :raises ValueError: bad config (or a sweep: ``dss14 train --seeds``), unusable folder,
+        unmakeable environment, missing or refused checkpoint, budget already reached, or an
+        architecture that differs from the checkpoint's
     :raises TrainingInterrupted: on Ctrl-C (a KeyboardInterrupt with the resume command)
     """
     import stable_baselines3
@@ -443,6 +444,9 @@ def train(config: TrainConfig | Mapping[str, Any] | str | Path, run_dir: str | P
     from threadpoolctl import threadpool_limits
 
     cfg = as_config(config)
+    if cfg.sweep:
+        raise ValueError(f"{cfg.source}: field 'sweep': a sweep trains one campaign per point "
+                         f"(dss14 train --seeds ... --out DIR, or dss14_env.agents.sweep.train_sweep)")
     run, src = prepare_run(cfg, run_dir, resume, overwrite, trust_pickle)
     plan, obs_space, act_space, env_config = check_env(cfg)
     if plan.dss14:
