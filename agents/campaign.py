@@ -45,8 +45,10 @@ from dss14_env.core.stats import iqm_ci
 
 #: distance between the training seeds of two seed indices
 SEED_STRIDE = 1000
-#: what a campaign owns in its folder
-CAMPAIGN_FILES = ("seed_*", "summary.json", "curves_*.png", "config.yaml")
+#: what a campaign or a sweep (:mod:`dss14_env.agents.sweep`) owns in its folder: either one
+#: replaces the other's files (with ``overwrite``), so the results of the two never mix
+CAMPAIGN_FILES = ("seed_*", "summary.json", "curves_*.png", "config.yaml", "sweep.json", "sweep.md",
+                  "*=*", "point_[0-9]*")
 #: seed of the bootstrap resampling (reproducible intervals)
 BOOTSTRAP_SEED = 0
 
@@ -81,7 +83,8 @@ def training_seed(config: TrainConfig, k: int) -> int:
     return config.seed + SEED_STRIDE * int(k)
 
 
-def _tasks(cfg: TrainConfig) -> list[EvalTask]:
+def campaign_tasks(cfg: TrainConfig) -> list[EvalTask]:
+    """The test tasks of a configuration: the DSS14 holds, or the configured environment."""
     plan = resolve_env(cfg)
     if plan.dss14:
         return list(DSS14_TASKS)
@@ -126,10 +129,11 @@ def finished_run(cfg: TrainConfig, run: Path) -> bool:
     return saved == _as_yaml_data(cfg) and int(ts.get("num_timesteps", -1)) >= cfg.total_timesteps
 
 
-def _continue_campaign(cfg: TrainConfig, out: str | Path, seeds: Sequence[int]) -> tuple[Path, set[int]]:
-    """The folder of the interrupted campaign and the seed indices whose run finished; the
-    unfinished seeds' folders and the campaign's summary and curves are removed."""
-    folder = Path(out)
+def check_saved_config(cfg: TrainConfig, folder: Path) -> None:
+    """Refuse to continue in ``folder`` unless its ``config.yaml`` is ``cfg``.
+
+    :raises ValueError: no readable ``config.yaml``, or another configuration (``--continue``)
+    """
     try:
         saved = yaml.safe_load((folder / "config.yaml").read_text())
     except (OSError, yaml.YAMLError):
@@ -138,6 +142,13 @@ def _continue_campaign(cfg: TrainConfig, out: str | Path, seeds: Sequence[int]) 
     if saved != _as_yaml_data(cfg):
         raise ValueError(f"--continue: {folder / 'config.yaml'} is another configuration than "
                          f"{cfg.source}; continue with the campaign's own --config")
+
+
+def _continue_campaign(cfg: TrainConfig, out: str | Path, seeds: Sequence[int]) -> tuple[Path, set[int]]:
+    """The folder of the interrupted campaign and the seed indices whose run finished; the
+    unfinished seeds' folders and the campaign's summary and curves are removed."""
+    folder = Path(out)
+    check_saved_config(cfg, folder)
     prepare_output_dir(folder, ("summary.json", "curves_*.png"), True, "--out")
     finished = set()
     for k in seeds:
@@ -147,6 +158,34 @@ def _continue_campaign(cfg: TrainConfig, out: str | Path, seeds: Sequence[int]) 
         elif run.exists():
             prepare_output_dir(folder, (run.name,), True, "--out")
     return folder, finished
+
+
+def open_campaign(cfg: TrainConfig, out: str | Path, seeds: Sequence[int], overwrite: bool = False,
+                  resume: bool = False, owned: Sequence[str] = CAMPAIGN_FILES) -> tuple[Path, set[int]]:
+    """Make (or, with ``resume``, reopen) a campaign folder before any training.
+
+    A new campaign's folder is checked (:func:`~dss14_env.core.outdir.prepare_output_dir` with
+    ``owned``) and gets the shared ``config.yaml``; an interrupted one keeps its finished runs.
+
+    :return: the folder and the seed indices whose run finished (empty for a new campaign)
+    :raises ValueError: an unusable folder, earlier results without ``overwrite``, or (with
+        ``resume``) a folder of another configuration
+    """
+    if resume:
+        return _continue_campaign(cfg, out, seeds)
+    folder = prepare_output_dir(out, owned, overwrite, "--out")
+    atomic_write_text(folder / "config.yaml", f"# shared configuration of the campaign (from "
+                      f"{cfg.source}); run k trains with seed {cfg.seed} + {SEED_STRIDE} k\n"
+                      + yaml.safe_dump(cfg.to_dict(), sort_keys=False))
+    return folder, set()
+
+
+def seed_items(cfg: TrainConfig, folder: Path, seeds: Sequence[int], finished: set[int],
+               test_seeds: Sequence[int], test_steps: int) -> list[dict[str, Any]]:
+    """The work items of a campaign, one per seed index (:func:`train_one_seed`)."""
+    return [{"config": cfg, "k": int(k), "folder": str(folder),
+             "test_seeds": [int(s) for s in test_seeds], "test_steps": int(test_steps),
+             "finished": k in finished} for k in seeds]
 
 
 def train_one_seed(item: Mapping[str, Any]) -> dict[str, Any]:
@@ -159,7 +198,7 @@ def train_one_seed(item: Mapping[str, Any]) -> dict[str, Any]:
     :return: the seed's entry of ``summary.json``'s ``per_seed``
     """
     cfg, k = as_config(item["config"]), int(item["k"])
-    tasks, test_seeds, test_steps = _tasks(cfg), item["test_seeds"], item["test_steps"]
+    tasks, test_seeds, test_steps = campaign_tasks(cfg), item["test_seeds"], item["test_steps"]
     run = Path(item["folder"]) / f"seed_{k}"
     if not item.get("finished", False):
         run = train(cfg.replace(seed=training_seed(cfg, k)), run_dir=run)
@@ -173,13 +212,49 @@ def train_one_seed(item: Mapping[str, Any]) -> dict[str, Any]:
     return entry
 
 
+def write_summary(cfg: TrainConfig, folder: Path, seeds: Sequence[int], per_seed: list[dict[str, Any]],
+                  test_seeds: Sequence[int], test_steps: int, figures: bool = True) -> dict[str, Any]:
+    """Write a campaign's ``summary.json`` (and learning curves) from its seeds' entries.
+
+    :param per_seed: :func:`train_one_seed`'s entries, in the order of ``seeds``
+    :return: the summary
+    """
+    tasks = campaign_tasks(cfg)
+    aggregate: dict[str, Any] = {}
+    for which in ("final", "best"):
+        rows = [e[which] for e in per_seed if e[which] is not None]
+        if len(rows) != len(per_seed):
+            continue
+        aggregate[which] = {}
+        for t in tasks:
+            key = "mean_three_sigma_mdeg" if t.axis is not None else "mean_return"
+            aggregate[which][t.name] = {"metric": key,
+                                        **_aggregate([r[t.name][key] for r in rows])}
+    summary = {
+        "algo": cfg.algo, "env_id": cfg.env_id, "config": cfg.source,
+        "seed_indices": list(seeds), "training_seeds": [training_seed(cfg, k) for k in seeds],
+        "protocol": {"test_seeds": [int(s) for s in test_seeds], "test_steps": int(test_steps),
+                     "tasks": [{"name": t.name, "env_id": t.env_id, "axis": t.axis,
+                                "warmup_steps": t.warmup_steps} for t in tasks],
+                     "validation_seeds": cfg.eval_seeds,
+                     "interval": "95 % percentile bootstrap over training seeds of the IQM "
+                                 "(dss14_env.core.stats.iqm_ci)"},
+        "per_seed": per_seed, "aggregate": aggregate,
+    }
+    atomic_write_text(folder / "summary.json", json.dumps(summary, indent=2) + "\n")
+    if figures:
+        write_curves(folder, [folder / f"seed_{k}" for k in seeds], tasks)
+    return summary
+
+
 def train_seeds(config: TrainConfig | Mapping[str, Any] | str | Path, seeds: Sequence[int],
                 out: str | Path, overwrite: bool = False, test_seeds: Sequence[int] = TEST_SEEDS,
                 test_steps: int = TEST_STEPS, figures: bool = True,
                 executor: Executor | None = None, resume: bool = False) -> Path:
     """Train one run per seed index and score them (see the module doc).
 
-    :param config: the shared configuration (its ``seed`` is the base seed)
+    :param config: the shared configuration (its ``seed`` is the base seed; a sweep:
+        :func:`dss14_env.agents.sweep.train_sweep`)
     :param seeds: seed indices ``k``
     :param out: the campaign folder (checked before any work; ``overwrite`` replaces an
         earlier campaign's files)
@@ -193,46 +268,20 @@ def train_seeds(config: TrainConfig | Mapping[str, Any] | str | Path, seeds: Seq
     :param resume: continue the interrupted campaign in ``out`` (same configuration): the seeds
         whose run finished are scored, not retrained
     :return: the campaign folder
+    :raises ValueError: a sweep configuration (before any work)
     """
     cfg = as_config(config)
+    if cfg.sweep:
+        raise ValueError(f"{cfg.source}: field 'sweep': a sweep trains one campaign per point "
+                         f"(dss14_env.agents.sweep.train_sweep)")
     seeds = [int(k) for k in seeds]
-    if resume:
-        folder, finished = _continue_campaign(cfg, out, seeds)
-    else:
-        folder, finished = prepare_output_dir(out, CAMPAIGN_FILES, overwrite, "--out"), set()
-        atomic_write_text(folder / "config.yaml", f"# shared configuration of the campaign (from "
-                          f"{cfg.source}); run k trains with seed {cfg.seed} + {SEED_STRIDE} k\n"
-                          + yaml.safe_dump(cfg.to_dict(), sort_keys=False))
-    tasks = _tasks(cfg)
-    items = [{"config": cfg, "k": k, "folder": str(folder), "test_seeds": [int(s) for s in test_seeds],
-              "test_steps": int(test_steps), "finished": k in finished} for k in seeds]
+    campaign_tasks(cfg)  # an environment the tasks cannot be made of: before any work
+    folder, finished = open_campaign(cfg, out, seeds, overwrite, resume)
+    items = seed_items(cfg, folder, seeds, finished, test_seeds, test_steps)
     ex = executor if executor is not None else SerialExecutor()
     done = dict(ex.map_unordered(train_one_seed, items, labels=[f"seed {k}" for k in seeds]))
-    per_seed = [done[i] for i in range(len(seeds))]
-    aggregate: dict[str, Any] = {}
-    for which in ("final", "best"):
-        rows = [e[which] for e in per_seed if e[which] is not None]
-        if len(rows) != len(per_seed):
-            continue
-        aggregate[which] = {}
-        for t in tasks:
-            key = "mean_three_sigma_mdeg" if t.axis is not None else "mean_return"
-            aggregate[which][t.name] = {"metric": key,
-                                        **_aggregate([r[t.name][key] for r in rows])}
-    summary = {
-        "algo": cfg.algo, "env_id": cfg.env_id, "config": cfg.source,
-        "seed_indices": seeds, "training_seeds": [training_seed(cfg, k) for k in seeds],
-        "protocol": {"test_seeds": [int(s) for s in test_seeds], "test_steps": int(test_steps),
-                     "tasks": [{"name": t.name, "env_id": t.env_id, "axis": t.axis,
-                                "warmup_steps": t.warmup_steps} for t in tasks],
-                     "validation_seeds": cfg.eval_seeds,
-                     "interval": "95 % percentile bootstrap over training seeds of the IQM "
-                                 "(dss14_env.core.stats.iqm_ci)"},
-        "per_seed": per_seed, "aggregate": aggregate,
-    }
-    atomic_write_text(folder / "summary.json", json.dumps(summary, indent=2) + "\n")
-    if figures:
-        write_curves(folder, [folder / f"seed_{k}" for k in seeds], tasks)
+    write_summary(cfg, folder, seeds, [done[i] for i in range(len(seeds))], test_seeds, test_steps,
+                  figures)
     return folder
 
 
@@ -309,5 +358,6 @@ def write_curves(folder: Path, runs: Sequence[Path], tasks: Sequence[EvalTask]) 
     return written
 
 
-__all__ = ["CAMPAIGN_FILES", "SEED_STRIDE", "finished_run", "learning_curves", "parse_seeds", "train_one_seed",
-           "train_seeds", "training_seed", "write_curves"]
+__all__ = ["CAMPAIGN_FILES", "SEED_STRIDE", "campaign_tasks", "check_saved_config", "finished_run",
+           "learning_curves", "open_campaign", "parse_seeds", "seed_items", "train_one_seed", "train_seeds",
+           "training_seed", "write_curves", "write_summary"]
