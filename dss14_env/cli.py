@@ -39,6 +39,7 @@ def _reproduce(args: argparse.Namespace) -> int:
 
 def _train(args: argparse.Namespace) -> int:
     from dss14_env.agents.campaign import CAMPAIGN_FILES, parse_seeds, train_seeds
+    from dss14_env.agents.sweep import train_sweep
     from dss14_env.agents.train import TrainingInterrupted, config_for_command, train
     from dss14_env.core.outdir import prepare_output_dir
     from dss14_env.core.parallel import check_ray_options, make_executor, require_ray
@@ -46,6 +47,9 @@ def _train(args: argparse.Namespace) -> int:
     use_ray = args.ray or args.address is not None or args.num_cpus is not None
     cfg = config_for_command(args.algo, args.config, args.env, args.resume, args.timesteps,
                              args.seed)
+    if cfg.sweep and (args.seeds is None or args.out is None):
+        raise ValueError(f"{cfg.source}: field 'sweep': a sweep trains one campaign per point: "
+                         f"give --seeds (e.g. 0-4) and --out")
     if use_ray:  # before Ray starts: bad options, an unusable --out, or no Ray (how to install it)
         if args.seeds is None or args.out is None:
             raise ValueError("--ray runs the runs of --seeds as Ray tasks: give --seeds and --out")
@@ -62,11 +66,17 @@ def _train(args: argparse.Namespace) -> int:
                 raise ValueError("--seeds needs --out (the campaign folder)")
             if args.continue_ and args.overwrite:
                 raise ValueError("--continue keeps the finished runs in --out: without --overwrite")
+            seeds = parse_seeds(args.seeds)
+            run_all = train_sweep if cfg.sweep else train_seeds
             with make_executor(use_ray, address=args.address, num_cpus=args.num_cpus) as ex:
-                out = train_seeds(cfg, parse_seeds(args.seeds), args.out, overwrite=args.overwrite,
-                                  executor=ex, resume=args.continue_)
-            print(f"{len(parse_seeds(args.seeds))} runs, summary.json and learning curves "
-                  f"written to {out}")
+                out = run_all(cfg, seeds, args.out, overwrite=args.overwrite, executor=ex,
+                              resume=args.continue_)
+            if cfg.sweep:
+                n = len(cfg.points())
+                print(f"{n} points x {len(seeds)} seeds: per point a campaign folder (summary.json, "
+                      f"learning curves), sweep.json and sweep.md written to {out}")
+            else:
+                print(f"{len(seeds)} runs, summary.json and learning curves written to {out}")
             return 0
         if args.continue_:
             raise ValueError("--continue continues a campaign: give --seeds and --out")
@@ -218,7 +228,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=None, help="override seed")
     p.add_argument("--seeds", nargs="+", default=None, metavar="K",
                    help="one run per seed index into --out/seed_<k>/ (0-4, or 0 3 7), then "
-                   "summary.json and learning curves")
+                   "summary.json and learning curves; with a sweep in the config, one such "
+                   "campaign per point into --out/<point>/, then sweep.json and sweep.md")
     p.add_argument("--continue", dest="continue_", action="store_true",
                    help="with --seeds: continue the interrupted campaign in --out (same config): "
                    "finished runs are scored, not retrained; the others train anew")
