@@ -146,6 +146,7 @@ def test_bad_interface_keys_are_named(key: str, value: object, match: str) -> No
 # ------------------------------------------------------------------------------ the shipped recipes
 RECIPES = {  # config -> (algo, policy observation size, action scale the policy was trained at)
     "ppo_plain": ("ppo", 8 + 8 * 4, 0.02),
+    "ppo_plain_sweep": ("ppo", 8 + 8 * 4, 0.02),  # the plain recipe's environment at every point
     "ppo_residual_lqg": ("ppo", 8 + 4 + 4 * 4, 0.25),
     "ppo_residual_pi": ("ppo", 12 + 2 + 8 * 4, 0.25),
     "ppo_residual_pi_hold": ("ppo", 12 + 2 + 8 * 4, 0.25),

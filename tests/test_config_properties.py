@@ -3,7 +3,7 @@ names the file and a field (property-based: a key changed to a value of any type
 added; a documented leaf's unit or range broken).
 
 Covers the documented files (``configs/model.yaml``, ``wind.yaml``, ``controllers.yaml``) and the
-agents' training configurations; ``configs/env.yaml`` has its own properties
+agents' training configurations (a sweep among them); ``configs/env.yaml`` has its own properties
 (``tests/test_env_properties.py``).
 """
 
@@ -26,7 +26,8 @@ from dss14_env.wind.loads import load_wind_config
 
 LOADERS = {"model.yaml": load_model_config, "wind.yaml": load_wind_config,
            "controllers.yaml": load_controllers_config, "ppo.yaml": load_train_config,
-           "ppo_plain.yaml": load_train_config, "sac.yaml": load_train_config}
+           "ppo_plain.yaml": load_train_config, "ppo_plain_sweep.yaml": load_train_config,
+           "sac.yaml": load_train_config}
 scalars = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.integers(-10**20, 10**20),
                     st.booleans(), st.none(), st.text(max_size=8),
                     st.sampled_from(["1e-3", "-1", "nan", "kg", "cm^3", "furlong", "random", "inf"]))
