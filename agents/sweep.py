@@ -135,24 +135,29 @@ def _fmt(v: float) -> str:
 
 def sweep_markdown(report: Mapping[str, Any]) -> str:
     """``sweep.md``: per policy one table, a row per point (its values; per task the IQM with
-    its 95 % interval and the point's rank), and the reading of the ranking."""
+    its 95 % interval and the point's rank), and how to read the ranking."""
     keys = list(report["sweep"])
     lines = [f"# Sweep of {report['config']}", "",
              f"{len(report['points'])} points × {len(report['seed_indices'])} training seeds "
-             f"(indices {report['seed_indices']}); per task the IQM over training seeds with its 95 % "
-             f"bootstrap interval and the point's rank.  {RANKING_NOTE[0].upper() + RANKING_NOTE[1:]}."]
+             f"(indices {report['seed_indices']}).  Per task: the IQM over training seeds of the "
+             f"metric with its 95 % bootstrap interval, and the point's rank (lowest 3σ or highest "
+             f"return first); \"overlaps #1\": the point's interval overlaps the first-ranked "
+             f"point's, so the two are not significantly different."]
     for which, tasks in report["ranking"].items():
         ranks = {task: {r["label"]: r for r in t["order"]} for task, t in tasks.items()}
-        head = ["point"] + keys + [f"{task}: {t['metric']} ({t['better']} is better)"
-                                   for task, t in tasks.items()]
+        head = ["point"] + keys + [f"{task}: {t['metric']}" for task, t in tasks.items()]
         lines += ["", f"## {which} policy", "", "| " + " | ".join(head) + " |",
                   "|" + "---|" * len(head)]
         for p in report["points"]:
             cells = [f"`{p['label']}`"] + [json.dumps(p["values"][k]) for k in keys]
             for task in tasks:
                 r = ranks[task].get(p["label"])
-                cells.append("–" if r is None else f"{_fmt(r['iqm'])} [{_fmt(r['ci95'][0])}, "
-                             f"{_fmt(r['ci95'][1])}] (#{r['rank']})")
+                if r is None:
+                    cells.append("–")
+                    continue
+                tie = ", overlaps #1" if r["rank"] > 1 and r["overlaps_first"] else ""
+                cells.append(f"{_fmt(r['iqm'])} [{_fmt(r['ci95'][0])}, {_fmt(r['ci95'][1])}] "
+                             f"(#{r['rank']}{tie})")
             lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 

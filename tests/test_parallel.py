@@ -206,6 +206,26 @@ def test_train_seeds_on_ray_same_numbers_as_in_process(local_ray, tmp_path) -> N
     assert len({e["final"]["eval"]["mean_return"] for e in on_ray["per_seed"]}) == 3
 
 
+def test_train_sweep_on_ray_same_numbers_as_in_process(local_ray, tmp_path) -> None:
+    """``dss14 train ppo --seeds 0-1 --ray`` with a 2-point sweep: the four (point, seed) runs as
+    Ray tasks give the sweep.json and the per-point summaries of the same sweep in-process."""
+    from dss14_env import cli
+    from dss14_env.agents.sweep import train_sweep
+
+    cfg = tmp_path / "sweep.yaml"
+    cfg.write_text(yaml.safe_dump({**TINY_TRAINING, "sweep": {"learning_rate": [3e-4, 1e-2]}}))
+    serial = train_sweep(str(cfg), [0, 1], tmp_path / "serial", figures=False)
+    assert cli.main(["train", "ppo", "--config", str(cfg), "--seeds", "0-1", "--ray",
+                     "--out", str(tmp_path / "ray")]) == 0
+    report = json.loads((tmp_path / "ray" / "sweep.json").read_text())
+    assert report == json.loads((serial / "sweep.json").read_text())
+    assert [p["label"] for p in report["points"]] == ["learning_rate=0.0003", "learning_rate=0.01"]
+    for p in report["points"]:
+        assert _seed_results(tmp_path / "ray" / p["folder"]) == _seed_results(serial / p["folder"])
+    finals = {v for p in report["points"] for v in p["aggregate"]["final"]["eval"]["per_seed"]}
+    assert len(finals) == 4  # four different runs
+
+
 @pytest.mark.parametrize("extra,message", [
     (["--ray"], "--ray runs the runs of --seeds as Ray tasks: give --seeds and --out"),
     (["--seeds", "0-1", "--out", "x", "--address", "auto", "--num-cpus", "2"],
