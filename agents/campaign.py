@@ -21,6 +21,10 @@ again, not retrained; the others are trained anew.
 
 The interval resamples training seeds (the independent units); with fewer than 5 seeds it is
 wide, and the project reports learned agents with at least 5.
+
+:func:`train_seeds` is made of pieces a hyperparameter sweep (:mod:`dss14_env.agents.sweep`)
+runs once per point: :func:`open_campaign` (the folder), :func:`seed_items` (the work items of
+:func:`train_one_seed`) and :func:`write_summary` (``summary.json`` and the curves).
 """
 
 from __future__ import annotations
