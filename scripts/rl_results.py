@@ -53,7 +53,7 @@ AGENTS = {
     "recurrent_ppo": ("recurrent PPO (LSTM)", "recurrent_ppo", None),
     "ppo_residual_lqg": ("model-informed PPO (residual on the LQG)", "ppo_residual_lqg",
                          "ppo_residual_lqg"),
-    "sac": ("SAC", "sac", "sac"),
+    "sac": ("SAC", "sac", None),
     "ppo_residual_pi": ("residual PPO on the PI", "ppo_residual_pi", None),
     "ppo_residual_pi_hold": ("residual PPO on the PI, benchmark wind", "ppo_residual_pi_hold", None),
 }
