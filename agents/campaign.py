@@ -309,5 +309,5 @@ def write_curves(folder: Path, runs: Sequence[Path], tasks: Sequence[EvalTask]) 
     return written
 
 
-__all__ = ["CAMPAIGN_FILES", "SEED_STRIDE", "finished_run", "learning_curves", "parse_seeds", "train_one_seed",
-           "train_seeds", "training_seed", "write_curves"]
+__all__ = ["CAMPAIGN_FILES", "SEED_STRIDE", "finished_run", "learning_curves", "parse_seeds",
+           "train_one_seed", "train_seeds", "training_seed", "write_curves"]
