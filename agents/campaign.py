@@ -29,6 +29,7 @@ runs once per point: :func:`open_campaign` (the folder), :func:`seed_items` (the
 
 from __future__ import annotations
 
+import glob
 import json
 import re
 from collections.abc import Mapping, Sequence
@@ -51,8 +52,7 @@ from dss14_env.core.stats import iqm_ci
 SEED_STRIDE = 1000
 #: what a campaign or a sweep (:mod:`dss14_env.agents.sweep`) owns in its folder: either one
 #: replaces the other's files (with ``overwrite``), so the results of the two never mix
-CAMPAIGN_FILES = ("seed_*", "summary.json", "curves_*.png", "config.yaml", "sweep.json", "sweep.md",
-                  "*=*", "point_[0-9]*")
+CAMPAIGN_FILES = ("seed_*", "summary.json", "curves_*.png", "config.yaml", "sweep.json", "sweep.md")
 #: seed of the bootstrap resampling (reproducible intervals)
 BOOTSTRAP_SEED = 0
 
@@ -164,8 +164,23 @@ def _continue_campaign(cfg: TrainConfig, out: str | Path, seeds: Sequence[int]) 
     return folder, finished
 
 
+def owned_files(folder: str | Path) -> tuple[str, ...]:
+    """What a campaign or a sweep owns in ``folder``: :data:`CAMPAIGN_FILES` and, when the
+    folder's ``config.yaml`` is a sweep's, the folders of its points (named from that file, so
+    nothing else in the folder is ever taken for a point)."""
+    saved = Path(folder) / "config.yaml"
+    if not saved.is_file():
+        return CAMPAIGN_FILES
+    try:
+        cfg = as_config(saved)
+    except (OSError, ValueError):
+        return CAMPAIGN_FILES
+    points = cfg.points() if cfg.sweep else []
+    return CAMPAIGN_FILES + tuple(glob.escape(p.label) for p in points)
+
+
 def open_campaign(cfg: TrainConfig, out: str | Path, seeds: Sequence[int], overwrite: bool = False,
-                  resume: bool = False, owned: Sequence[str] = CAMPAIGN_FILES) -> tuple[Path, set[int]]:
+                  resume: bool = False, owned: Sequence[str] | None = None) -> tuple[Path, set[int]]:
     """Make (or, with ``resume``, reopen) a campaign folder before any training.
 
     A new campaign's folder is checked (:func:`~dss14_env.core.outdir.prepare_output_dir` with
@@ -177,7 +192,7 @@ def open_campaign(cfg: TrainConfig, out: str | Path, seeds: Sequence[int], overw
     """
     if resume:
         return _continue_campaign(cfg, out, seeds)
-    folder = prepare_output_dir(out, owned, overwrite, "--out")
+    folder = prepare_output_dir(out, owned_files(out) if owned is None else owned, overwrite, "--out")
     atomic_write_text(folder / "config.yaml", f"# shared configuration of the campaign (from "
                       f"{cfg.source}); run k trains with seed {cfg.seed} + {SEED_STRIDE} k\n"
                       + yaml.safe_dump(cfg.to_dict(), sort_keys=False))
@@ -363,5 +378,6 @@ def write_curves(folder: Path, runs: Sequence[Path], tasks: Sequence[EvalTask]) 
 
 
 __all__ = ["CAMPAIGN_FILES", "SEED_STRIDE", "campaign_tasks", "check_saved_config", "finished_run",
+           "owned_files",
            "learning_curves", "open_campaign", "parse_seeds", "seed_items", "train_one_seed", "train_seeds",
            "training_seed", "write_curves", "write_summary"]

@@ -35,11 +35,11 @@ from typing import Any
 import yaml
 
 from dss14_env.agents.campaign import (
-    CAMPAIGN_FILES,
     SEED_STRIDE,
     campaign_tasks,
     check_saved_config,
     open_campaign,
+    owned_files,
     seed_items,
     train_one_seed,
     training_seed,
@@ -84,7 +84,7 @@ def _open(cfg: TrainConfig, points: Sequence[SweepPoint], out: str | Path, seeds
         check_saved_config(cfg, folder)
         prepare_output_dir(folder, ("sweep.json", "sweep.md"), True, "--out")
     else:
-        folder = prepare_output_dir(out, CAMPAIGN_FILES, overwrite, "--out")
+        folder = prepare_output_dir(out, owned_files(out), overwrite, "--out")
         atomic_write_text(folder / "config.yaml", f"# sweep (from {cfg.source}): one campaign per "
                           f"point of the grid in <label>/; run k of every point trains with seed "
                           f"{cfg.seed} + {SEED_STRIDE} k\n"

@@ -38,7 +38,7 @@ def _reproduce(args: argparse.Namespace) -> int:
 
 
 def _train(args: argparse.Namespace) -> int:
-    from dss14_env.agents.campaign import CAMPAIGN_FILES, parse_seeds, train_seeds
+    from dss14_env.agents.campaign import owned_files, parse_seeds, train_seeds
     from dss14_env.agents.sweep import train_sweep
     from dss14_env.agents.train import TrainingInterrupted, config_for_command, train
     from dss14_env.core.outdir import prepare_output_dir
@@ -57,7 +57,7 @@ def _train(args: argparse.Namespace) -> int:
         check_ray_options(args.address, args.num_cpus)
         require_ray()
         if not args.continue_:
-            prepare_output_dir(args.out, CAMPAIGN_FILES, args.overwrite)
+            prepare_output_dir(args.out, owned_files(args.out), args.overwrite)
     try:
         if args.seeds is not None:
             if args.resume is not None or args.seed is not None:

@@ -341,3 +341,14 @@ def test_a_sweep_and_a_campaign_do_not_mix_in_one_folder(swept: Path, tmp_path: 
     train_seeds({**TINY, "total_timesteps": 64, "eval_freq": 0}, [0], out, overwrite=True, figures=False,
                 test_seeds=(0,))
     assert sorted(p.name for p in out.iterdir()) == ["config.yaml", "seed_0", "summary.json"]
+
+
+def test_overwrite_takes_only_the_sweeps_own_point_folders(swept: Path, tmp_path: Path) -> None:
+    out = tmp_path / "mine"
+    shutil.copytree(swept, out)
+    (out / "notes=keep").mkdir()  # a folder of the user's that looks like a point label
+    (out / "point_07").mkdir()
+    train_seeds({**TINY, "total_timesteps": 64, "eval_freq": 0}, [0], out, overwrite=True, figures=False,
+                test_seeds=(0,))
+    assert sorted(p.name for p in out.iterdir()) == ["config.yaml", "notes=keep", "point_07", "seed_0",
+                                                      "summary.json"]
