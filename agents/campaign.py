@@ -124,7 +124,8 @@ def _as_yaml_data(cfg: TrainConfig) -> Any:
 def finished_run(cfg: TrainConfig, run: Path) -> bool:
     """Whether ``run`` holds a finished training run of ``cfg``: its ``train_summary.json``
     (written last) reports at least ``cfg.total_timesteps`` steps and its ``config.yaml``
-    is ``cfg``."""
+    is ``cfg``.
+    """
     try:
         ts = json.loads((run / "train_summary.json").read_text())
         saved = yaml.safe_load((run / "config.yaml").read_text())
@@ -150,7 +151,8 @@ def check_saved_config(cfg: TrainConfig, folder: Path) -> None:
 
 def _continue_campaign(cfg: TrainConfig, out: str | Path, seeds: Sequence[int]) -> tuple[Path, set[int]]:
     """The folder of the interrupted campaign and the seed indices whose run finished; the
-    unfinished seeds' folders and the campaign's summary and curves are removed."""
+    unfinished seeds' folders and the campaign's summary and curves are removed.
+    """
     folder = Path(out)
     check_saved_config(cfg, folder)
     prepare_output_dir(folder, ("summary.json", "curves_*.png"), True, "--out")
@@ -167,7 +169,8 @@ def _continue_campaign(cfg: TrainConfig, out: str | Path, seeds: Sequence[int]) 
 def owned_files(folder: str | Path) -> tuple[str, ...]:
     """What a campaign or a sweep owns in ``folder``: :data:`CAMPAIGN_FILES` and, when the
     folder's ``config.yaml`` is a sweep's, the folders of its points (named from that file, so
-    nothing else in the folder is ever taken for a point)."""
+    nothing else in the folder is ever taken for a point).
+    """
     saved = Path(folder) / "config.yaml"
     if not saved.is_file():
         return CAMPAIGN_FILES
@@ -340,7 +343,8 @@ def _band(values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def write_curves(folder: Path, runs: Sequence[Path], tasks: Sequence[EvalTask]) -> list[Path]:
     """One PNG per task: validation 3σ (DSS14) and return vs environment steps (IQM over the
-    runs with its 95 % bootstrap band, each run thin)."""
+    runs with its 95 % bootstrap band, each run thin).
+    """
     import io
 
     from matplotlib.backends.backend_agg import FigureCanvasAgg

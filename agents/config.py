@@ -418,7 +418,8 @@ class TrainConfig:
 
     def points(self) -> list[SweepPoint]:
         """The points of the sweep's grid (empty without a sweep), in grid order
-        (:func:`sweep_grid`), each with its label, values and configuration."""
+        (:func:`sweep_grid`), each with its label, values and configuration.
+        """
         return _points(self._values, self._sweep, self.source) if self._sweep else []
 
     @classmethod
@@ -454,7 +455,8 @@ class TrainConfig:
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-YAML mapping of every key, and ``sweep`` last when there is one (loads back
-        with :meth:`from_dict`)."""
+        with :meth:`from_dict`).
+        """
         out = {**self._values, **({"sweep": self._sweep} if self._sweep else {})}
         return json.loads(json.dumps(out, default=_plain))
 

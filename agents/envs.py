@@ -146,7 +146,8 @@ def resolve_env(cfg: TrainConfig) -> EnvPlan:
 def make_env(env_id: str, env_kwargs: Mapping[str, Any] | None = None,
              env_module: str | None = None) -> Any:
     """``gymnasium.make(env_id, **env_kwargs)`` after importing the registering module
-    (module-level, so that ``SubprocVecEnv`` workers can call it)."""
+    (module-level, so that ``SubprocVecEnv`` workers can call it).
+    """
     import_env_module(env_id, env_module)
     return gym.make(env_id, **dict(env_kwargs or {}))
 

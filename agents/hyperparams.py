@@ -1,10 +1,10 @@
-"""Hyperparameters as data per environment id, in rl-zoo3's format.
+r"""Hyperparameters as data per environment id, in rl-zoo3's format.
 
 ``configs/hyperparams/<algo>.yml`` (shipped as package data) maps environment ids to the
 hyperparameters of one algorithm, exactly as rl-baselines3-zoo's files do, so both work::
 
     dss14 train ppo --env DSS14-Hold-v0                    # this package's trainer
-    python -m rl_zoo3.train --algo ppo --env DSS14-Hold-v0 --gym-packages dss14_env \\
+    python -m rl_zoo3.train --algo ppo --env DSS14-Hold-v0 --gym-packages dss14_env \
         -conf "$(python -m dss14_env.agents.hyperparams ppo)"      # prints the file's path
 
 Keys understood here: ``n_envs``, ``n_timesteps``, ``policy`` (``MlpPolicy`` /
@@ -62,7 +62,8 @@ def _literal(node: ast.AST, where: str) -> Any:
 
 def parse_zoo_value(text: str, where: str) -> Any:
     """An rl-zoo3 string value (``"dict(net_arch=[64, 64], activation_fn=nn.ReLU)"``), parsed
-    without evaluating it."""
+    without evaluating it.
+    """
     try:
         tree = ast.parse(text, mode="eval")
     except SyntaxError:

@@ -242,7 +242,8 @@ class PolicyInterface:
     def peek(self, obs: np.ndarray, rows: np.ndarray) -> np.ndarray:
         """The policy's observations of rows ``rows`` for observations ``obs``
         ``(len(rows), 12)``, without changing any state (a vector env's terminal
-        observations): what :meth:`observe` would return for them."""
+        observations): what :meth:`observe` would return for them.
+        """
         rows = np.asarray(rows)
         o = np.asarray(obs, np.float32).reshape(rows.size, 12)
         parts = [o[:, self.entries]]
@@ -284,7 +285,8 @@ class PolicyInterface:
     def _lqg_batch_features(self, c: LQGController, action: np.ndarray,
                             rows: np.ndarray) -> np.ndarray:
         """The command and disturbance features of rows ``rows`` of the batched LQG (``action``:
-        those rows' commands)."""
+        those rows' commands).
+        """
         parts = []
         for name in self.spec.lqg_features:
             if name == "command":
@@ -296,7 +298,8 @@ class PolicyInterface:
     def _lqg_features(self, c: _RecordingLQG, action: np.ndarray) -> np.ndarray:
         """The chosen features of the LQG's estimate (``spec.lqg_features``, at most 12), whose
         meaning does not depend on its design (the design, and with it the order of the Kalman
-        filter, may change per episode)."""
+        filter, may change per episode).
+        """
         n = c.design.dm.n
         z = c.last_z
         dx = z[:n]

@@ -128,7 +128,8 @@ class PolicyController(Controller):
 
     def target_env(self, env: Any) -> None:
         """Act on ``env`` from now on: actions are converted from the training environment's
-        action scale to ``env``'s (a DSS14 environment; others are left alone)."""
+        action scale to ``env``'s (a DSS14 environment; others are left alone).
+        """
         target = _env_config(env)
         if self.train_env_config is not None and target is not None:
             self.to_env = self.train_env_config.action_scale_deg_s / target.action_scale_deg_s

@@ -88,7 +88,8 @@ class ResidualPI:
 
     def observe(self, observation: np.ndarray) -> np.ndarray:
         """Advance the PI on the environment's observation; return the policy's observation
-        ``(14 + 4 history,)`` (see the module doc)."""
+        ``(14 + 4 history,)`` (see the module doc).
+        """
         return self.interface.observe(np.asarray(observation, np.float32)[None])[0]
 
     def combine(self, residual: np.ndarray) -> np.ndarray:

@@ -243,7 +243,8 @@ def _score(row: Mapping[str, Any], hold: str) -> str:
 
 def main_table(results: Mapping[str, Any]) -> str:
     """Markdown: every row's score per hold with its interval and its ratios to PI and LQG,
-    under a caption that says how they were computed."""
+    under a caption that says how they were computed.
+    """
     n_test = len(results["test_seeds"])
     seeds = results["test_seeds"]
     caption = (

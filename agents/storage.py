@@ -90,7 +90,8 @@ class PolicyFiles:
 
 def _sb3_stats_for(model: Path) -> Path | None:
     """``vecnormalize.pkl`` beside ``model.zip``; ``ppo_vecnormalize_<N>_steps.pkl`` beside
-    an SB3 checkpoint ``ppo_<N>_steps.zip``."""
+    an SB3 checkpoint ``ppo_<N>_steps.zip``.
+    """
     name = model.name
     if name.endswith("_steps.zip") and "_" in name:
         prefix, steps = name[:-len("_steps.zip")].rsplit("_", 1)

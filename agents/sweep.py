@@ -135,7 +135,8 @@ def _fmt(v: float) -> str:
 
 def sweep_markdown(report: Mapping[str, Any]) -> str:
     """``sweep.md``: per policy one table, a row per point (its values; per task the IQM with
-    its 95 % interval and the point's rank), and how to read the ranking."""
+    its 95 % interval and the point's rank), and how to read the ranking.
+    """
     keys = list(report["sweep"])
     lines = [f"# Sweep of {report['config']}", "",
              f"{len(report['points'])} points × {len(report['seed_indices'])} training seeds "

@@ -273,7 +273,8 @@ def selection_score(cfg: TrainConfig, returns: np.ndarray,
 
 class _Evaluator:
     """The periodic evaluation: the deterministic policy on the validation seeds; keeps
-    ``eval/best`` (best :func:`selection_score`) and ``eval/evaluations.npz``."""
+    ``eval/best`` (best :func:`selection_score`) and ``eval/evaluations.npz``.
+    """
 
     def __init__(self, cfg: TrainConfig, plan: EnvPlan, run: Path, run_id: str, config_text: str,
                  venv: Any, start: int) -> None:

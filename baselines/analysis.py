@@ -69,7 +69,8 @@ def riccati_cost(design: LQGDesign) -> float:
 @dataclass(frozen=True)
 class LinearController:
     """A discrete LTI controller ``zeta+ = Ac zeta + Bc y``, ``r = Cc zeta + Dc y`` (regulation
-    about a constant command; ``y`` the measured encoder angles, rad; ``r`` rad/s)."""
+    about a constant command; ``y`` the measured encoder angles, rad; ``r`` rad/s).
+    """
 
     Ac: np.ndarray
     Bc: np.ndarray
@@ -121,7 +122,8 @@ def lqg_as_linear(design: LQGDesign) -> LinearController:
 @dataclass(frozen=True)
 class ClosedLoop:
     """Plant (discrete design model) + linear controller, driven by the plant's process noise
-    and the measurement noise.  State ``[x_plant; zeta; r_prev]``."""
+    and the measurement noise.  State ``[x_plant; zeta; r_prev]``.
+    """
 
     A: np.ndarray
     W: np.ndarray          # covariance of the state noise per step

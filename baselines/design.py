@@ -300,7 +300,8 @@ _CACHE: dict[tuple, Any] = {}
 
 def _cached(key: tuple, refs: tuple, build: Any) -> Any:
     """Memoise on object identity (the model and the loads are not hashable); the referenced
-    objects are kept alive with the entry so their ids stay unique."""
+    objects are kept alive with the entry so their ids stay unique.
+    """
     k = key + tuple(id(r) for r in refs)
     if k not in _CACHE:
         if len(_CACHE) > 64:
@@ -530,7 +531,8 @@ def _build(dt, order, wind, encoder_noise, bits, model, loads) -> DesignModel:
 
 def smallest_order(budget_rel: float) -> int:
     """Smallest even order whose balanced-reduction error bound ``2 sum sigma_tail / sigma_1``
-    is at most ``budget_rel`` (the rule behind ``design.order``)."""
+    is at most ``budget_rel`` (the rule behind ``design.order``).
+    """
     hsv = reduce_rate_loop(None).hsv
     for k in range(2, hsv.size + 1, 2):
         if 2 * hsv[k:].sum() / hsv[0] <= budget_rel:

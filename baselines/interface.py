@@ -26,7 +26,8 @@ from dss14_env.envs.config import load_env_config
 @dataclass(frozen=True)
 class Weights:
     """Cost scales taken from the environment: error scale (rad), action scale (rad/s per unit
-    action) and the reward's action-change weight."""
+    action) and the reward's action-change weight.
+    """
 
     error_scale: float
     action_scale: float
@@ -94,7 +95,8 @@ class ControlInterface:
 
 def as_interface(env_or_interface: Any) -> ControlInterface:
     """A :class:`ControlInterface` from an environment, its config, an interface, or ``None``
-    (the shipped defaults)."""
+    (the shipped defaults).
+    """
     if env_or_interface is None:
         return ControlInterface.default()
     if isinstance(env_or_interface, ControlInterface):

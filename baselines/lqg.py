@@ -101,7 +101,8 @@ class LQGDesign:
 def augmented_lqr_problem(dm: DesignModel, weights: Weights, w_e: float, w_a: float,
                           w_i: float | None) -> tuple[np.ndarray, ...]:
     """Matrices ``(Az, Bz, Qz, Rz, Sz)`` of the LQR on ``z = [x; xi; r_prev]`` (see the module
-    docstring); ``w_i=None`` leaves the integrator out (the yardstick)."""
+    docstring); ``w_i=None`` leaves the integrator out (the yardstick).
+    """
     n, dt = dm.n, dm.dt
     ni = 0 if w_i is None else 2
     nz = n + ni + 2
@@ -312,7 +313,8 @@ class EstimatorController(Controller):
 
     def select_designs(self, rows: np.ndarray, r0: np.ndarray, c_rate0: np.ndarray) -> list[LQGDesign]:
         """The designs of the episodes that start in ``rows``, from their start commands
-        ``r0`` and command rates ``c_rate0`` (``(k, 2)``, rad/s); default: the fixed one."""
+        ``r0`` and command rates ``c_rate0`` (``(k, 2)``, rad/s); default: the fixed one.
+        """
         return [self.default_design] * len(rows)
 
     # -------------------------------------------------------------- episodes
@@ -344,7 +346,8 @@ class EstimatorController(Controller):
 
     def restart(self, mask: np.ndarray) -> None:
         """The rows ``mask`` start a new episode (and choose its design) at the next
-        :meth:`act_batch`."""
+        :meth:`act_batch`.
+        """
         if not self.batchable:
             super().restart(mask)
         m = check_mask(mask, self.n)
@@ -365,7 +368,8 @@ class EstimatorController(Controller):
     def _start_rows(self, rows: np.ndarray, c: np.ndarray, cd: np.ndarray, r_prev: np.ndarray) -> None:
         """Choose the designs of the rows starting an episode and initialise them bumplessly:
         the environment starts on the command in steady motion (docs/env.md), so the estimate
-        starts on the reference, not on the quantised reading."""
+        starts on the reference, not on the quantised reading.
+        """
         for i, d in zip(rows.tolist(), self.select_designs(rows, r_prev[rows], cd[rows]), strict=True):
             self._designs[i] = d
         self._groups = None
@@ -403,7 +407,8 @@ class EstimatorController(Controller):
                  r_prev: np.ndarray) -> np.ndarray:
         """The rate commands (rad/s) of the rows ``rows`` of one design (``z`` ``(k, n_z)``,
         ``r_ss`` and ``r_prev`` ``(k, 2)``): the LQR for all of them at once, or :meth:`law`
-        row by row where a subclass overrides that (the MPC overrides this method)."""
+        row by row where a subclass overrides that (the MPC overrides this method).
+        """
         if type(self).law is EstimatorController.law:
             return self.lqr_command(design, z, r_ss)
         self._law_design = design
@@ -412,7 +417,8 @@ class EstimatorController(Controller):
     def law(self, z: np.ndarray, r_ss: np.ndarray, r_prev: np.ndarray) -> np.ndarray:
         """The rate command (rad/s) of one row (``z`` ``(n_z,)``, ``r_ss``, ``r_prev`` ``(2,)``):
         the LQR of the row's design; the hook a subclass overrides to see or change the law one
-        row at a time."""
+        row at a time.
+        """
         return r_ss - self._law_design.K @ z
 
     @property
@@ -432,7 +438,8 @@ class EstimatorController(Controller):
 
     def disturbance(self, row: int = 0) -> np.ndarray:
         """The input-disturbance estimate ``d`` of a row (rad/s, command units): the mean wind
-        torque's effect."""
+        torque's effect.
+        """
         D = self._designs[row]
         n, nd = D.dm.n, D.n_d
         return self._xe[row, n:n + nd].copy() if nd else self._d_fixed[row].copy()

@@ -293,7 +293,8 @@ class MPCController(LQGController):
 
     def problem_for(self, design: LQGDesign) -> CondensedMPC:
         """The MPC problem of a design: built once per LQR state size (the direction-free and
-        the inferred gust models differ in filter states) and re-pointed otherwise."""
+        the inferred gust models differ in filter states) and re-pointed otherwise.
+        """
         nz = design.n_z
         if nz not in self._mpcs:
             self._mpcs[nz] = CondensedMPC(design, self.settings, fast=self.fast)

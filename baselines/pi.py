@@ -124,26 +124,30 @@ class PIController(Controller):
 
     def _implicit_batch(self, n: int) -> None:
         """A controller that has not stepped since its reset takes its number of rows from the
-        first batched call (:meth:`act` with ``(N, 12)``, :meth:`restart` with ``(N,)``)."""
+        first batched call (:meth:`act` with ``(N, 12)``, :meth:`restart` with ``(N,)``).
+        """
         if n != self.n and self._fresh.all():
             self.reset_batch(n)
 
     def restart(self, mask: np.ndarray) -> None:
         """Re-initialise the rows ``mask`` (sub-environments just reset) at the next
-        :meth:`act_batch`."""
+        :meth:`act_batch`.
+        """
         self._implicit_batch(int(np.size(mask)))
         self._fresh |= check_mask(mask, self.n)
 
     @property
     def _I(self) -> np.ndarray:
         """The integrator state ``I`` (rad s), shaped as :meth:`integral_action`
-        (``tests/test_agents_residual.py`` reads it under this name)."""
+        (``tests/test_agents_residual.py`` reads it under this name).
+        """
         return self._integral[0] if self._single else self._integral
 
     def integral_action(self) -> np.ndarray:
         """The integral part ``ki * I`` of the last command, in action units: ``(2,)`` after
         :meth:`act` with one observation (or :meth:`reset`), ``(n, 2)`` after a batch (or
-        :meth:`reset_batch`); zeros before the first step."""
+        :meth:`reset_batch`); zeros before the first step.
+        """
         out = self.ki * self._integral / self.action_scale
         return out[0] if self._single else out
 

@@ -72,7 +72,7 @@ def osqp_data(problem: cp.Problem, variable: cp.Variable) -> tuple[Any, np.ndarr
 
 
 def osqp_status_map() -> dict[int, str]:
-    """cvxpy's map from OSQP status values to cvxpy status strings."""
+    """Cvxpy's map from OSQP status values to cvxpy status strings."""
     try:
         from cvxpy.reductions.solvers.qp_solvers.osqp_qpif import OSQP as CvxpyOSQP
         status_map = dict(CvxpyOSQP.STATUS_MAP)

@@ -74,7 +74,8 @@ class CommandShaper:
 
     def __call__(self, c: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Shaped ``(c_s, v_s, acc_s)`` (each ``(n, 2)``) for the raw commands ``(c, v)`` of this
-        step (rad, rad/s; rad/s^2); ``acc_s`` is held over the coming period."""
+        step (rad, rad/s; rad/s^2); ``acc_s`` is held over the coming period.
+        """
         c, v = np.asarray(c, float), np.asarray(v, float)
         if c.shape != (self.n, 2) or v.shape != (self.n, 2):
             raise ValueError(f"shaper input must have shape ({self.n}, 2), got {c.shape} and {v.shape}")

@@ -138,7 +138,8 @@ class YardstickController(EstimatorController):
 
     def reset(self, seed: int | None = None) -> None:
         """New episode; it uses the wind of the last :meth:`set_scenario` (rows' winds of
-        :meth:`set_scenario_batch` are forgotten)."""
+        :meth:`set_scenario_batch` are forgotten).
+        """
         self._scenarios = None
         super().reset(seed)
 

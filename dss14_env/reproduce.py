@@ -95,7 +95,8 @@ _LOOP_CHANNELS = (("az", "c_a", "enc_az", "enc_el"), ("el", "c_e", "enc_el", "en
 
 def _row(report, model, accepted, note: str = "", calibrated: bool = False) -> dict:
     """One metrics entry; ``accepted`` is [lo, hi] (None: reported only); ``calibrated``: the
-    calibration solves for this quantity (a regression check, not evidence)."""
+    calibration solves for this quantity (a regression check, not evidence).
+    """
     ok = None if accepted is None else bool(accepted[0] <= model <= accepted[1])
     return {"report": report, "model": float(model), "accepted": accepted, "ok": ok, "note": note,
             "calibrated": calibrated}
@@ -192,7 +193,8 @@ def compute_metrics(m: DSS14Model, sweep_levels: int = 3) -> dict:
 # ------------------------------------------------------------------------------ diagnosis
 def rigid_structure_rate_loop(m: DSS14Model):
     """The model's rate loop with the structure cut to its 2 rigid-body modes (Eq. 55 with no
-    flexible mode kept): the drives on rigid axis inertias (and the product of inertia)."""
+    flexible mode kept): the drives on rigid axis inertias (and the product of inertia).
+    """
     full = m.structure_full
     rigid, _ = reduce_modes(full, 0, **reduction_scales(m.cfg, full))
     return rate_loop(m.drive("az"), m.drive("el"), rigid.to_ss())
@@ -201,7 +203,8 @@ def rigid_structure_rate_loop(m: DSS14Model):
 def rate_loop_pole_table(m: DSS14Model, f_max_hz: float = 1.0) -> dict:
     """Rate-loop poles below ``f_max_hz``, each assigned to the az or el channel r -> encoder
     rate by its residue (:func:`dss14_env.model.analysis.channel_poles`), for the model and for the
-    same drives on a rigid structure, with the kp 1 ... -3 dB bandwidths of both."""
+    same drives on a rigid structure, with the kp 1 ... -3 dB bandwidths of both.
+    """
     rigid = rigid_structure_rate_loop(m)
     out = {"f_max_hz": f_max_hz, "model": channel_poles(m.rate_loop, RATE_CHANNELS, f_max_hz),
            "rigid_structure": channel_poles(rigid, RATE_CHANNELS, f_max_hz), "bandwidth_hz": {}}
@@ -299,7 +302,8 @@ def compute_wind_metrics(m: DSS14Model, loads: WindLoads | None = None, gain_set
 
 def wind_load_summary(loads: WindLoads) -> dict:
     """The calibrated moment coefficients, the literature orders of magnitude beside them
-    (:data:`LITERATURE_MOMENT_COEFFICIENTS`) and the gust torques at the Table 4 speed."""
+    (:data:`LITERATURE_MOMENT_COEFFICIENTS`) and the gust torques at the Table 4 speed.
+    """
     coeff = {}
     for d, c in (("front", loads.c_front), ("side", loads.c_side)):
         for k, ax in enumerate(("az", "el")):
@@ -356,7 +360,8 @@ def metrics_markdown(metrics: dict) -> str:
 
 def results_markdown(results: dict) -> str:
     """``metrics.md``: the metrics table, the rate-loop poles, the viscosity sensitivity and
-    the wind-load coefficients."""
+    the wind-load coefficients.
+    """
     parts = ["# DSS-14 model vs report\n",
              "Rows marked (calibrated) are quantities the calibration solves for: regression checks.\n",
              metrics_markdown(results["metrics"])]
@@ -565,7 +570,8 @@ def bandwidth_rigid_markdown(results: dict) -> str:
 
 def doc_blocks(results: dict) -> dict[str, str]:
     """Every generated block of README.md, docs/model.md and docs/wind.md, keyed by its marker
-    name (``<!-- NAME:start -->`` ... ``<!-- NAME:end -->``)."""
+    name (``<!-- NAME:start -->`` ... ``<!-- NAME:end -->``).
+    """
     return {"reproduce-table": readme_table(results), "reproduce-table4": table4_markdown(results),
             "reproduce-wind-coefficients": wind_coefficients_markdown(results["wind_loads"]),
             "reproduce-wind-drive": wind_drive_markdown(results["wind_loads"]),
@@ -639,7 +645,8 @@ def _bode(ax_mag, f, curves, ylabel="magnitude", ax_phase=None):
 
 def rate_loop_figure(m: DSS14Model):
     """Fig. 17 as a Bode plot: magnitude and phase of r -> encoder rate, az and el (the
-    report prints the magnitude only; the phase shows the az lag)."""
+    report prints the magnitude only; the phase shows the az lag).
+    """
     rl = m.rate_loop
     fr = np.geomspace(1e-3, 100, 1500)
     fig, (a, b) = _figure(2, (7, 7))

@@ -51,7 +51,8 @@ OWNED_FILES: tuple[str, ...] = RESULT_FILES + FIGURES
 def prepare_out(plan: BenchPlan) -> None:
     """Check the output folder before any work: a file in the way, a folder that cannot be
     written, or earlier results without ``overwrite`` raise
-    :class:`dss14_env.core.outdir.OutputDirError` (one line naming the path)."""
+    :class:`dss14_env.core.outdir.OutputDirError` (one line naming the path).
+    """
     prepare_output_dir(plan.out, OWNED_FILES, overwrite=plan.overwrite, option="--out")
 
 

@@ -97,7 +97,8 @@ def _plant_params(k: int) -> tuple[tuple[str, float], ...]:
 def plant_params(k: int) -> dict[str, float]:
     """The hydraulic parameters of plant ``k`` (SI; names of
     :data:`dss14_env.model.uncertainty.SWEEP_PARAMS`): a stable draw over the report's ranges
-    from ``numpy.random.default_rng((k, 0))``.  A pure function of ``k`` (remembered)."""
+    from ``numpy.random.default_rng((k, 0))``.  A pure function of ``k`` (remembered).
+    """
     if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 0:
         raise ValueError(f"plant index must be a non-negative integer, got {k!r}")
     return dict(_plant_params(int(k)))
@@ -112,7 +113,8 @@ def episode_seed(k: int) -> int:
 @dataclass(frozen=True)
 class Condition:
     """One wind condition: mean speed (km/h) and direction (``"front"``, ``"side"`` or degrees
-    from the boresight)."""
+    from the boresight).
+    """
 
     speed_kmh: float
     direction: str | float

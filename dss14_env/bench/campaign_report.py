@@ -159,7 +159,8 @@ STAT_FIELDS = ("plant", "controller", "condition", "terminated", "failures", "fa
 def compact_results(results: Mapping[str, Any]) -> dict[str, Any]:
     """results.json less what the statistics do not read: per episode only :data:`STAT_FIELDS`
     and the 3σ servo error per axis (a small file to keep with the docs; :func:`summarise` on
-    its episodes gives its summary again)."""
+    its episodes gives its summary again).
+    """
     eps = [{**{k: ep[k] for k in STAT_FIELDS},
             "servo_error_mdeg": {ax: {"three_sigma": ep["servo_error_mdeg"][ax]["three_sigma"]}
                                  for ax in AXES}} for ep in results["episodes"]]
@@ -187,7 +188,8 @@ def _share(m: Mapping[str, Any]) -> str:
 
 def main_table(results: Mapping[str, Any]) -> str:
     """The Markdown table: per controller and condition the 3σ distribution, the shares that
-    meet each requirement and the health counts."""
+    meet each requirement and the health counts.
+    """
     c = results["campaign"]
     reqs = c["requirements_mdeg"]
     from dss14_env.bench.campaign import CampaignSpec

@@ -136,7 +136,8 @@ def _traces(ran: Mapping[str, Any], scenario: str) -> dict[str, dict[str, np.nda
 
 def plot_hold_histories(results: Mapping[str, Any], ran: Mapping[str, Any], path: Path) -> bool:
     """Servo-error time histories in the hold scenarios (first seed, every controller, az and
-    el); False when no hold scenario ran."""
+    el); False when no hold scenario ran.
+    """
     scens = [s for s in ("hold_front", "hold_side") if s in results["meta"]["scenarios"]]
     if not scens:
         return False
@@ -209,7 +210,8 @@ def plot_step_responses(results: Mapping[str, Any], ran: Mapping[str, Any], path
     """Encoder position vs time in the step scenario (first seed) with the command: full
     response above, the overshoot zoomed below, every controller in its own colour, line
     style and marker (markers staggered, so that equal responses stay visible); False when the
-    step scenario did not run."""
+    step scenario did not run.
+    """
     if "step" not in results["meta"]["scenarios"]:
         return False
     ctrls = results["meta"]["controllers"]
@@ -235,7 +237,8 @@ def plot_step_responses(results: Mapping[str, Any], ran: Mapping[str, Any], path
 
 def plot_wind_sweep(results: Mapping[str, Any], path: Path) -> bool:
     """3σ of the wind's axis vs mean wind speed per controller with 95 % confidence bands and
-    the yardstick's analytic curve (front wind: el, side wind: az); False without a sweep."""
+    the yardstick's analytic curve (front wind: el, side wind: az); False without a sweep.
+    """
     sw = results.get("wind_sweep")
     if not sw:
         return False

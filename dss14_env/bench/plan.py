@@ -249,7 +249,8 @@ def _is_int(x: Any) -> bool:
 
 def _seed_option(seeds: int | Sequence[str | int] | None) -> list[int] | None:
     """build_plan's ``seeds``: an int is a count, a sequence of ints the seeds themselves,
-    strings (command-line values) go through :func:`parse_seeds`."""
+    strings (command-line values) go through :func:`parse_seeds`.
+    """
     if seeds is None:
         return None
     if _is_int(seeds):
@@ -294,7 +295,8 @@ def _count(value: Any, option: str, low: int, what: str) -> int | None:
 def ppo_problem(path: str | Path | None) -> str | None:
     """Why the PPO policy at ``path`` (None: the shipped one) cannot be loaded, or None
     (:func:`dss14_env.agents.policy.policy_problem`: the folder's layout, and a foreign pickled
-    policy refused; nothing is loaded)."""
+    policy refused; nothing is loaded).
+    """
     from dss14_env.agents.policy import DEFAULT_POLICY, policy_problem
 
     return policy_problem(DEFAULT_POLICY if path is None else Path(path))

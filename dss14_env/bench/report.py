@@ -89,7 +89,8 @@ _SKIP = ("controller", "scenario", "limits")
 
 def episode_columns(episodes: Sequence[Mapping[str, Any]]) -> dict[str, dict[str, dict[str, list]]]:
     """The runner's episode dicts as ``{controller: {scenario: {metric path: [values]}}}``
-    (nested metrics flattened to dotted paths, e.g. ``servo_error_mdeg.el.three_sigma``)."""
+    (nested metrics flattened to dotted paths, e.g. ``servo_error_mdeg.el.three_sigma``).
+    """
     out: dict[str, dict[str, dict[str, list]]] = {}
     groups: dict[tuple[str, str], list[Mapping[str, Any]]] = {}
     for ep in episodes:
@@ -110,7 +111,8 @@ def episode_columns(episodes: Sequence[Mapping[str, Any]]) -> dict[str, dict[str
 
 def episode_rows(columns: Mapping[str, Mapping[str, Mapping[str, list]]]) -> list[dict[str, Any]]:
     """:func:`episode_columns` back into the runner's episode dicts (with ``controller`` and
-    ``scenario``)."""
+    ``scenario``).
+    """
     rows: list[dict[str, Any]] = []
     for c, scens in columns.items():
         for s, cols in scens.items():
@@ -133,7 +135,8 @@ def episode_rows(columns: Mapping[str, Mapping[str, Mapping[str, list]]]) -> lis
 def wind_sweep_curves(plan: BenchPlan, ran: Mapping[str, Any]) -> dict[str, Any]:
     """The sweep per direction: the wind's axis' pooled 3σ cell (value, interval, episodes)
     per controller and speed (None where the controller did not run), and the yardstick's
-    analytic expected 3σ."""
+    analytic expected 3σ.
+    """
     main, sweep = ran["main"], ran["sweep"]
     curves: dict[str, Any] = {}
     for d in plan.sweep_directions:
@@ -203,7 +206,8 @@ def _is_leafy(x: Any) -> bool:
 
 def _dumps(x: Any, indent: str = "") -> str:
     """JSON with one line per innermost dict (e.g. a figure with its interval) or per
-    controller x scenario of per-episode columns."""
+    controller x scenario of per-episode columns.
+    """
     if isinstance(x, dict) and x and not _is_leafy(x) and not _is_columns(x):
         inner = indent + " "
         items = ",\n".join(f"{inner}{json.dumps(str(k))}: {_dumps(v, inner)}" for k, v in x.items())
@@ -222,14 +226,16 @@ def _is_columns(x: dict) -> bool:
 
 def results_json(results: Mapping[str, Any]) -> str:
     """results.json's text: indented down to one line per figure (value, interval, episodes)
-    and one line per controller and scenario of per-episode columns."""
+    and one line per controller and scenario of per-episode columns.
+    """
     return _dumps(dict(results)) + "\n"
 
 
 # ------------------------------------------------------------------------------ numbers
 def fmt(x: Any, digits: int = 3) -> str:
     """A number for the tables: ``—`` for None/NaN, ``∞``, integers as they are, else
-    ``digits`` significant figures (no exponent; numbers below 0.01 with 4 decimals)."""
+    ``digits`` significant figures (no exponent; numbers below 0.01 with 4 decimals).
+    """
     if x is None:
         return "—"
     if isinstance(x, (int, np.integer)) and not isinstance(x, bool):
@@ -258,7 +264,8 @@ def _decimals(hw: float) -> int:
 def fmt_ci(cell: Mapping[str, Any] | None, digits: int = 3) -> str:
     """``value ± half-width`` of an estimate ``{"value", "ci95", "n_episodes"}``, rounded to
     the half-width's first significant digit (``2.80 ± 0.06``); a value without an interval
-    (one episode) is shown as ``0.50 (1 ep.)``."""
+    (one episode) is shown as ``0.50 (1 ep.)``.
+    """
     if cell is None:
         return "—"
     v = cell["value"]
@@ -282,7 +289,8 @@ def fmt_ci(cell: Mapping[str, Any] | None, digits: int = 3) -> str:
 
 def fmt_ratio(r: Mapping[str, Any] | None) -> str:
     """A ratio with its interval, ``0.19 [0.18, 0.20]``, and ``n.s.`` when the interval
-    contains 1."""
+    contains 1.
+    """
     if r is None or r.get("value") is None or math.isnan(float(r["value"])):
         return "—"
     lo, hi = (math.nan if x is None else float(x) for x in r["ci95"])
@@ -313,7 +321,8 @@ def _cell(results: Mapping[str, Any], c: str, s: str) -> Mapping[str, Any] | Non
 def main_table(results: Mapping[str, Any]) -> str:
     """3σ servo error az / el per controller and scenario, ``value ± 95 % half-width`` (the
     wind's axis in bold), with the episodes behind each row, and the yardstick's analytic
-    expected value."""
+    expected value.
+    """
     ctrls, scens = results["meta"]["controllers"], results["meta"]["scenarios"]
     yard = results["yardstick"]
     header = ["controller"] + [f"{s} az / el" for s in scens] + ["episodes per scenario"]
@@ -345,7 +354,8 @@ def main_table(results: Mapping[str, Any]) -> str:
 
 def ratio_table(results: Mapping[str, Any]) -> str | None:
     """The loaded axis of the hold scenarios (and the track's axes) over the reference
-    controller (paired, same seeds) and over the yardstick's analytic figure."""
+    controller (paired, same seeds) and over the yardstick's analytic figure.
+    """
     scens = results["meta"]["scenarios"]
     ref = results["meta"].get("reference")
     cols = [(s, ax) for s in scens for ax in LOADED_AXES.get(s, ())]
@@ -371,7 +381,8 @@ def ratio_table(results: Mapping[str, Any]) -> str | None:
 
 def precision_table(results: Mapping[str, Any]) -> str | None:
     """The loaded axis' 3σ in the hold scenarios: value, 95 % interval, its half-width in %
-    of the value, episodes and seconds of data."""
+    of the value, episodes and seconds of data.
+    """
     cols = [(s, ax) for s in results["meta"]["scenarios"] for ax in LOADED_AXES.get(s, ())]
     if not cols:
         return None
@@ -435,7 +446,8 @@ def sweep_tables(results: Mapping[str, Any]) -> list[str]:
 
 def error_table(results: Mapping[str, Any]) -> str:
     """Detail: servo errors (3σ, rms, peak) and the dish's true pointing error per controller
-    and scenario."""
+    and scenario.
+    """
     header = ["controller", "scenario", "3σ az", "3σ el", "rms az", "rms el", "peak az", "peak el",
               "pointing 3σ el", "pointing 3σ xel", "pointing peak el", "pointing peak xel"]
     rows = []
@@ -582,7 +594,8 @@ def results_markdown(results: Mapping[str, Any]) -> str:
 
 def readme_table(results: Mapping[str, Any]) -> str:
     """The README's bench section tables: the main table, the ratios and the step response of
-    a default run, with a line on how it was run."""
+    a default run, with a line on how it was run.
+    """
     b = results["bench"]
     cfg = b["config"]
     hold = cfg["runs"].get("hold_front") or next(iter(cfg["runs"].values()))

@@ -39,7 +39,8 @@ def controller_entries(plan: BenchPlan) -> list[Any]:
 
 def sweep_points(plan: BenchPlan) -> list[tuple[str, str, float, Scenario, str | None]]:
     """(name, direction, speed, scenario, the main scenario it equals or None) per sweep point
-    (equal: same environment keys, episode length and warm-up)."""
+    (equal: same environment keys, episode length and warm-up).
+    """
     pts = []
     for d in plan.sweep_directions:
         for v in plan.wind_speeds_kmh:
@@ -84,7 +85,8 @@ def _run_one(plan: BenchPlan, ctrls: list[Any], name: str, sc: Scenario, r: Scen
 
 def _expected_episodes(plan: BenchPlan, runs: list[ScenarioRun]) -> int:
     """Episodes of the run, counting ``mpc`` as the one controller that runs one at a time
-    (the progress bar's total; corrected as the run goes)."""
+    (the progress bar's total; corrected as the run goes).
+    """
     n = 0
     for r in runs:
         for c in plan.controllers:

@@ -141,7 +141,8 @@ def _shipped(name: str) -> Callable[[Any], Controller]:
 
 def known_unbatchable(factory: Callable[[Any], Controller]) -> bool:
     """True when the factory's controller class is known and not batchable (then a scenario
-    that gives such controllers no episodes need not build it)."""
+    that gives such controllers no episodes need not build it).
+    """
     where = getattr(factory, "controller_class", None)
     if where is None:
         return False
@@ -301,7 +302,8 @@ class _Batched:
 
 def batch_driver(ctrl: Controller) -> _Batched | None:
     """How the runner drives ``ctrl`` on the vector environment (its ``batchable`` interface),
-    or None: one episode at a time."""
+    or None: one episode at a time.
+    """
     return _Batched(ctrl) if getattr(ctrl, "batchable", False) else None
 
 
@@ -486,7 +488,8 @@ def _pooling(path: str) -> str | None:
 
 def _columns(episodes: Sequence[Mapping[str, Any]]) -> tuple[dict[str, list[float]], dict[str, str]]:
     """Per-episode values of every pooled metric, keyed by their path, and their pooling
-    (NaN where an episode lacks the metric, e.g. a step response on an axis without a step)."""
+    (NaN where an episode lacks the metric, e.g. a step response on an axis without a step).
+    """
     flats = [flatten({k: ep[k] for k in POOLING if k in ep}) for ep in episodes]
     paths: list[str] = []
     for f in flats:
@@ -558,7 +561,8 @@ def reference_ratios(episodes: Sequence[Mapping[str, Any]], reference: Sequence[
                      rng: np.random.Generator, n_resamples: int = N_RESAMPLES,
                      level: float = LEVEL) -> dict[str, Any]:
     """Pooled 3σ of ``episodes`` over the reference's, per axis, on the seeds both ran
-    (paired bootstrap)."""
+    (paired bootstrap).
+    """
     ref = {int(ep["seed"]): ep for ep in reference}
     common = [ep for ep in episodes if int(ep["seed"]) in ref]
     num = {ax: [ep["servo_error_mdeg"][ax]["three_sigma"] for ep in common] for ax in AXES}
@@ -570,7 +574,8 @@ def reference_ratios(episodes: Sequence[Mapping[str, Any]], reference: Sequence[
 
 def yardstick_ratios(summary: Mapping[str, Any], ref: Mapping[str, Any]) -> dict[str, Any]:
     """Pooled 3σ per axis over the yardstick's analytic (exact) expected 3σ; the interval is
-    the controller's, divided by the same number."""
+    the controller's, divided by the same number.
+    """
     out = {}
     for i, ax in enumerate(AXES):
         c = summary["servo_error_mdeg"][ax]["three_sigma"]
@@ -657,7 +662,8 @@ def _run_scenario(ctrls: list[tuple[str, Callable[[Any], Controller]]], sname: s
                   progress: Callable[[str, int], None] | None, reference: str | None, bootstrap_seed: int,
                   n_resamples: int) -> tuple[list[dict[str, Any]], dict[str, Any], Any, dict[str, Any]]:
     """Every controller on one scenario: its episodes, summary cells, yardstick reference and,
-    per controller, whether it ran batched and its wall time (s, building it included)."""
+    per controller, whether it ran batched and its wall time (s, building it included).
+    """
     envs = _ScenarioEnvs(kw, _make_env(kw), {})
     ref = yardstick_reference(sc, envs.single)
     by_ctrl: dict[str, list[dict[str, Any]]] = {}
@@ -770,7 +776,8 @@ def ratio(summary: Mapping[str, Any], num: str, den: str, scenario: str, axis: s
           stat: str = "three_sigma") -> float:
     """``summary[num][scenario]`` over ``summary[den][scenario]`` for the pooled value of a
     servo-error statistic on one axis (e.g. LQG over PI; ``vs_reference`` has it with its
-    interval)."""
+    interval).
+    """
     a = summary[num][scenario]["servo_error_mdeg"][axis][stat]["value"]
     b = summary[den][scenario]["servo_error_mdeg"][axis][stat]["value"]
     return float(a / b)

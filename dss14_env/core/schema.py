@@ -59,7 +59,8 @@ KINDS = ("number", "integer", "bool", "str", "list", "pair", "mapping", "any")
 
 class ConfigError(ValueError):
     """A configuration value is missing, malformed or out of range (one line naming the file
-    and the field)."""
+    and the field).
+    """
 
     def __init__(self, message: str) -> None:
         super().__init__(" ".join(str(message).split()))

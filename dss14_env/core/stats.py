@@ -139,7 +139,8 @@ class Ratio:
     @property
     def significant(self) -> bool | None:
         """True when the interval excludes 1, False when it contains 1, None without an
-        interval (fewer than 2 units)."""
+        interval (fewer than 2 units).
+        """
         if math.isnan(self.low) or math.isnan(self.high):
             return None
         return not (self.low <= 1.0 <= self.high)
@@ -217,7 +218,8 @@ def bootstrap_counts(n: int, rng: np.random.Generator, n_resamples: int = N_RESA
 
 def _replicates(values: np.ndarray, counts: np.ndarray, pooling: str) -> np.ndarray:
     """The pooled statistic of every resample: ``values`` (n,) or (n, m), counts (B, n) ->
-    (B,) or (B, m)."""
+    (B,) or (B, m).
+    """
     n = counts.shape[1]
     if pooling == "mean":
         return counts @ values / n
@@ -232,7 +234,8 @@ def _replicates(values: np.ndarray, counts: np.ndarray, pooling: str) -> np.ndar
 
 def percentile_interval(replicates: np.ndarray, level: float = LEVEL) -> tuple[np.ndarray, np.ndarray]:
     """The ``level`` percentile interval of bootstrap replicates along axis 0 (the
-    ``inverted_cdf`` quantiles, which stay defined when replicates are infinite)."""
+    ``inverted_cdf`` quantiles, which stay defined when replicates are infinite).
+    """
     q = ((1.0 - level) / 2.0, (1.0 + level) / 2.0)
     lo, hi = np.quantile(replicates, q, axis=0, method="inverted_cdf")
     return lo, hi

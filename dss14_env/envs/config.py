@@ -78,7 +78,8 @@ def _pair(unit: str, lo: float, hi: float, lo_open: bool = False) -> Any:
 @dataclass(frozen=True)
 class EnvConfig:
     """Validated settings of the environments (units in the field names; ``configs/env.yaml``
-    documents each key).  Build it with :func:`load_env_config`."""
+    documents each key).  Build it with :func:`load_env_config`.
+    """
 
     scenario: str = spec(None, kind="str", choices=SCENARIOS)
     dt: float = spec("s", lo=DT_RANGE[0], hi=DT_RANGE[1])
@@ -124,7 +125,8 @@ class EnvConfig:
     def source_of(self, key: str) -> str:
         """Where a key's value came from (a file, ``keyword arguments``, ``reset options``), for
         messages about it that only the environment can check (e.g. ``params`` against the
-        model's ranges)."""
+        model's ranges).
+        """
         return self.__dict__.get("_sources", {}).get(key, "<config>")
 
     def _with_sources(self, base: Mapping[str, str], keys: Any, source: str) -> EnvConfig:
@@ -217,7 +219,8 @@ class EnvConfig:
 
 def _check_params(params: Mapping[str, Any] | None, source: str) -> dict[str, float] | None:
     """``params``: names of :data:`dss14_env.model.uncertainty.SWEEP_PARAMS`, positive finite SI
-    values (the model's ranges are checked where the model is known, by the plant factory)."""
+    values (the model's ranges are checked where the model is known, by the plant factory).
+    """
     if params is None:
         return None
     out = {}

@@ -123,7 +123,8 @@ class StepConstants:
 
     def clamp_always(self, max_error_mdeg: float) -> bool:
         """Whether the observation bounds can be passed without terminating (encoder noise, or
-        bounds tighter than the error bound plus one count): then every step clamps."""
+        bounds tighter than the error bound plus one count): then every step clamps.
+        """
         me_q = max_error_mdeg + self.quantum * R2MD
         return (bool(self.encoder_sigma) or me_q / self.error_scale > OBS_ERROR_BOUND
                 or 2.0 * me_q * self.error_rate_scale > OBS_ERROR_RATE_BOUND)
@@ -227,7 +228,8 @@ def limit_commands(a: np.ndarray, r_prev: np.ndarray, k: StepConstants
 
 def start_action(r0: np.ndarray, k: StepConstants) -> np.ndarray:
     """The action ``a[-1]`` before the first step: the one that reproduces the start rate
-    command ``r0`` (rad/s), clipped to [-1, 1] as every action is."""
+    command ``r0`` (rad/s), clipped to [-1, 1] as every action is.
+    """
     return np.clip(r0 / k.action_scale, -1.0, 1.0)
 
 

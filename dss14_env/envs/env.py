@@ -48,7 +48,8 @@ __all__ = ["DSS14Env", "EnvState", "OBS_HIGH", "OBS_NAMES"]
 class EnvState:
     """A snapshot of an environment's dynamic state (:meth:`DSS14Env.get_state`): plant state,
     limiter memory, noise stream and generator, counters.  Restore it with ``set_state`` into
-    the environment it came from or a copy of it, any number of times."""
+    the environment it came from or a copy of it, any number of times.
+    """
 
     env_class: str
     data: dict
@@ -56,7 +57,8 @@ class EnvState:
 
 def snapshot(env: Any, attrs: dict[str, Any], names: tuple[str, ...], shared: tuple = ()) -> EnvState:
     """An :class:`EnvState` of ``env``: deep copies of ``attrs[name]`` for ``names``, except the
-    objects in ``shared`` (never changed in place), which are kept by reference."""
+    objects in ``shared`` (never changed in place), which are kept by reference.
+    """
     memo = {id(x): x for x in shared}
     return EnvState(type(env).__name__, copy.deepcopy({n: attrs[n] for n in names}, memo))
 
@@ -343,7 +345,8 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
 
     def _next_block(self, k0: int) -> None:
         """Per-step rows of steps ``k0 .. k0 + NOISE_BLOCK - 1`` (as lists of floats):
-        :func:`dss14_env.envs.scenarios.block_rows`."""
+        :func:`dss14_env.envs.scenarios.block_rows`.
+        """
         k = self.constants
         blk = block_rows(self.episode.traj, k0, k.dt, k.rate_limit,
                          draw_noise_block(self.np_random, self._rank, k.encoder_sigma > 0.0), k.encoder_sigma)
@@ -456,7 +459,8 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
     # ------------------------------------------------------------------ rendering
     def render(self) -> np.ndarray | None:
         """``rgb_array``: the plot of recent servo errors, rate commands and wind as an
-        ``(480, 640, 3)`` uint8 array; ``human``: redraw the window (returns None)."""
+        ``(480, 640, 3)`` uint8 array; ``human``: redraw the window (returns None).
+        """
         if self._renderer is None:
             gym.logger.warn("render() called without a render_mode; use render_mode='rgb_array' or 'human'")
             return None
@@ -477,7 +481,8 @@ DSS14Env.__doc__ = DSS14Env.__doc__.replace("{registered_ids}",
 
 def gust_divisor(kappa: np.ndarray, g0: float) -> tuple[bool, float]:
     """``(use_az, 1 / (kappa_axis g0))``: gust speed = gust torque of that axis times the factor
-    (the axis with the larger direction factor; factor 0 without wind)."""
+    (the axis with the larger direction factor; factor 0 without wind).
+    """
     k0, k1 = float(kappa[0]), float(kappa[1])
     use_az = abs(k0) >= abs(k1)
     k = k0 if use_az else k1

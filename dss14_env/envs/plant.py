@@ -203,7 +203,8 @@ class Plant:
 
     def _steady_state_operator(self) -> np.ndarray:
         """Linear map ``[x_wind (8), T_mean (2), v (2)] -> [x_rate (60), r (2)]`` of the
-        steady motion at encoder rate ``v`` with the encoders at zero (wind states frozen)."""
+        steady motion at encoder rate ``v`` with the encoders at zero (wind states frozen).
+        """
         nr, n = self.n_rate, self.n
         Arr, Arw = self.A[:nr, :nr], self.A[:nr, nr:]
         Br, BT = self.B_r[:nr], self.B_T[:nr]
@@ -334,7 +335,8 @@ class Plant:
     @cached_property
     def batch_step_matrix(self) -> np.ndarray:
         """Transposed fused map of the vector env (computed once, with one BLAS thread):
-        ``[x+, y+] = [x, r, T_mean, kappa_az xi, kappa_el xi] @ M^T``."""
+        ``[x+, y+] = [x, r, T_mean, kappa_az xi, kappa_el xi] @ M^T``.
+        """
         return _batch_step_matrix(self)
 
     def __repr__(self) -> str:
@@ -353,7 +355,8 @@ def step_buffers(M: np.ndarray, x0: np.ndarray, y0: np.ndarray) -> tuple[np.ndar
     """The two step buffers ``z = [r_a, r_e, 1, xi, u, y]`` of an episode map ``M``
     (:meth:`Plant.episode_map`), the first holding the one-copy start state ``x0`` and its
     outputs ``y0``; :func:`buffer_views` makes the views the step reads and writes
-    (:func:`dss14_env.envs.core.step_1`)."""
+    (:func:`dss14_env.envs.core.step_1`).
+    """
     n_in = M.shape[1]
     z0, z1 = np.zeros(n_in + N_STEP_OUTPUTS), np.zeros(n_in + N_STEP_OUTPUTS)
     z0[2] = z1[2] = 1.0
@@ -365,7 +368,8 @@ def step_buffers(M: np.ndarray, x0: np.ndarray, y0: np.ndarray) -> tuple[np.ndar
 def buffer_views(z: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``(z, input [r, 1, xi, u], state and outputs [u, y], outputs y)`` of one step buffer of
     an episode with ``m`` one-copy states (views, so that ``M @ input`` is written in place into
-    the other buffer's ``[u, y]``: one matrix-vector product per step, no copies)."""
+    the other buffer's ``[u, y]``: one matrix-vector product per step, no copies).
+    """
     n_in = z.shape[0] - N_STEP_OUTPUTS
     return z, z[:n_in], z[n_in - m:], z[n_in:]
 
@@ -448,7 +452,8 @@ class PlantFactory:
 
     def draw_params(self, rng: np.random.Generator) -> dict[str, float]:
         """A stable draw of the uncertain parameters of this model
-        (:func:`dss14_env.model.uncertainty.draw_stable_params`)."""
+        (:func:`dss14_env.model.uncertainty.draw_stable_params`).
+        """
         return draw_stable_params(rng, model=self.model)
 
     def __len__(self) -> int:
@@ -462,7 +467,8 @@ class PlantFactory:
 
     def __reduce__(self) -> tuple:
         """Pickled by reference: the shipped model's factory, or the one of a model file (built
-        again, or found in :data:`PLANT_FACTORIES`, on loading)."""
+        again, or found in :data:`PLANT_FACTORIES`, on loading).
+        """
         if self is default_plant_factory():
             return (default_plant_factory, ())
         if self.source is None:
@@ -506,7 +512,8 @@ class PlantFactories:
 @single_threaded
 def _build_plant(f: PlantFactory, wind_speed: float, dt: float, params: Mapping[str, float] | None) -> Plant:
     """A plant of ``f``'s model, built with one BLAS thread (the same bits whatever the caller's
-    threads, :mod:`dss14_env.core.threads`)."""
+    threads, :mod:`dss14_env.core.threads`).
+    """
     rl = perturbed_rate_loop(f.model, dict(params)) if params else f.model.rate_loop
     return Plant(rl, f.loads, wind_speed, dt, params, xel_scale=f.xel_scale)
 
@@ -518,7 +525,8 @@ PLANT_FACTORIES = PlantFactories()
 @lru_cache(maxsize=1)
 def default_plant_factory() -> PlantFactory:
     """The factory of the shipped model (:func:`dss14_env.model.default_model` and
-    :func:`dss14_env.wind.loads.default_wind_loads`), built once per process."""
+    :func:`dss14_env.wind.loads.default_wind_loads`), built once per process.
+    """
     return PlantFactory(default_model(), default_wind_loads())
 
 
@@ -543,5 +551,6 @@ def resolve_factory(model_config: Any) -> PlantFactory:
 
 def get_plant(wind_speed: float, dt: float, params: Mapping[str, float] | None = None) -> Plant:
     """The plant of the shipped model for a mean speed, period and parameter set
-    (``default_plant_factory().plant(...)``)."""
+    (``default_plant_factory().plant(...)``).
+    """
     return default_plant_factory().plant(wind_speed, dt, params)

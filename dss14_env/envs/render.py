@@ -49,7 +49,8 @@ class Renderer:
     def record(self, t: float, e_az: float, e_el: float, r_az: float, r_el: float,
                cd_az: float, cd_el: float, wind: float) -> None:
         """Add one sample: time (s), true servo errors (mdeg), applied and commanded rates
-        (deg/s), wind speed (m/s)."""
+        (deg/s), wind speed (m/s).
+        """
         for k, v in zip(_FIELDS, (t, e_az, e_el, r_az, r_el, cd_az, cd_el, wind), strict=True):
             self.hist[k].append(v)
 

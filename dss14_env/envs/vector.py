@@ -283,7 +283,8 @@ class DSS14VectorEnv(VectorEnv):
     def _rows(self, done: np.ndarray) -> np.ndarray:
         """This step's rows of :func:`dss14_env.envs.scenarios.block_rows` (command at t[k+1],
         encoder noise, normals), drawing the next noise blocks where due (not for the
-        sub-environments about to be reset)."""
+        sub-environments about to be reset).
+        """
         N, k, kc = self.num_envs, self._k_rank, self.constants
         j = self._j
         enc = kc.encoder_sigma > 0.0
@@ -316,7 +317,8 @@ class DSS14VectorEnv(VectorEnv):
 
     def _advance(self, R: np.ndarray, Xi: np.ndarray) -> np.ndarray:
         """The plant map of every sub-environment (one matrix product per plant): the outputs
-        ``(N, 4)`` at the step's end."""
+        ``(N, 4)`` at the step's end.
+        """
         n, k = self._n, self._k_rank
         Zs, Os, perm = self._Zs, self._Os, self._perm
         if perm is None:

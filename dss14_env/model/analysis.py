@@ -75,7 +75,8 @@ def bandwidth_hz(sys: ct.StateSpace, out: str, inp: str, f_lo: float = 1e-3, f_h
 
 def peak_frequencies(f: np.ndarray, mag: np.ndarray, min_prominence_db: float = 3.0) -> np.ndarray:
     """Frequencies of local maxima of ``mag`` that stand ``min_prominence_db`` above the
-    neighbouring minima (``scipy.signal.find_peaks`` on the dB curve)."""
+    neighbouring minima (``scipy.signal.find_peaks`` on the dB curve).
+    """
     import scipy.signal
     idx, _ = scipy.signal.find_peaks(20 * np.log10(mag), prominence=min_prominence_db)
     return f[idx]

@@ -108,7 +108,8 @@ def lumped_structure(cfg: ModelConfig, chain_scale: tuple[float, float] = (1.0, 
                      j_az_el: float = 0.0) -> LumpedStructure:
     """The lumped structure with the az chain springs scaled (calibration step 1): the lower
     half of the chain by ``chain_scale[0]``, the upper half by ``chain_scale[1]``; and the
-    tipping structure's product of inertia ``j_az_el`` (calibration step 4)."""
+    tipping structure's product of inertia ``j_az_el`` (calibration step 4).
+    """
     s = cfg.structure
     k = list(s.k_az_chain)
     half = len(k) // 2
@@ -119,7 +120,8 @@ def lumped_structure(cfg: ModelConfig, chain_scale: tuple[float, float] = (1.0, 
 
 def dominant_peaks(m: ModalModel, inp: str, out: str, n: int = 2, f_max: float = 3.0) -> np.ndarray:
     """Frequencies (Hz) of the ``n`` flexible modes with the largest resonance peak in the
-    channel ``inp -> out`` (peak height |c_r b| / (2 zeta omega)) below ``f_max``, ascending."""
+    channel ``inp -> out`` (peak height |c_r b| / (2 zeta omega)) below ``f_max``, ascending.
+    """
     ii, oi = m.inputs.index(inp), m.outputs.index(out)
     f = m.omega / (2 * np.pi)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -143,7 +145,8 @@ def calibrate_structure(cfg: ModelConfig) -> tuple[float, float]:
 
 def reduction_scales(cfg: ModelConfig, m: ModalModel) -> dict:
     """Input/output scales that make Eq. (55) unit-consistent: pinion torques to axis-torque
-    equivalents, pinion rates to axis-rate equivalents."""
+    equivalents, pinion rates to axis-rate equivalents.
+    """
     n_p = cfg.gearbox.n_p
     ins = np.array([n_p if i in ("T_a", "T_e") else 1.0 for i in m.inputs])
     outs = np.array([1.0 / n_p if o.startswith("pinion") else 1.0 for o in m.outputs])
@@ -225,7 +228,8 @@ def step_cross_coupling(pl, t_end: float = 40.0, n: int = 2001) -> float:
 
 def calibrate_cross_coupling(cfg: ModelConfig, scale, lam, kappa, k_g) -> float:
     """Product of inertia (calibration step 4) giving the Fig. 22 cross-coupling target with
-    the first gain set; log-linear secant on |j_az_el| (the peak is close to proportional)."""
+    the first gain set; log-linear secant on |j_az_el| (the peak is close to proportional).
+    """
     g = next(iter(cfg.gain_sets.values()))
     s = cfg.structure
     j_max = 0.5 * np.sqrt(s.j_tip_az * s.j_tip_el)
