@@ -19,7 +19,7 @@ import json
 import math
 import os
 import platform
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
@@ -317,6 +317,15 @@ def _cell(results: Mapping[str, Any], c: str, s: str) -> Mapping[str, Any] | Non
     return results["summary"].get(c, {}).get(s)
 
 
+def _cells(results: Mapping[str, Any]) -> Iterator[tuple[str, str, Mapping[str, Any]]]:
+    """Every (controller, scenario, summary) that the results hold, in table order."""
+    for c in results["meta"]["controllers"]:
+        for s in results["meta"]["scenarios"]:
+            x = _cell(results, c, s)
+            if x is not None:
+                yield c, s, x
+
+
 # ------------------------------------------------------------------------------ tables
 def main_table(results: Mapping[str, Any]) -> str:
     """3σ servo error az / el per controller and scenario, ``value ± 95 % half-width`` (the
@@ -451,14 +460,10 @@ def error_table(results: Mapping[str, Any]) -> str:
     header = ["controller", "scenario", "3σ az", "3σ el", "rms az", "rms el", "peak az", "peak el",
               "pointing 3σ el", "pointing 3σ xel", "pointing peak el", "pointing peak xel"]
     rows = []
-    for c in results["meta"]["controllers"]:
-        for s in results["meta"]["scenarios"]:
-            x = _cell(results, c, s)
-            if x is None:
-                continue
-            se, pe = x["servo_error_mdeg"], x["pointing_error_mdeg"]
-            rows.append([c, s] + [fmt_ci(se[ax][st]) for st in ("three_sigma", "rms", "max") for ax in AXES]
-                        + [fmt_ci(pe[ax][st]) for st in ("three_sigma", "max") for ax in ("el", "xel")])
+    for c, s, x in _cells(results):
+        se, pe = x["servo_error_mdeg"], x["pointing_error_mdeg"]
+        rows.append([c, s] + [fmt_ci(se[ax][st]) for st in ("three_sigma", "rms", "max") for ax in AXES]
+                    + [fmt_ci(pe[ax][st]) for st in ("three_sigma", "max") for ax in ("el", "xel")])
     return _table(header, rows)
 
 
@@ -467,19 +472,15 @@ def command_table(results: Mapping[str, Any]) -> str:
     header = ["controller", "scenario", "peak rate az / el (°/s)", "limit hits per episode rate / accel",
               "decision time median / p95 (ms)", "run", "fallbacks", "failures", "terminated"]
     rows = []
-    for c in results["meta"]["controllers"]:
-        for s in results["meta"]["scenarios"]:
-            x = _cell(results, c, s)
-            if x is None:
-                continue
-            rc, lh = x["rate_command_deg_s"], x["limit_hits"]["per_episode"]
-            batched = results["meta"].get("batched", {}).get(c)
-            rows.append([c, s,
-                         " / ".join(fmt_ci(rc[ax]["peak"]) for ax in AXES),
-                         f"{fmt_ci(lh['rate'])} / {fmt_ci(lh['accel'])}",
-                         " / ".join(fmt(x["controller_time_ms"][k]["value"], 2) for k in ("median", "p95")),
-                         "batched" if batched else "one at a time",
-                         str(x["fallbacks"]), str(x["failures"]), str(x["terminated"])])
+    for c, s, x in _cells(results):
+        rc, lh = x["rate_command_deg_s"], x["limit_hits"]["per_episode"]
+        batched = results["meta"].get("batched", {}).get(c)
+        rows.append([c, s,
+                     " / ".join(fmt_ci(rc[ax]["peak"]) for ax in AXES),
+                     f"{fmt_ci(lh['rate'])} / {fmt_ci(lh['accel'])}",
+                     " / ".join(fmt(x["controller_time_ms"][k]["value"], 2) for k in ("median", "p95")),
+                     "batched" if batched else "one at a time",
+                     str(x["fallbacks"]), str(x["failures"]), str(x["terminated"])])
     return _table(header, rows)
 
 
