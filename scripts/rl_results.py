@@ -121,6 +121,8 @@ def build(runs: Path, out: Path, refs: Path, figures: Path) -> None:
             print(f"skipping {key}: no {camp / 'summary.json'}")
             continue
         summary = json.loads((camp / "summary.json").read_text())
+        if "/configs/" in summary.get("config", ""):  # a checkout's path: the shipped config's
+            summary["config"] = "configs/" + summary["config"].rsplit("/configs/", 1)[1]
         seed_runs = [camp / f"seed_{e['seed_index']}" for e in summary["per_seed"]]
         val = [_best_validation(r) for r in seed_runs]
         pick = int(np.argmax(val))
