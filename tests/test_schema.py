@@ -87,6 +87,22 @@ def test_yaml_syntax_error_is_a_config_error_with_position(tmp_path: Path) -> No
     assert msg.startswith(f"{p}: not valid YAML (line") and "\n" not in msg
 
 
+@pytest.mark.parametrize("text,key,line", [
+    ("lr: 1.0e-4\ngamma: 0.99\nlr: 3.0e-4\n", "lr", 3),
+    ("env_kwargs:\n  wind_speed_kmh: 30\n  wind_speed_kmh: 70\n", "wind_speed_kmh", 3),
+    ("sweep: {lr: [1, 2], lr: [3]}\n", "lr", 1),
+])
+def test_a_repeated_key_is_refused_with_its_line(text: str, key: str, line: int, tmp_path: Path) -> None:
+    path = tmp_path / "twice.yaml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=rf"twice.yaml: not valid YAML \(line {line}, column \d+\): "
+                                          rf"the key '{key}' appears twice"):
+        read_config(path)
+    # the same keys once each read as usual
+    path.write_text("lr: 1.0e-4\ngamma: 0.99\nenv_kwargs: {wind_speed_kmh: 30}\n")
+    assert read_config(path)[0] == {"lr": 1e-4, "gamma": 0.99, "env_kwargs": {"wind_speed_kmh": 30}}
+
+
 def test_python_tags_are_not_built(tmp_path: Path) -> None:
     p = tmp_path / "evil.yaml"
     p.write_text("a: !!python/object/apply:os.system ['true']\n")

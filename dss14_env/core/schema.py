@@ -425,15 +425,37 @@ def default_config_path(name: str = "model.yaml") -> Path:
     return Path(str(resources.files("dss14_env.configs").joinpath(name)))
 
 
+class UniqueKeySafeLoader(yaml.SafeLoader):
+    """``yaml.SafeLoader`` that refuses a mapping with the same key twice (plain YAML keeps the
+    last value silently, so a repeated field would override the first without a word).
+    """
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict:
+        """The mapping of ``node``; a repeated key raises a ``ConstructorError`` at its line."""
+        seen: set = set()
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=True)
+            try:
+                repeated = key in seen
+            except TypeError:  # an unhashable key: SafeLoader's own error follows
+                break
+            if repeated:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"the key {key!r} appears twice in one mapping", key_node.start_mark)
+            seen.add(key)
+        return super().construct_mapping(node, deep=deep)
+
+
 def read_config(name_or_path: str | Path) -> tuple[dict[str, Any], str]:
     """Read a YAML configuration (a path or a shipped name, :func:`config_path`).
 
-    Parsed with ``yaml.safe_load`` (no Python objects are ever built from a file).
+    Parsed with ``yaml.safe_load``'s loader (no Python objects are ever built from a file),
+    refusing a key repeated in one mapping (:class:`UniqueKeySafeLoader`).
 
     :return: ``(mapping, source)``: the top-level mapping (empty for an empty file) and the
         file's path as a string, for messages
-    :raises ConfigError: missing file, YAML syntax error (with line and column), a top level
-        that is not a mapping
+    :raises ConfigError: missing file, YAML syntax error or a repeated key (with line and
+        column), a top level that is not a mapping
     """
     path = config_path(name_or_path)
     source = str(path)
@@ -442,7 +464,7 @@ def read_config(name_or_path: str | Path) -> tuple[dict[str, Any], str]:
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{source}: cannot be read ({exc})") from None
     try:
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=UniqueKeySafeLoader)  # noqa: S506 - a SafeLoader
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         at = f" (line {mark.line + 1}, column {mark.column + 1})" if mark is not None else ""
