@@ -40,12 +40,12 @@ import numpy as np
 import yaml
 
 from dss14_env.agents.config import TrainConfig, as_config
-from dss14_env.agents.envs import resolve_env
+from dss14_env.agents.envs import check_env, resolve_env
 from dss14_env.agents.evaluation import DSS14_TASKS, TEST_SEEDS, TEST_STEPS, EvalTask, run_task
 from dss14_env.agents.policy import load_policy
 from dss14_env.agents.train import train
 from dss14_env.core.outdir import atomic_write_bytes, atomic_write_text, prepare_output_dir
-from dss14_env.core.parallel import Executor, SerialExecutor
+from dss14_env.core.parallel import Executor, SerialExecutor, pinned_threads
 from dss14_env.core.stats import iqm_ci
 
 #: distance between the training seeds of two seed indices
@@ -298,6 +298,8 @@ def train_seeds(config: TrainConfig | Mapping[str, Any] | str | Path, seeds: Seq
                          f"(dss14_env.agents.sweep.train_sweep)")
     seeds = [int(k) for k in seeds]
     campaign_tasks(cfg)  # an environment the tasks cannot be made of: before any work
+    with pinned_threads(1):  # a training environment that cannot be made: before any work
+        check_env(cfg)
     folder, finished = open_campaign(cfg, out, seeds, overwrite, resume)
     items = seed_items(cfg, folder, seeds, finished, test_seeds, test_steps)
     ex = executor if executor is not None else SerialExecutor()

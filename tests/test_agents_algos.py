@@ -204,3 +204,11 @@ def test_interrupted_campaign_continues(tmp_path: Path, capsys: pytest.CaptureFi
     assert main(["train", "ppo", "--config", str(path), "--seeds", "0", "--continue",
                  "--out", str(tmp_path / "empty")]) == 2
     assert "no campaign to continue" in capsys.readouterr().err
+
+
+def test_a_campaign_with_a_bad_environment_fails_before_any_work(tmp_path: Path) -> None:
+    cfg = {**COMMON, **RUNS["ppo_frame_stack"], "env_kwargs": {"max_episode_steps": 100,
+                                                               "wind_speed_kmh": "gale"}}
+    with pytest.raises(ValueError, match=r"wind_speed_kmh"):
+        train_seeds(cfg, [0, 1], tmp_path / "c")
+    assert not (tmp_path / "c").exists()
