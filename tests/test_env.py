@@ -205,11 +205,14 @@ def test_unknown_config_key_raises_naming_it() -> None:
     ({"wind_direction": "north"}, "wind_direction"),
     ({"dt": 0.01}, "dt"),  # not an episode key
     ({"foo": 1}, "foo"),
+    ({1: 2}, "^reset options: field 1: must be an episode key"),  # not a string: named, not a KeyError
+    ({None: "x" * 500}, r"^reset options: field None: must be an episode key .*\.\.\.$"),
 ])
 def test_bad_reset_option_raises_naming_it(options: dict, match: str) -> None:
     env = DSS14Env()
-    with pytest.raises(ValueError, match=match):
+    with pytest.raises(ValueError, match=match) as err:
         env.reset(seed=0, options=options)
+    assert "\n" not in str(err.value)
 
 
 def test_reset_options_apply_to_one_episode_only() -> None:
