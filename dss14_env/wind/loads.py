@@ -45,13 +45,14 @@ from scipy import linalg, optimize, signal
 
 from dss14_env.core.schema import ConfigError, Param, load_section, read_config, spec
 from dss14_env.core.threads import single_threaded
-from dss14_env.core.units import rad_to_mdeg
+from dss14_env.core.units import WIND_DIRECTIONS, rad_to_mdeg
 from dss14_env.model.assembly import DSS14Model, default_model
 from dss14_env.model.linsys import balance, discretize, noise_factor
 from dss14_env.model.loops import WIND_INPUTS
 from dss14_env.wind.gusts import davenport_filter
 
-DIRECTIONS = {"front": 0.0, "side": 0.5 * math.pi}
+#: the named wind directions, rad (one definition: :data:`dss14_env.core.units.WIND_DIRECTIONS`)
+DIRECTIONS = WIND_DIRECTIONS
 ERROR_OUTPUTS = ("e_a", "e_e")  # servo errors at the encoders, az and el (position loop)
 
 
