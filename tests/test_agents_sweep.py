@@ -29,6 +29,7 @@ from dss14_env.agents.envs import check_env
 from dss14_env.agents.sweep import train_sweep
 from dss14_env.agents.train import train
 from dss14_env.cli import main
+from dss14_env.core.outdir import MANIFEST
 from dss14_env.core.schema import ConfigError
 
 #: a training run of about a second (Pendulum: no DSS14 model to build)
@@ -340,7 +341,7 @@ def test_a_sweep_and_a_campaign_do_not_mix_in_one_folder(swept: Path, tmp_path: 
         train_seeds(TINY, [0], out, figures=False, **TEST)
     train_seeds({**TINY, "total_timesteps": 64, "eval_freq": 0}, [0], out, overwrite=True, figures=False,
                 test_seeds=(0,))
-    assert sorted(p.name for p in out.iterdir()) == ["config.yaml", "seed_0", "summary.json"]
+    assert sorted(p.name for p in out.iterdir()) == ["config.yaml", MANIFEST, "seed_0", "summary.json"]
 
 
 def test_overwrite_takes_only_the_sweeps_own_point_folders(swept: Path, tmp_path: Path) -> None:
@@ -350,5 +351,5 @@ def test_overwrite_takes_only_the_sweeps_own_point_folders(swept: Path, tmp_path
     (out / "point_07").mkdir()
     train_seeds({**TINY, "total_timesteps": 64, "eval_freq": 0}, [0], out, overwrite=True, figures=False,
                 test_seeds=(0,))
-    assert sorted(p.name for p in out.iterdir()) == ["config.yaml", "notes=keep", "point_07", "seed_0",
-                                                      "summary.json"]
+    assert sorted(p.name for p in out.iterdir()) == ["config.yaml", MANIFEST, "notes=keep", "point_07",
+                                                      "seed_0", "summary.json"]

@@ -21,6 +21,7 @@ from dss14_env.bench import report as R
 from dss14_env.bench import runner
 from dss14_env.bench.run import sweep_points
 from dss14_env.bench.threads import blas_threads
+from dss14_env.core.outdir import MANIFEST, prepare_output_dir, update_manifest
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_RESULTS = ROOT / "docs" / "results" / "bench_default.json"
@@ -184,8 +185,11 @@ def test_unwritable_out_fails_before_any_work(tmp_path, capsys, no_work, monkeyp
 
 def test_a_used_folder_is_refused_unless_overwrite(tmp_path, capsys, monkeypatch) -> None:
     out = tmp_path / "out"
-    out.mkdir()
-    for name in ("results.json", "results.md", F.FIGURES[1], "mine.png", "notes.txt"):
+    prepare_output_dir(out, B.OWNED_FILES)  # an earlier bench: its files in its manifest
+    for name in ("results.json", "results.md", F.FIGURES[1]):
+        (out / name).write_text("old")
+    update_manifest(out)
+    for name in ("mine.png", "notes.txt"):  # the user's, written after
         (out / name).write_text("old")
     started: list = []
     monkeypatch.setattr(B, "run_plan", lambda *a, **k: started.append(1) or (_ for _ in ()).throw(
@@ -196,7 +200,7 @@ def test_a_used_folder_is_refused_unless_overwrite(tmp_path, capsys, monkeypatch
     # --overwrite clears exactly what the bench owns, then the run starts
     assert cli.main(["bench", "--quick", "--out", str(out), "--overwrite"]) == 2
     assert started and "stop here" in capsys.readouterr().err
-    assert sorted(p.name for p in out.iterdir()) == ["mine.png", "notes.txt"]
+    assert sorted(p.name for p in out.iterdir()) == [MANIFEST, "mine.png", "notes.txt"]
 
 
 # ------------------------------------------------------------------ a tiny run

@@ -57,9 +57,16 @@ from typing import Any
 import numpy as np
 
 from dss14_env.bench import runner
-from dss14_env.core.outdir import OutputDirError, atomic_write_text, prepare_output_dir
+from dss14_env.core.outdir import (
+    OutputDirError,
+    atomic_write_text,
+    manifest_kept,
+    prepare_output_dir,
+    reopen_output_dir,
+)
 from dss14_env.core.parallel import Executor, SerialExecutor
 from dss14_env.core.units import DEG, WIND_DIRECTIONS
+from dss14_env.envs.config import WIND_SPEED_MAX_KMH
 
 #: the controllers of a campaign by default
 DEFAULT_CONTROLLERS = ("pi_kp1", "lqg", "mpc")
@@ -241,8 +248,11 @@ def check_spec(spec: CampaignSpec) -> None:
     if not spec.wind_speeds_kmh:
         raise CampaignOptionError("--wind-speeds: give at least one speed in km/h")
     for s in spec.wind_speeds_kmh:
-        if isinstance(s, bool) or not isinstance(s, (int, float)) or not (math.isfinite(s) and 0 < s <= 150):
-            raise CampaignOptionError(f"--wind-speeds: speeds are in km/h, > 0 and <= 150, got {s!r}")
+        if isinstance(s, bool) or not isinstance(s, (int, float)) or not (
+                math.isfinite(s) and 0 < s <= WIND_SPEED_MAX_KMH):
+            raise CampaignOptionError(f"--wind-speeds: {s!r} km/h is outside (0, "
+                                      f"{WIND_SPEED_MAX_KMH:g}] km/h, the environment's "
+                                      f"wind_speed_kmh range (WIND_SPEED_MAX_KMH)")
     if len(set(spec.wind_speeds_kmh)) != len(spec.wind_speeds_kmh):
         raise CampaignOptionError(f"--wind-speeds: a speed is repeated: {list(spec.wind_speeds_kmh)}")
     if not spec.directions:
@@ -441,11 +451,11 @@ def open_campaign(spec: CampaignSpec, out: str | os.PathLike, resume: bool = Fal
             raise CampaignOptionError(f"--resume: {out} holds a campaign with other options ("
                                       f"{'; '.join(spec_differences(old, spec))}); pass the same "
                                       f"options, --overwrite to replace it, or choose another folder")
-        prepare_output_dir(out, owned=())  # still a writable folder
+        reopen_output_dir(out, OWNED)  # still a writable folder; its manifest kept
         (out / "chunks").mkdir(exist_ok=True)
         return out, finished_chunks(out, spec)
     prepare_output_dir(out, OWNED, overwrite=overwrite)
-    (out / "chunks").mkdir()
+    (out / "chunks").mkdir(exist_ok=True)
     atomic_write_text(cj, json.dumps({"format": FORMAT, "spec": spec.as_dict(),
                                       "fingerprint": spec.fingerprint()}, indent=1) + "\n")
     return out, {}
@@ -519,8 +529,34 @@ def run_campaign(spec: CampaignSpec, out: str | os.PathLike = "campaign_out",
     from dss14_env.bench import campaign_report as report
 
     reqs = report.check_requirements(requirements)
+    check_policy(spec)
     t0 = time.perf_counter()
     out, done = open_campaign(spec, out, resume=resume, overwrite=overwrite)
+    with manifest_kept(out):
+        return _run_in(spec, out, done, executor, reqs, figures, progress, command, t0)
+
+
+def check_policy(spec: CampaignSpec) -> None:
+    """Refuse a ``ppo`` policy that cannot act on a DSS14 environment (missing path, unreadable
+    files, another environment's sizes) before any work.
+
+    :raises CampaignOptionError: one line naming ``--ppo-model`` and the problem
+    """
+    if "ppo" not in spec.controllers:
+        return
+    from dss14_env.agents.policy import DEFAULT_POLICY, dss14_policy_problem
+
+    problem = dss14_policy_problem(spec.ppo_model or DEFAULT_POLICY)
+    if problem is not None:
+        raise CampaignOptionError(f"--ppo-model: {problem}")
+
+
+def _run_in(spec: CampaignSpec, out: Path, done: dict[int, dict[str, Any]],
+            executor: Executor | Callable[[], Executor] | None, reqs: Mapping[str, float],
+            figures: bool, progress: bool, command: str | None, t0: float) -> dict[str, Any]:
+    """The campaign in its opened folder (:func:`run_campaign`)."""
+    from dss14_env.bench import campaign_report as report
+
     resumed = sorted(done)
     owned = executor is None or (callable(executor) and not hasattr(executor, "map_unordered"))
     ex = SerialExecutor() if executor is None else (executor() if owned else executor)

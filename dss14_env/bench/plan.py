@@ -16,6 +16,7 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import math
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,6 +26,7 @@ import numpy as np
 
 from dss14_env.bench import runner
 from dss14_env.bench.runner import SCENARIOS, Scenario
+from dss14_env.envs.config import WIND_SPEED_MAX_KMH
 
 #: control periods per second (the environment's 50 Hz)
 STEPS_PER_S = 50
@@ -262,7 +264,8 @@ def _seed_option(seeds: int | Sequence[str | int] | None) -> list[int] | None:
 
 
 def parse_wind_speeds(values: Sequence[str | float] | None) -> list[float] | None:
-    """``--wind-speeds``: mean wind speeds of the sweep, km/h, each in (0, 150], sorted.
+    """``--wind-speeds``: mean wind speeds of the sweep, km/h, each in (0, 90] (the
+    environment's own bound, :data:`dss14_env.envs.config.WIND_SPEED_MAX_KMH`), sorted.
 
     :raises BenchOptionError: not numbers, out of range or repeated
     """
@@ -276,8 +279,10 @@ def parse_wind_speeds(values: Sequence[str | float] | None) -> list[float] | Non
             x = float(v)
         except (TypeError, ValueError):
             raise BenchOptionError(f"--wind-speeds: {v!r} is not a number (km/h)") from None
-        if not (math.isfinite(x) and 0.0 < x <= 150.0):
-            raise BenchOptionError(f"--wind-speeds: speeds are in km/h, > 0 and <= 150, got {v}")
+        if not (math.isfinite(x) and 0.0 < x <= WIND_SPEED_MAX_KMH):
+            raise BenchOptionError(f"--wind-speeds: {v} km/h is outside (0, {WIND_SPEED_MAX_KMH:g}] "
+                                   f"km/h, the environment's wind_speed_kmh range "
+                                   f"(WIND_SPEED_MAX_KMH)")
         speeds.append(x)
     if len(set(speeds)) != len(speeds):
         raise BenchOptionError(f"--wind-speeds: a speed is repeated: {values}")
@@ -293,13 +298,35 @@ def _count(value: Any, option: str, low: int, what: str) -> int | None:
 
 
 def ppo_problem(path: str | Path | None) -> str | None:
-    """Why the PPO policy at ``path`` (None: the shipped one) cannot be loaded, or None
-    (:func:`dss14_env.agents.policy.policy_problem`: the folder's layout, and a foreign pickled
-    policy refused; nothing is loaded).
+    """Why the PPO policy at ``path`` (None: the shipped one) cannot run in the bench, or None
+    (:func:`dss14_env.agents.policy.dss14_policy_problem`: the folder's layout, a foreign
+    pickled policy refused, its files loaded, and its observation and action sizes those of a
+    DSS14 environment).
     """
-    from dss14_env.agents.policy import DEFAULT_POLICY, policy_problem
+    from dss14_env.agents.policy import DEFAULT_POLICY, dss14_policy_problem
 
-    return policy_problem(DEFAULT_POLICY if path is None else Path(path))
+    return dss14_policy_problem(DEFAULT_POLICY if path is None else Path(path))
+
+
+#: least scored time of an episode after its warm-up, s: a 3-sigma needs data
+MIN_SCORED_S = 1.0
+
+
+def _check_steps(steps: int | None, scenarios: Sequence[str], sweep: bool) -> None:
+    """Refuse ``--steps`` that leaves less than :data:`MIN_SCORED_S` after a scenario's warm-up
+    (every cell of the tables would be empty).
+    """
+    if steps is None:
+        return
+    warm = [(SCENARIOS[s].warmup_s, s) for s in scenarios]
+    if sweep and any(s.startswith("hold") for s in scenarios):
+        warm.append((SWEEP_WARMUP_S, "the wind sweep"))
+    w, name = max(warm)
+    need = int(round((w + MIN_SCORED_S) * STEPS_PER_S))
+    if steps < need:
+        raise BenchOptionError(f"--steps: {steps} control periods ({steps / STEPS_PER_S:g} s) leave "
+                               f"less than {MIN_SCORED_S:g} s after the {w:g}-s warm-up of {name}; "
+                               f"give --steps {need} or more")
 
 
 def _run_for(budget: Budget, seeds: list[int] | None, steps: int | None, sequential: int | None,
@@ -363,6 +390,9 @@ def build_plan(controllers: Sequence[str] | None = None, scenarios: Sequence[str
     sweep_n = _count(sweep_seeds, "--sweep-seeds", 1, "the number of episodes per sweep point")
     seq = _count(sequential_episodes, "--sequential-episodes", 0, "the number of episodes")
     threads = _count(threads, "--threads", 1, "the number of BLAS threads")
+    if threads is not None and threads > (os.cpu_count() or 1):
+        raise BenchOptionError(f"--threads: {threads} BLAS threads, this machine has "
+                               f"{os.cpu_count() or 1} CPUs")
     notes: list[str] = []
     explicit_ppo = controllers is not None and "ppo" in ctrl
     if ctrl is None:
@@ -379,6 +409,7 @@ def build_plan(controllers: Sequence[str] | None = None, scenarios: Sequence[str
                          f"(give --ppo-model PATH to bench a trained policy)")
             ctrl = [c for c in ctrl if c != "ppo"]
     scen = list(DEFAULT_SCENARIOS) if scen is None else scen
+    _check_steps(steps, scen, sweep)
     budgets = QUICK_BUDGETS if quick else DEFAULT_BUDGETS
     runs = {s: _run_for(budgets[s], seed_list, steps, seq, s) for s in scen}
     sb = QUICK_SWEEP if quick else DEFAULT_SWEEP
