@@ -26,6 +26,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from dss14_env.envs.config import load_env_config
 from dss14_env.envs.presets import PRESETS
 
 #: the seed ranges of the protocol (see the module doc)
@@ -56,13 +57,14 @@ class EvalTask:
 
 
 def dss14_tasks(env_kwargs: Mapping[str, Any] | None = None) -> list[EvalTask]:
-    """The benchmark's hold scenarios as evaluation tasks (with ``env_kwargs`` laid over)."""
-    out = []
-    for name, axis in (("hold_front", "el"), ("hold_side", "az")):
-        p = PRESETS[name]
-        out.append(EvalTask(name, p.env_id, dict(env_kwargs or {}), axis,
-                            int(round(p.warmup_s * 50))))
-    return out
+    """The benchmark's scenarios with one loaded axis (the presets' ``loaded_axes``: the hold
+    scenarios) as evaluation tasks, with ``env_kwargs`` laid over; the warm-up in steps of the
+    environment's ``dt``.
+    """
+    kw = dict(env_kwargs or {})
+    dt = float(kw["dt"]) if "dt" in kw else load_env_config().dt
+    return [EvalTask(name, p.env_id, kw, p.loaded_axes[0], int(round(p.warmup_s / dt)))
+            for name, p in PRESETS.items() if len(p.loaded_axes) == 1]
 
 
 #: the DSS14 evaluation tasks: hold in 50 km/h front wind (elevation), side wind (azimuth)
