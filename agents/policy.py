@@ -234,9 +234,9 @@ def _label(files: PolicyFiles, algo: str) -> str:
     return f"{ALGO_LABELS.get(algo, algo)} ({name})"
 
 
-#: what a policy's ``config.yaml`` must state (the rest may take its defaults): the network is
-#: rebuilt from them
-POLICY_KEYS = ("algo", "env_id", "net_arch")
+#: what a policy's ``config.yaml`` must state (the rest may take its defaults: a policy of the
+#: PPO-only version states no ``algo``): the network is rebuilt from them
+POLICY_KEYS = ("env_id", "net_arch")
 
 
 def check_resolved(path: Path) -> None:

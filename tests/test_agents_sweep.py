@@ -60,7 +60,7 @@ def _numbers(summary: dict) -> dict:
 
 # ------------------------------------------------------------------ grid and labels
 def test_grid_is_the_cartesian_product_in_key_order() -> None:
-    cfg = TrainConfig.from_dict({**TINY, "sweep": {"learning_rate": ["1e-4", 3e-4],
+    cfg = TrainConfig.from_dict({**TINY, "sweep": {"learning_rate": [1e-4, 3e-4],
                                                    "log_std_init": [-2.5, -1.5, 0]}})
     assert cfg.sweep == {"learning_rate": [1e-4, 3e-4], "log_std_init": [-2.5, -1.5, 0.0]}
     points = cfg.points()
@@ -261,7 +261,7 @@ def test_sweep_writes_a_campaign_per_point_and_a_consistent_sweep_json(swept: Pa
     report = _json(swept / "sweep.json")
     labels = ["learning_rate=0.0003", "learning_rate=0.01"]
     assert sorted(p.name for p in swept.iterdir()) == sorted(["config.yaml", "sweep.json", "sweep.md",
-                                                              *labels])
+                                                              MANIFEST, *labels])
     assert TrainConfig.from_dict(yaml.safe_load((swept / "config.yaml").read_text())) == \
         TrainConfig.from_dict({**TINY, "sweep": SWEEP})
     assert report["sweep"] == SWEEP and report["seed_indices"] == SEEDS
@@ -270,7 +270,7 @@ def test_sweep_writes_a_campaign_per_point_and_a_consistent_sweep_json(swept: Pa
         sub = swept / p["folder"]
         assert p["values"] == {"learning_rate": lr}
         assert {q.name for q in sub.iterdir()} == {"config.yaml", "summary.json", "curves_eval.png",
-                                                   "seed_0", "seed_1"}
+                                                   "seed_0", "seed_1", MANIFEST}
         assert yaml.safe_load((sub / "config.yaml").read_text())["learning_rate"] == lr
         summary = _json(sub / "summary.json")
         assert summary["training_seeds"] == report["training_seeds"] == [0, 1000]

@@ -299,7 +299,7 @@ def test_a_seeds_campaign_interrupted_gives_the_campaign_command(tmp_path: Path,
         raise KeyboardInterrupt
 
     monkeypatch.setattr(campaign, "train", stop)
-    cfg = _write(tmp_path / "c.yaml", {**TINY, "checkpoint_freq": 0})
+    cfg = _write(tmp_path / "c.yaml", {**TINY, "checkpoint_freq": 0, "eval_freq": 64})
     out = tmp_path / "camp"
     assert cli.main(["train", "ppo", "--config", str(cfg), "--seeds", "0-1", "--out", str(out)]) == 130
     err = _one_line(capsys, "continue with:")
@@ -313,7 +313,8 @@ def test_a_seeds_campaign_interrupted_gives_the_campaign_command(tmp_path: Path,
 
 
 def test_continue_is_the_same_as_resume_for_a_campaign(tmp_path: Path, capsys) -> None:
-    cfg = _write(tmp_path / "c.yaml", {**TINY, "checkpoint_freq": 0, "total_timesteps": 128})
+    cfg = _write(tmp_path / "c.yaml", {**TINY, "checkpoint_freq": 0, "eval_freq": 64,
+                                       "total_timesteps": 128})
     out = tmp_path / "camp"
     assert cli.main(["train", "ppo", "--config", str(cfg), "--seeds", "0", "--out", str(out)]) == 0
     kept = (out / "seed_0" / "policy.pt").stat().st_mtime_ns

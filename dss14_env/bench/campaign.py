@@ -65,6 +65,7 @@ from dss14_env.core.outdir import (
     manifest_kept,
     prepare_output_dir,
     reopen_output_dir,
+    update_manifest,
 )
 from dss14_env.core.parallel import Executor, SerialExecutor
 from dss14_env.core.units import DEG, WIND_DIRECTIONS
@@ -471,6 +472,7 @@ def open_campaign(spec: CampaignSpec, out: str | os.PathLike, resume: bool = Fal
     (out / "chunks").mkdir(exist_ok=True)
     atomic_write_text(cj, json.dumps({"format": FORMAT, "spec": spec.as_dict(),
                                       "fingerprint": spec.fingerprint()}, indent=1) + "\n")
+    update_manifest(out)
     return out, {}
 
 

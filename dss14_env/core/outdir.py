@@ -106,13 +106,25 @@ def _listed(folder: Path) -> set[Path]:
         out.add(os.path.join(root, MANIFEST))
         out.update(os.path.join(root, rel) for rel in data.get("files", [])
                    if isinstance(rel, str) and not os.path.isabs(rel))
-        since = data.get("started_ns")
-        if not isinstance(since, int):
-            continue
-        for e in _owned_entries(Path(root), [o for o in data.get("owned", []) if isinstance(o, str)]):
-            if e.is_dir() and not e.is_symlink():
-                out.update(str(q) for q in _files_under(e) if _mtime_ns(q) >= since)
+        out.update(str(q) for q in _written_since_claim(Path(root), data, dirs_only=True))
     return {Path(os.path.normpath(q)) for q in out}
+
+
+def _written_since_claim(root: Path, data: dict, dirs_only: bool = False) -> list[Path]:
+    """The files under a manifest's owned names (only inside owned folders with ``dirs_only``)
+    written since the run claimed ``root`` and not there before.
+    """
+    since = data.get("started_ns")
+    if not isinstance(since, int):
+        return []
+    before = {x for x in data.get("preexisting", []) if isinstance(x, str)}
+    out = []
+    for e in _owned_entries(root, [o for o in data.get("owned", []) if isinstance(o, str)]):
+        if dirs_only and (e.is_symlink() or not e.is_dir()):
+            continue
+        out += [q for q in _files_under(e)
+                if _mtime_ns(q) >= since and q.relative_to(root).as_posix() not in before]
+    return out
 
 
 def _mtime_ns(q: Path) -> int:
@@ -207,9 +219,18 @@ def prepare_output_dir(path: str | os.PathLike, owned: Iterable[str], overwrite:
     for e in entries:
         _prune_empty(e)
     if claim:
-        _write_manifest(p, {"format": MANIFEST_FORMAT, "owned": list(owned),
-                            "started_ns": started_ns, "files": []})
+        _claim(p, owned, started_ns)
     return p
+
+
+def _claim(p: Path, owned: tuple[str, ...], started_ns: int) -> None:
+    """Start a run's manifest: its owned names, the file system's time, and the files already
+    under those names (the user's, left alone: never counted as the run's, whatever their time).
+    """
+    before = sorted(q.relative_to(p).as_posix() for e in _owned_entries(p, owned)
+                    for q in _files_under(e))
+    _write_manifest(p, {"format": MANIFEST_FORMAT, "owned": list(owned), "started_ns": started_ns,
+                        "preexisting": before, "files": []})
 
 
 def reopen_output_dir(path: str | os.PathLike, owned: Iterable[str], option: str = "--out") -> Path:
@@ -222,8 +243,7 @@ def reopen_output_dir(path: str | os.PathLike, owned: Iterable[str], option: str
     p = Path(path)
     started_ns = _check_writable(p, option)
     if _read_manifest(p / MANIFEST) is None:
-        _write_manifest(p, {"format": MANIFEST_FORMAT, "owned": list(owned),
-                            "started_ns": started_ns, "files": []})
+        _claim(p, tuple(owned), started_ns)
     return p
 
 
@@ -266,11 +286,8 @@ def update_manifest(path: str | os.PathLike) -> list[str]:
     data = _read_manifest(p / MANIFEST)
     if data is None:
         return []
-    since = int(data.get("started_ns", 0))
     files = {f for f in data.get("files", []) if isinstance(f, str) and (p / f).exists()}
-    for e in _owned_entries(p, data.get("owned", [])):
-        files.update(q.relative_to(p).as_posix() for q in _files_under(e)
-                     if _mtime_ns(q) >= since)
+    files.update(q.relative_to(p).as_posix() for q in _written_since_claim(p, data))
     data["files"] = sorted(files)
     _write_manifest(p, data)
     return data["files"]
