@@ -69,7 +69,6 @@ from dss14_env.core.outdir import (
 )
 from dss14_env.core.parallel import Executor, SerialExecutor
 from dss14_env.core.units import DEG, WIND_DIRECTIONS
-from dss14_env.envs.config import WIND_SPEED_MAX_KMH
 
 #: the controllers of a campaign by default (the catalog's campaign rows)
 DEFAULT_CONTROLLERS = catalog.controller_names("campaign")
@@ -256,6 +255,8 @@ def _check_controllers(names: Sequence[str]) -> None:
 
 def check_spec(spec: CampaignSpec) -> None:
     """Raise :class:`CampaignOptionError` naming the first bad option."""
+    from dss14_env.envs.config import WIND_SPEED_MAX_KMH  # (the environment, loaded when used)
+
     _check_controllers(spec.controllers)
     _positive_int(spec.plants, "--plants")
     _positive_int(spec.first_plant, "--first-plant", 0)

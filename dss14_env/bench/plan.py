@@ -27,7 +27,6 @@ import numpy as np
 
 from dss14_env.bench import catalog
 from dss14_env.bench.catalog import SCENARIO_ROWS, Budget, ControllerRow, Scenario
-from dss14_env.envs.config import WIND_SPEED_MAX_KMH
 
 #: per scenario, the default run's budget and the ``--quick`` one (the catalog's rows)
 DEFAULT_BUDGETS: Mapping[str, Budget] = MappingProxyType({r.name: r.default for r in SCENARIO_ROWS})
@@ -237,6 +236,8 @@ def parse_wind_speeds(values: Sequence[str | float] | None) -> list[float] | Non
 
     :raises BenchOptionError: not numbers, out of range or repeated
     """
+    from dss14_env.envs.config import WIND_SPEED_MAX_KMH  # (the environment, loaded when used)
+
     if values is None:
         return None
     if len(values) == 0:

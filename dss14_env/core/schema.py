@@ -147,10 +147,11 @@ class Spec:
         else:
             what = "an integer" if self.kind == "integer" else "a number"
             bounds = []
+            fmt = (lambda x: f"{int(x)}") if self.kind == "integer" else (lambda x: f"{x:g}")
             if self.lo is not None:
-                bounds.append(f"{'>' if self.lo_open else '>='} {self.lo:g}")
+                bounds.append(f"{'>' if self.lo_open else '>='} {fmt(self.lo)}")
             if self.hi is not None:
-                bounds.append(f"{'<' if self.hi_open else '<='} {self.hi:g}")
+                bounds.append(f"{'<' if self.hi_open else '<='} {fmt(self.hi)}")
             if bounds:
                 what += " " + " and ".join(bounds)
             if self.unit not in (None, "1"):
