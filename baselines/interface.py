@@ -21,6 +21,7 @@ import numpy as np
 
 from dss14_env.core.units import DEG, MDEG
 from dss14_env.envs.config import load_env_config
+from dss14_env.envs.core import OBS
 
 
 @dataclass(frozen=True)
@@ -61,7 +62,7 @@ class ControlInterface:
 
     @classmethod
     def from_config(cls, cfg: Any) -> ControlInterface:
-        """From a :class:`dss14_env.envs.scenarios.EnvConfig` (or anything with its key names)."""
+        """From a :class:`dss14_env.envs.config.EnvConfig` (or anything with its key names)."""
         return cls(float(cfg.dt), cfg.action_scale_deg_s * DEG, cfg.rate_limit_deg_s * DEG,
                    cfg.accel_limit_deg_s2 * DEG, cfg.error_scale_mdeg * MDEG,
                    float(cfg.action_change_weight), cfg.encoder_bits, cfg.encoder_noise_mdeg * MDEG)
@@ -119,4 +120,5 @@ class ObservationReader:
 
     def read(self, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         rl = self.interface.rate_limit
-        return obs[:, 8:10] * DEG, obs[:, 4:6] * DEG, obs[:, 6:8] * rl, obs[:, 10:12] * rl
+        return (obs[:, OBS.encoder] * DEG, obs[:, OBS.command] * DEG, obs[:, OBS.command_rate] * rl,
+                obs[:, OBS.prev_rate] * rl)

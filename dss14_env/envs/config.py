@@ -40,6 +40,9 @@ SCENARIOS = ("hold", "step", "track", "slew")
 AXES_CHOICES = ("az", "el", "both")
 #: named wind directions besides an angle in rad (``wind_direction``)
 DIRECTION_CHOICES = ("front", "side", "random")
+#: what the reward scores (``reward``): the servo error at the drive encoders ([R] Table 4's
+#: quantity) or the dish's true pointing error (el and xel, deformation included)
+REWARD_CHOICES = ("servo", "pointing")
 
 #: Largest mean wind speed, km/h (assumed).  The DSN antennas stop tracking and are stowed in
 #: high wind, so the model is meant for operating winds: the report's Table 4 is at 50 km/h and
@@ -89,6 +92,7 @@ class EnvConfig:
     error_scale_mdeg: float = spec("mdeg", lo=1.0e-3, hi=1.0e6)
     encoder_bits: int | None = spec("1", kind="integer", lo=8, hi=40, optional=True)
     encoder_noise_mdeg: float = spec("mdeg", lo=0.0, hi=1.0e3)
+    reward: str = spec(None, kind="str", choices=REWARD_CHOICES)
     action_change_weight: float = spec("1", lo=0.0, hi=1.0e6)
     termination_penalty: float = spec("1", lo=0.0, hi=1.0e9)
     max_error_deg: float = spec("deg", lo=0.0, lo_open=True, hi=180.0)
@@ -205,16 +209,22 @@ class EnvConfig:
         if not isinstance(options, Mapping):
             raise ConfigError(f"reset options: must be a mapping of episode keys or None, got "
                               f"{type(options).__name__}")
-        bad = sorted(set(map(str, options)) - EPISODE_KEYS)
+        bad = sorted((k for k in options if not isinstance(k, str) or k not in EPISODE_KEYS), key=repr)
         if bad:
-            raise ConfigError(f"reset options: field '{bad[0]}': must be an episode key (one of "
-                              f"{', '.join(sorted(EPISODE_KEYS))}), got {options[bad[0]]!r}")
+            raise ConfigError(f"reset options: field {bad[0]!r}: must be an episode key (one of "
+                              f"{', '.join(sorted(EPISODE_KEYS))}), got {_short(options[bad[0]])}")
         return self.updated(options, "reset options")
 
     def as_dict(self) -> dict[str, Any]:
         """The keys and values (lists for pairs and grids), as in ``configs/env.yaml``."""
         return {f.name: (list(v) if isinstance(v := getattr(self, f.name), tuple) else v)
                 for f in dataclasses.fields(self)}
+
+
+def _short(value: Any) -> str:
+    """``repr(value)`` on one line of at most 80 characters."""
+    text = " ".join(repr(value).split())
+    return text if len(text) <= 80 else text[:77] + "..."
 
 
 def _check_params(params: Mapping[str, Any] | None, source: str) -> dict[str, float] | None:
