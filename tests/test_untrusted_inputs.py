@@ -312,6 +312,20 @@ def test_a_seeds_campaign_interrupted_gives_the_campaign_command(tmp_path: Path,
     assert json.loads((out / "summary.json").read_text())["seed_indices"] == [0, 1]
 
 
+def test_an_interrupted_campaign_gives_its_command(tmp_path: Path, monkeypatch, capsys) -> None:
+    from dss14_env.bench import campaign as C
+
+    def stop(*a, **k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(C, "run_chunks", stop)
+    out = tmp_path / "c"
+    argv = ["campaign", "--plants", "1", "--steps", "300", "--controllers", "pi_kp1", "--out", str(out)]
+    assert cli.main([*argv, "--overwrite"]) == 130
+    err = _one_line(capsys, "continue with:")
+    assert err.endswith("continue with: dss14 " + " ".join(argv) + " --resume")
+
+
 def test_continue_is_the_same_as_resume_for_a_campaign(tmp_path: Path, capsys) -> None:
     cfg = _write(tmp_path / "c.yaml", {**TINY, "checkpoint_freq": 0, "eval_freq": 64,
                                        "total_timesteps": 128})
