@@ -26,7 +26,7 @@ from dss14_env.agents.interface import (
     PolicyInterface,
 )
 from dss14_env.agents.policy import PolicyController, load_policy
-from dss14_env.agents.train import selection_score, train
+from dss14_env.agents.train import selection_key, selection_score, train
 from dss14_env.baselines.lqg import LQGController
 from dss14_env.bench.runner import run
 
@@ -232,31 +232,38 @@ def test_three_sigma_score_scales_and_orders(front: list, side: list, c: float) 
     assert selection_score(cfg, r, worse) < s
 
 
-def test_training_keeps_the_best_validation_three_sigma(tmp_path: Path) -> None:
+@pytest.mark.parametrize("select_by", ["three_sigma", "pointing"])
+def test_training_keeps_the_best_validation_three_sigma(tmp_path: Path, select_by: str) -> None:
+    """eval/best is the evaluation with the lowest geometric mean of the holds' validation 3σ
+    of the selected error (servo, or pointing), and that policy scores that 3σ again."""
     cfg = {"algo": "ppo", "env_id": "DSS14-Plain-v0",
            "env_kwargs": {"max_episode_steps": 100, "action_scale_deg_s": 0.02, "history": 2},
            "n_envs": 2, "n_steps": 64, "batch_size": 64, "n_epochs": 1, "net_arch": [8],
            "total_timesteps": 384, "eval_freq": 128, "eval_seeds": [1000],
-           "eval_episode_steps": 300, "select_by": "three_sigma", "checkpoint_freq": 0,
+           "eval_episode_steps": 300, "select_by": select_by, "checkpoint_freq": 0,
            "progress_bar": False, "verbose": 0}
+    key = selection_key(TrainConfig.from_dict(cfg))
+    assert key == ("pointing_three_sigma_mdeg" if select_by == "pointing" else "three_sigma_mdeg")
     run_dir = train(cfg, run_dir=tmp_path / "run")
     with np.load(run_dir / "eval" / "evaluations.npz") as d:
         score = d["selection_score"]
-        geo = -np.sqrt(d["three_sigma_mdeg_hold_front"].mean(1) * d["three_sigma_mdeg_hold_side"].mean(1))
+        geo = -np.sqrt(d[f"{key}_hold_front"].mean(1) * d[f"{key}_hold_side"].mean(1))
         assert d["timesteps"].tolist() == [128, 256, 384]
+        # both errors are recorded whatever selects, and they differ
+        assert not np.allclose(d["three_sigma_mdeg_hold_side"], d["pointing_three_sigma_mdeg_hold_side"])
     np.testing.assert_allclose(score, geo)
     best = load_policy(run_dir / "eval" / "best")
     res = run_task(best, DSS14_TASKS[0], [1000], 300)
     k = int(np.argmax(score))
     with np.load(run_dir / "eval" / "evaluations.npz") as d:
-        np.testing.assert_allclose(res["three_sigma_mdeg"], d["three_sigma_mdeg_hold_front"][k],
-                                   rtol=1e-6)
+        np.testing.assert_allclose(res[key], d[f"{key}_hold_front"][k], rtol=1e-6)
 
 
 # ------------------------------------------------------------------------------ scoring
 def test_campaign_scoring_equals_the_benchmark_runner() -> None:
     """run_task (the campaign's test scoring, batched through act_batch) gives the runner's 3σ
-    for a policy trained at another action scale (converted on the way)."""
+    servo and pointing errors for a policy trained at another action scale (converted on the
+    way)."""
     import torch
 
     from dss14_env.agents.algos import build_policy
@@ -273,7 +280,9 @@ def test_campaign_scoring_equals_the_benchmark_runner() -> None:
                 ["hold_side"], seeds=[0, 1], steps=steps)
     ref = [e["servo_error_mdeg"]["az"]["three_sigma"] for e in bench["episodes"]]
     np.testing.assert_allclose(res["three_sigma_mdeg"], ref, rtol=1e-6)  # float32 BLAS order
-    assert not res["terminated"].any()
+    ref_p = [e["pointing_error_mdeg"]["xel"]["three_sigma"] for e in bench["episodes"]]
+    np.testing.assert_allclose(res["pointing_three_sigma_mdeg"], ref_p, rtol=1e-6)
+    assert DSS14_TASKS[1].pointing_axis == "xel" and not res["terminated"].any()
 
 
 @pytest.mark.parametrize("features", [("command", "disturbance"), ("law", "command")])
