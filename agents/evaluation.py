@@ -29,6 +29,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from dss14_env.envs.config import load_env_config
 from dss14_env.envs.presets import PRESETS
 
 #: the seed ranges of the protocol (see the module doc)
@@ -38,8 +39,8 @@ TRAINING_SEED_START = 10_000
 #: the final evaluation: test seeds and episode length (60 s at 50 Hz)
 TEST_SEEDS = tuple(range(10))
 TEST_STEPS = 3000
-#: the holds and the axes each is scored on: servo error (az/el), pointing error (el/xel)
-HOLD_AXES = {"hold_front": ("el", "el"), "hold_side": ("az", "xel")}
+#: the pointing-error axis swung with each loaded drive axis: elevation, cross-elevation
+POINTING_AXIS_OF = {"el": "el", "az": "xel"}
 
 
 @dataclass(frozen=True)
@@ -64,13 +65,16 @@ class EvalTask:
 
 
 def dss14_tasks(env_kwargs: Mapping[str, Any] | None = None) -> list[EvalTask]:
-    """The benchmark's hold scenarios as evaluation tasks (with ``env_kwargs`` laid over)."""
-    out = []
-    for name, (axis, pointing) in HOLD_AXES.items():
-        p = PRESETS[name]
-        out.append(EvalTask(name, p.env_id, dict(env_kwargs or {}), axis,
-                            int(round(p.warmup_s * 50)), pointing))
-    return out
+    """The benchmark's scenarios with one loaded axis (the presets' ``loaded_axes``: the hold
+    scenarios) as evaluation tasks, with ``env_kwargs`` laid over; the warm-up in steps of the
+    environment's ``dt``; the pointing error scored on the axis the wind swings
+    (:data:`POINTING_AXIS_OF`).
+    """
+    kw = dict(env_kwargs or {})
+    dt = float(kw["dt"]) if "dt" in kw else load_env_config().dt
+    return [EvalTask(name, p.env_id, kw, p.loaded_axes[0], int(round(p.warmup_s / dt)),
+                     POINTING_AXIS_OF[p.loaded_axes[0]])
+            for name, p in PRESETS.items() if len(p.loaded_axes) == 1]
 
 
 #: the DSS14 evaluation tasks: hold in 50 km/h front wind (elevation), side wind (azimuth)
@@ -165,6 +169,6 @@ def check_seed_protocol(seed: int, n_envs: int, eval_seeds: Sequence[int], sourc
                          f"the test or training seeds), got {bad}")
 
 
-__all__ = ["DSS14_TASKS", "EvalTask", "HOLD_AXES", "TEST_SEEDS", "TEST_SEED_RANGE", "TEST_STEPS",
+__all__ = ["DSS14_TASKS", "EvalTask", "POINTING_AXIS_OF", "TEST_SEEDS", "TEST_SEED_RANGE", "TEST_STEPS",
            "TRAINING_SEED_START", "VALIDATION_SEED_RANGE", "check_seed_protocol", "dss14_tasks",
            "run_task"]

@@ -7,6 +7,8 @@ import sys
 import time
 from typing import Any
 
+from dss14_env.bench import catalog
+
 
 def _reproduce(args: argparse.Namespace) -> int:
     """Write everything, then exit 1 when a row with an accepted range is outside it."""
@@ -137,7 +139,7 @@ def _campaign(args: argparse.Namespace) -> int:
 
     where = "Ray " + (f"at {args.address}" if args.address else "(local)") if use_ray else "in-process"
     print(f"campaign: {spec.plants} plants x {len(spec.conditions)} wind conditions x "
-          f"{len(spec.controllers)} controllers = {spec.n_episodes} episodes of {spec.steps} steps, "
+          f"{len(spec.names)} controllers = {spec.n_episodes} episodes of {spec.steps} steps, "
           f"{len(spec.chunks())} chunks, {where}", flush=True)
     try:
         res = C.run_campaign(spec, args.out, executor=executor, requirements=reqs, resume=args.resume,
@@ -165,9 +167,11 @@ def _add_campaign_parser(sub: Any) -> None:
     p.add_argument("--first-plant", type=int, default=None, metavar="K",
                    help="index of the first plant (default 0): plants K .. K+N-1")
     p.add_argument("--controllers", nargs="+", metavar="NAME", default=None,
-                   help="pi_kp1 pi_kp0.7 lqg mpc yardstick ppo (default: pi_kp1 lqg mpc)")
+                   help=catalog.choices_help(catalog.controller_names(),
+                                             catalog.controller_names("campaign")))
     p.add_argument("--ppo-model", default=None, metavar="PATH",
-                   help="the ppo controller's policy (default: the shipped one)")
+                   help=f"a trained policy instead of the {catalog.POLICY_OPTION_ROW} row's "
+                   "shipped one, scored under its own name (its folder's)")
     p.add_argument("--wind-speeds", nargs="+", metavar="KMH", default=None,
                    help="mean wind speeds, km/h (default 50)")
     p.add_argument("--directions", nargs="+", metavar="DIR", default=None,
@@ -254,10 +258,10 @@ def main(argv: list[str] | None = None) -> int:
                    help="episodes of the controllers that run one at a time (MPC): the first M seeds "
                    "of every scenario and sweep point (default: each scenario's, e.g. 16 for hold)")
     p.add_argument("--controllers", nargs="+", metavar="NAME", default=None,
-                   help="pi_kp1 pi_kp0.7 lqg mpc ppo ppo_plain ppo_residual_lqg yardstick "
-                   "(default: all but yardstick)")
+                   help=catalog.choices_help(catalog.controller_names(),
+                                             catalog.controller_names("bench")))
     p.add_argument("--scenarios", nargs="+", metavar="NAME", default=None,
-                   help="hold_front hold_side step track slew (default: all)")
+                   help=catalog.choices_help(catalog.scenario_names(), catalog.scenario_names("bench")))
     p.add_argument("--wind-speeds", nargs="+", metavar="KMH", default=None,
                    help="speeds of the error-vs-wind sweep, km/h (default: 30 40 50 60 70)")
     p.add_argument("--no-sweep", action="store_true", help="skip the error-vs-wind sweep")
@@ -265,10 +269,11 @@ def main(argv: list[str] | None = None) -> int:
                    help="episodes per sweep point of the batched controllers (default 32)")
     p.add_argument("--steps", type=int, default=None,
                    help="episode length of every scenario and sweep point, control periods "
-                   "(default: the scenario's; 50 per second)")
+                   "(default: the scenario's; one period is the environment's dt)")
     p.add_argument("--ppo-model", default=None, metavar="PATH",
-                   help="trained policy folder (run folder, eval/best or a checkpoint folder; "
-                   "default: the shipped policy)")
+                   help=f"a trained policy (run folder, eval/best or a checkpoint folder) instead of "
+                   f"the {catalog.POLICY_OPTION_ROW} row's shipped one, scored under its own name "
+                   "(its folder's)")
     p.add_argument("--randomize", action="store_true",
                    help="randomised plant parameters every episode (randomize_params=True)")
     p.add_argument("--threads", type=int, default=1, metavar="N",

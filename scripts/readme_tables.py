@@ -1,12 +1,14 @@
-"""Write the README's bench table from the committed default results (or check it).
+"""Write the README's and docs/bench.md's generated tables (or check them).
 
-The table between ``<!-- bench-table:start -->`` and ``<!-- bench-table:end -->`` in
-README.md is rendered by :func:`dss14_env.bench.report.readme_table` from
-``docs/results/bench_default.json``, the results.json of a default ``dss14 bench`` run::
+Every region between ``<!-- NAME:start -->`` and ``<!-- NAME:end -->`` of :data:`REGIONS` in
+README.md and docs/bench.md is rendered: the bench tables by
+:func:`dss14_env.bench.report.readme_table` from ``docs/results/bench_default.json`` (the
+results.json of a default ``dss14 bench`` run), the controller and scenario tables from the
+catalog (:mod:`dss14_env.bench.catalog`)::
 
     dss14 bench --out bench_out && cp bench_out/results.json docs/results/bench_default.json
-    python scripts/readme_tables.py            # rewrite the table
-    python scripts/readme_tables.py --check    # exit 1 if README.md and the results disagree
+    python scripts/readme_tables.py            # rewrite the tables
+    python scripts/readme_tables.py --check    # exit 1 if a file and its sources disagree
 
 ``tests/test_bench.py`` runs the check.
 """
@@ -17,45 +19,78 @@ import argparse
 import json
 import re
 import sys
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
+from dss14_env.bench.catalog import controllers_table, scenarios_table
 from dss14_env.bench.report import readme_table
 
 ROOT = Path(__file__).resolve().parents[1]
-START, END = "<!-- bench-table:start -->", "<!-- bench-table:end -->"
+#: the generated regions by name: their renderer (given the default results)
+REGIONS: dict[str, Callable[[Any], str]] = {
+    "bench-table": readme_table,
+    "catalog-controllers": lambda _: controllers_table(),
+    "catalog-scenarios": lambda _: scenarios_table(),
+}
+#: the region every README must have
+README_REGION = "bench-table"
 
 
-def render(readme: str, results: dict) -> str:
-    """README text with the table region replaced by the one rendered from ``results``."""
-    pattern = re.compile(re.escape(START) + r"\n.*?" + re.escape(END), re.S)
-    if not pattern.search(readme):
-        raise ValueError(f"README has no {START} ... {END} region")
-    return pattern.sub(lambda _: f"{START}\n{readme_table(results)}{END}", readme, count=1)
+def _markers(name: str) -> tuple[str, str]:
+    return f"<!-- {name}:start -->", f"<!-- {name}:end -->"
+
+
+def render(text: str, results: Any, required: tuple[str, ...] = ()) -> str:
+    """``text`` with every region of :data:`REGIONS` it has rendered anew.
+
+    :raises ValueError: a region of ``required`` is missing
+    """
+    for name, fn in REGIONS.items():
+        start, end = _markers(name)
+        pattern = re.compile(re.escape(start) + r"\n.*?" + re.escape(end), re.S)
+        if not pattern.search(text):
+            if name in required:
+                raise ValueError(f"no {start} ... {end} region")
+            continue
+        table = fn(results)
+        text = pattern.sub(lambda _, t=table, s=start, e=end: f"{s}\n{t}{e}", text, count=1)
+    return text
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--readme", default=str(ROOT / "README.md"))
+    ap.add_argument("--bench-doc", default=str(ROOT / "docs" / "bench.md"),
+                    help="the bench's manual (its generated regions; '' to skip)")
     ap.add_argument("--results", default=str(ROOT / "docs" / "results" / "bench_default.json"))
     ap.add_argument("--check", action="store_true",
-                    help="exit 1 if the README's table is not the rendered one")
+                    help="exit 1 if a file's tables are not the rendered ones")
     args = ap.parse_args(argv)
-    readme = Path(args.readme)
+    files = [(Path(args.readme), (README_REGION,))]
+    if args.bench_doc:
+        files.append((Path(args.bench_doc), ()))
+    status = 0
     try:
-        text = readme.read_text()
-        new = render(text, json.loads(Path(args.results).read_text()))
+        results = json.loads(Path(args.results).read_text())
+        for path, required in files:
+            text = path.read_text()
+            try:
+                new = render(text, results, required)
+            except ValueError as exc:
+                raise ValueError(f"{path}: {exc}") from None
+            if new == text:
+                continue
+            if args.check:
+                print(f"{path}: its tables differ from {args.results} and the catalog; run "
+                      f"{Path(__file__).name}", file=sys.stderr)
+                status = 1
+            else:
+                path.write_text(new)
     except (OSError, ValueError) as exc:
         print(f"readme_tables: {exc}", file=sys.stderr)
         return 2
-    if args.check:
-        if new != text:
-            print(f"{readme}: the bench table differs from {args.results}; run {Path(__file__).name}",
-                  file=sys.stderr)
-            return 1
-        return 0
-    if new != text:
-        readme.write_text(new)
-    return 0
+    return status
 
 
 if __name__ == "__main__":

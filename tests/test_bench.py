@@ -4,6 +4,7 @@ generated from the committed default results, and the command end to end."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import re
 import subprocess
@@ -15,10 +16,10 @@ import pytest
 
 from dss14_env import cli
 from dss14_env.bench import bench as B
+from dss14_env.bench import catalog, runner
 from dss14_env.bench import figures as F
 from dss14_env.bench import plan as P
 from dss14_env.bench import report as R
-from dss14_env.bench import runner
 from dss14_env.bench.run import sweep_points
 from dss14_env.bench.threads import blas_threads
 
@@ -76,8 +77,8 @@ def test_bad_options_are_named(kwargs, message) -> None:
 
 
 def test_missing_ppo_policy(monkeypatch, tmp_path) -> None:
-    import dss14_env.agents.policy
-    monkeypatch.setattr(dss14_env.agents.policy, "DEFAULT_POLICY", tmp_path / "none")
+    gone = dataclasses.replace(catalog.CONTROLLERS["ppo"], policy=str(tmp_path / "none"))
+    monkeypatch.setattr(catalog, "CONTROLLERS", {**catalog.CONTROLLERS, "ppo": gone})
     plan = P.build_plan()  # default run: a warning, and the others run
     assert "ppo" not in plan.controllers
     assert plan.controllers == [c for c in P.DEFAULT_CONTROLLERS if c != "ppo"]
@@ -89,7 +90,7 @@ def test_missing_ppo_policy(monkeypatch, tmp_path) -> None:
 
 
 def test_default_and_quick_plans(monkeypatch) -> None:
-    monkeypatch.setattr(P, "ppo_problem", lambda path: None)  # as if the policy were shipped
+    monkeypatch.setattr(catalog.ControllerRow, "policy_problem", lambda self: None)  # as if shipped
     plan = P.build_plan()
     assert plan.controllers == list(P.DEFAULT_CONTROLLERS) and plan.scenarios == list(P.DEFAULT_SCENARIOS)
     assert plan.wind_speeds_kmh == [30, 40, 50, 60, 70] and plan.threads == 1 and not plan.overwrite
@@ -362,13 +363,22 @@ def test_the_ppo_entry_loads_the_policy_on_the_env(monkeypatch, tmp_path) -> Non
         calls.append((path, env))
         return PIController(env)
 
-    monkeypatch.setattr(P, "ppo_problem", lambda path: None)
+    monkeypatch.setattr(catalog.ControllerRow, "policy_problem", lambda self: None)
     monkeypatch.setattr(dss14_env.agents.policy, "load_policy", fake_load)
     plan = P.build_plan(controllers=["ppo"], scenarios=["step"], seeds=["1"], steps=50,
                         out=tmp_path / "o", figures=False)
     res = B.bench(plan, progress=False)
-    assert len(calls) == 1 and calls[0][0] is None and calls[0][1] is not None
+    assert len(calls) == 1 and calls[0][0] == catalog.CONTROLLERS["ppo"].policy_path()
+    assert calls[0][1] is not None
     assert set(res["results"]["summary"]) == {"ppo"} and "| ppo |" in res["markdown"]
+    # a trained policy replaces the row and scores under its own name
+    best = tmp_path / "myrun" / "eval" / "best"
+    plan = P.build_plan(controllers=["pi_kp1", "ppo"], scenarios=["step"], seeds=["1"], steps=50,
+                        ppo_model=best, out=tmp_path / "o2", figures=False)
+    res = B.bench(plan, progress=False)
+    assert calls[-1][0] == best and plan.controllers == ["pi_kp1", "myrun/best"]
+    assert set(res["results"]["summary"]) == {"pi_kp1", "myrun/best"}
+    assert res["results"]["bench"]["config"]["policies"] == {"myrun/best": str(best)}
     assert res["figures"] == [] and not (tmp_path / "o" / F.FIGURES[0]).exists()
 
 

@@ -16,7 +16,7 @@ import pytest
 from dss14_env import cli
 from dss14_env.bench import campaign as C
 from dss14_env.bench import campaign_report as R
-from dss14_env.bench import runner
+from dss14_env.bench import catalog, runner
 from dss14_env.core.outdir import OutputDirError
 from dss14_env.core.parallel import SerialExecutor, pinned_threads
 
@@ -147,7 +147,7 @@ def test_an_episode_is_the_runners_episode_on_the_drawn_plant(reference) -> None
 
     keys = {"scenario": "hold", "wind_speed_kmh": 50.0, "wind_direction": "side"}
     with pinned_threads(1):  # as every executor runs a chunk
-        ctrl = runner.CONTROLLERS["lqg"](DSS14Env(**keys))
+        ctrl = catalog.CONTROLLERS["lqg"].make(DSS14Env(**keys))
         m = runner.run_episode(ctrl, DSS14Env(**keys, params=C.plant_params(1)), 1, 350, 5.0)
     stored = [e for e in reference["results"]["episodes"] if e["plant"] == 1 and e["controller"] == "lqg"]
     assert len(stored) == 1
@@ -158,11 +158,14 @@ def test_an_episode_is_the_runners_episode_on_the_drawn_plant(reference) -> None
 def test_controllers_never_see_the_plant(monkeypatch) -> None:
     seen = []
 
-    def spy(env):
-        seen.append(env.unwrapped.config.params)
-        return runner.CONTROLLERS["pi_kp1"](env)
+    class SpyRow(catalog.ControllerRow):
+        def make(self, env):
+            seen.append(env.unwrapped.config.params)
+            return catalog.CONTROLLERS["pi_kp1"].make(env)
 
-    monkeypatch.setitem(runner.CONTROLLERS, "spy", spy)
+    spy = SpyRow("spy", "dss14_env.baselines.pi", "PIController", "records the env it is built on")
+    monkeypatch.setattr(catalog, "CONTROLLER_ROWS", (*catalog.CONTROLLER_ROWS, spy))
+    monkeypatch.setattr(catalog, "CONTROLLERS", {**catalog.CONTROLLERS, "spy": spy})
     res = C.run_chunk({"spec": tiny(controllers=("spy",)).as_dict(), "chunk": 0, "plants": [0, 1]})
     assert seen == [None] and len(res["episodes"]) == 2
     assert res["plants"][1]["params"] == C.plant_params(1)

@@ -28,6 +28,7 @@ from dss14_env.envs.core import (
     quantise,
     read_encoders,
     reward,
+    scored_errors,
     servo_errors,
     step_1,
     step_constants,
@@ -54,7 +55,7 @@ def constants(draw) -> StepConstants:
                          draw(st.sampled_from([0.0, 1e-6])), draw(st.floats(1e-3, 1e3)),
                          draw(st.floats(0.0, 10.0)), draw(st.floats(0.0, 1e4)),
                          (el_lo, el_lo + draw(st.floats(0.1, 0.8))), draw(st.floats(-1.0, 1.0)),
-                         draw(st.floats(0.1, 4.0)))
+                         draw(st.floats(0.1, 4.0)), draw(st.booleans()))
 
 
 @st.composite
@@ -127,12 +128,13 @@ def _run_both(d: dict) -> None:
     assert (st1[6], st1[7]) == tuple(em[0])
     term = terminated(e, theta[None], start[None], np.array([d["me"]]), k)
     assert term1 == bool(term[0])
-    assert rew1 == reward(e, ac, d["ap"][None], term, k)[0]
+    pe = pointing_errors(c[None], d["point"][None], d["xel"])
+    assert rew1 == reward(scored_errors(e, pe, k), ac, d["ap"][None], term, k)[0]
     clamp = bool(term[0]) or k.clamp_always(d["me"])
     obs = observation(em, d["em0"][None], (c * R2D)[None], d["cd"][None], rel, r, clamp, k)
     np.testing.assert_array_equal(obs1, obs[0])
-    info = step_info(e, em, c[None], d["point"][None], d["xel"], np.array([d["wind"]]), A, r, rate_hit,
-                     acc_hit, np.array([d["hits"]]) + np.stack([rate_hit, acc_hit], axis=1))
+    info = step_info(e, em, pe, np.array([d["wind"]]), A, r, rate_hit, acc_hit,
+                     np.array([d["hits"]]) + np.stack([rate_hit, acc_hit], axis=1))
     assert list(info1) == list(info)
     for key, v in info.items():
         if key == "action_unclipped":

@@ -40,7 +40,7 @@ from dss14_env.bench.report import (
     results_markdown,
     write_results,
 )
-from dss14_env.bench.run import ppo_factory, run_plan
+from dss14_env.bench.run import run_plan
 from dss14_env.bench.threads import blas_threads
 from dss14_env.core.outdir import prepare_output_dir
 
@@ -91,6 +91,6 @@ def bench(plan: BenchPlan, progress: bool = True) -> dict[str, Any]:
 
 __all__ = ["BenchOptionError", "BenchPlan", "DEFAULT_CONTROLLERS", "DEFAULT_SCENARIOS",
            "DEFAULT_WIND_SPEEDS_KMH", "FIGURES", "OWNED_FILES", "bench", "build_plan", "parse_seeds",
-           "parse_wind_speeds", "ppo_factory", "prepare_out",
+           "parse_wind_speeds", "prepare_out",
            # re-exported for the campaign (dss14_env.bench.campaign, campaign_report)
            "fmt", "package_versions"]

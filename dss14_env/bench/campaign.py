@@ -56,13 +56,15 @@ from typing import Any
 
 import numpy as np
 
-from dss14_env.bench import runner
+from dss14_env.bench import catalog, runner
+from dss14_env.bench.catalog import ControllerRow
+from dss14_env.bench.plan import control_period
 from dss14_env.core.outdir import OutputDirError, atomic_write_text, prepare_output_dir
 from dss14_env.core.parallel import Executor, SerialExecutor
 from dss14_env.core.units import DEG, WIND_DIRECTIONS
 
-#: the controllers of a campaign by default
-DEFAULT_CONTROLLERS = ("pi_kp1", "lqg", "mpc")
+#: the controllers of a campaign by default (the catalog's campaign rows)
+DEFAULT_CONTROLLERS = catalog.controller_names("campaign")
 DEFAULT_PLANTS = 200
 DEFAULT_WIND_SPEEDS_KMH = (50.0,)
 DEFAULT_DIRECTIONS = ("front", "side")
@@ -83,8 +85,8 @@ class CampaignOptionError(ValueError):
 
 
 def known_controllers() -> tuple[str, ...]:
-    """The controllers a campaign knows: :data:`dss14_env.bench.runner.CONTROLLERS` and ``ppo``."""
-    return (*runner.CONTROLLERS, "ppo")
+    """The controllers a campaign knows: every row of :data:`dss14_env.bench.catalog.CONTROLLERS`."""
+    return catalog.controller_names()
 
 
 # ---------------------------------------------------------------------------- plants
@@ -185,6 +187,19 @@ class CampaignSpec:
         k = self.plant_indices
         return [k[i:i + self.chunk_size] for i in range(0, len(k), self.chunk_size)]
 
+    def rows(self) -> tuple[ControllerRow, ...]:
+        """The catalog rows of ``controllers``; with ``ppo_model``, the
+        :data:`~dss14_env.bench.catalog.POLICY_OPTION_ROW` row is that policy under its own name.
+        """
+        return tuple(catalog.policy_row(self.ppo_model)
+                     if n == catalog.POLICY_OPTION_ROW and self.ppo_model is not None
+                     else catalog.CONTROLLERS[n] for n in self.controllers)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The controllers' names in the results (:meth:`rows`)."""
+        return tuple(r.name for r in self.rows())
+
     @property
     def n_episodes(self) -> int:
         return self.plants * len(self.conditions) * len(self.controllers)
@@ -257,11 +272,16 @@ def check_spec(spec: CampaignSpec) -> None:
     w = spec.warmup_s
     if isinstance(w, bool) or not isinstance(w, (int, float)) or not (math.isfinite(w) and w >= 0):
         raise CampaignOptionError(f"warmup_s: must be a finite number >= 0, got {w!r}")
-    if w >= spec.steps * 0.02:
-        raise CampaignOptionError(f"--steps: {spec.steps} steps (50 per second) leave nothing after "
+    dt = control_period()
+    if w >= spec.steps * dt:
+        raise CampaignOptionError(f"--steps: {spec.steps} steps ({dt:g} s each) leave nothing after "
                                   f"the {w:g}-s warm-up")
-    if spec.ppo_model is not None and "ppo" not in spec.controllers:
-        raise CampaignOptionError("--ppo-model: given, but 'ppo' is not among --controllers")
+    opt_row = catalog.POLICY_OPTION_ROW
+    if spec.ppo_model is not None and opt_row not in spec.controllers:
+        raise CampaignOptionError(f"--ppo-model: given, but {opt_row!r} is not among --controllers")
+    if len(set(spec.names)) != len(spec.names):
+        raise CampaignOptionError(f"--ppo-model: the policy's name is a controller's already: "
+                                  f"{list(spec.names)}")
     if spec.format != FORMAT:
         raise CampaignOptionError(f"campaign format {spec.format!r} is not {FORMAT}")
 
@@ -296,13 +316,6 @@ def parse_wind_speeds(values: Iterable[str | float] | None) -> tuple[float, ...]
 
 
 # ---------------------------------------------------------------------------- one chunk
-def _factory(name: str, ppo_model: str | None) -> Callable[[Any], Any]:
-    if name == "ppo":
-        from dss14_env.bench.run import ppo_factory
-        return ppo_factory(ppo_model)
-    return runner.CONTROLLERS[name]
-
-
 #: per-episode entries of :func:`dss14_env.bench.runner.run_episode` a campaign leaves out:
 #: wall-clock timings (they differ from run to run) and the limiter's constants
 DROPPED_METRICS = ("controller_time_ms", "limits")
@@ -324,14 +337,14 @@ def run_chunk(task: Mapping[str, Any]) -> dict[str, Any]:
     ctrls: dict[tuple[str, str], Any] = {}
     for cond in spec.conditions:  # built on the NOMINAL plant, fresh for every chunk
         nominal = DSS14Env(**cond.env_keys())
-        for name in spec.controllers:
-            ctrls[(name, cond.key)] = _factory(name, spec.ppo_model)(nominal)
+        for row in spec.rows():
+            ctrls[(row.name, cond.key)] = row.make(nominal)
     episodes = []
     for k in plants:
         params = plant_params(k)
         for cond in spec.conditions:
             env = DSS14Env(**cond.env_keys(), params=params)
-            for name in spec.controllers:
+            for name in spec.names:
                 m = runner.run_episode(ctrls[(name, cond.key)], env, episode_seed(k), spec.steps,
                                        spec.warmup_s)
                 for key in DROPPED_METRICS:

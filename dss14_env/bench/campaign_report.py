@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from dss14_env.bench.plan import control_period
 from dss14_env.bench.report import fmt, package_versions
 from dss14_env.core.stats import bootstrap_ci
 from dss14_env.core.units import AXES
@@ -141,7 +142,7 @@ def summarise(spec: Any, episodes: Sequence[Mapping[str, Any]], reqs: Mapping[st
     for ep in episodes:
         by_cell.setdefault((ep["controller"], ep["condition"]), []).append(ep)
     out: dict[str, Any] = {}
-    for i, c in enumerate(spec.controllers):
+    for i, c in enumerate(spec.names):
         out[c] = {}
         for j, cond in enumerate(spec.conditions):
             eps = sorted(by_cell.get((c, cond.key), []), key=lambda e: e["plant"])
@@ -199,7 +200,7 @@ def main_table(results: Mapping[str, Any]) -> str:
     header += [f"≤ {v:g} mdeg ({n})" for n, v in reqs.items()]
     header += ["terminated", "fallbacks (episodes)", "failures"]
     rows = []
-    for ctrl in spec.controllers:
+    for ctrl in spec.names:
         for cond in spec.conditions:
             s = results["summary"][ctrl][cond.key]
             ts = s["three_sigma_mdeg"]
@@ -237,7 +238,8 @@ def results_markdown(results: Mapping[str, Any]) -> str:
              f"{s['plants']} plants (indices {s['first_plant']}–{last}) drawn from the report's "
              f"hydraulic parameter ranges (stable part); controllers {', '.join(s['controllers'])}, "
              f"designed on the nominal plant; hold episodes of {s['steps']} steps "
-             f"({s['steps'] * 0.02:g} s, {s['warmup_s']:g}-s warm-up); {c['chunks']['total']} chunks "
+             f"({s['steps'] * control_period():g} s, {s['warmup_s']:g}-s warm-up); "
+             f"{c['chunks']['total']} chunks "
              f"of {s['chunk_size']} plants ({c['chunks']['computed']} computed in this run, "
              f"{c['chunks']['resumed']} read back), {where}; wall time "
              f"{c['wall_time_s']['total']:.0f} s.", "",
@@ -299,7 +301,7 @@ def draw_cdfs(results: Mapping[str, Any], out: str | Path) -> list[str]:
     finite = [x for v in by_cell.values() for x in v if math.isfinite(x)]
     lo = min(finite + list(reqs.values())) / 1.5 if finite else 0.1
     hi = max(finite + list(reqs.values())) * 1.5 if finite else 100.0
-    colors = {c: f"C{i % 10}" for i, c in enumerate(spec.controllers)}
+    colors = {c: f"C{i % 10}" for i, c in enumerate(spec.names)}
     written = []
     for speed in spec.wind_speeds_kmh:
         conds = [c for c in spec.conditions if c.speed_kmh == speed]
@@ -307,7 +309,7 @@ def draw_cdfs(results: Mapping[str, Any], out: str | Path) -> list[str]:
         FigureCanvasAgg(fig)
         axs = fig.subplots(1, len(conds), squeeze=False, sharey=True)[0]
         for axp, cond in zip(axs, conds, strict=True):
-            for ctrl in spec.controllers:
+            for ctrl in spec.names:
                 v = np.sort(np.asarray(by_cell.get((ctrl, cond.key), []), float))
                 n = v.size
                 xs = v[np.isfinite(v)]

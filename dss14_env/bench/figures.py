@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from dss14_env.bench.catalog import SCENARIO_ROWS
 from dss14_env.bench.plan import LOADED_AXES
 from dss14_env.core.outdir import atomic_write_bytes
 from dss14_env.core.units import AXES
@@ -29,8 +30,8 @@ from dss14_env.core.units import AXES
 #: the figures :func:`draw_figures` can write
 FIGURES = ("errors_3sigma.png", "hold_time_histories.png", "step_responses.png", "wind_sweep.png")
 #: scenario groups drawn on separate axes in errors_3sigma.png
-WIND_SCENARIOS = ("hold_front", "hold_side", "track")
-MOVE_SCENARIOS = ("step", "slew")
+WIND_SCENARIOS = tuple(r.name for r in SCENARIO_ROWS if r.group == "wind")
+MOVE_SCENARIOS = tuple(r.name for r in SCENARIO_ROWS if r.group == "move")
 _COLORS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f")
 _LINES = ("-", "--", "-.", ":", (0, (6, 2, 1, 2, 1, 2)), (0, (1, 1)))
 _MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")

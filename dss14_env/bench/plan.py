@@ -16,71 +16,40 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
 
-from dss14_env.bench import runner
-from dss14_env.bench.runner import SCENARIOS, Scenario
+from dss14_env.bench import catalog
+from dss14_env.bench.catalog import SCENARIO_ROWS, Budget, ControllerRow, Scenario
 
-#: control periods per second (the environment's 50 Hz)
-STEPS_PER_S = 50
-
-
-@dataclass(frozen=True)
-class Budget:
-    """Episode length and counts of one scenario.
-
-    :param seconds: episode length, s
-    :param episodes: episodes of the controllers that act on batches (seeds 0, 1, ...)
-    :param sequential: episodes of the controllers that run one at a time (the first seeds)
-    """
-
-    seconds: float
-    episodes: int
-    sequential: int
-
-
-#: the default run: hold scenarios long and many enough for a 95 % half-width <= 5 % of the
-#: loaded axis' 3σ for the batched controllers (60-s episodes scatter about 15 % (1 σ) from
-#: seed to seed, so 128 of them give about 2-3 %); the MPC gets what fits the 5-minute budget
-DEFAULT_BUDGETS: dict[str, Budget] = {
-    "hold_front": Budget(60.0, 128, 16),
-    "hold_side": Budget(60.0, 128, 16),
-    "step": Budget(20.0, 16, 2),      # no wind: episodes differ only in start and quantisation
-    "track": Budget(40.0, 128, 6),    # random 30-70 km/h wind and direction: wide by design
-    "slew": Budget(50.0, 32, 3),      # the commanded move dominates
-}
+#: per scenario, the default run's budget and the ``--quick`` one (the catalog's rows)
+DEFAULT_BUDGETS: Mapping[str, Budget] = MappingProxyType({r.name: r.default for r in SCENARIO_ROWS})
+QUICK_BUDGETS: Mapping[str, Budget] = MappingProxyType({r.name: r.quick for r in SCENARIO_ROWS})
 #: a point of the error-vs-wind sweep (the MPC is left out: the 50 km/h points are the hold
 #: scenarios, where it runs)
 DEFAULT_SWEEP = Budget(60.0, 32, 0)
 #: ``--quick``: the CI smoke test (well under 30 s)
-QUICK_BUDGETS: dict[str, Budget] = {
-    "hold_front": Budget(15.0, 8, 1),
-    "hold_side": Budget(15.0, 8, 1),
-    "step": Budget(15.0, 4, 1),
-    "track": Budget(10.0, 8, 1),
-    "slew": Budget(10.0, 4, 1),
-}
 QUICK_SWEEP = Budget(15.0, 8, 0)
-#: controllers of a run without ``--controllers``
-DEFAULT_CONTROLLERS: tuple[str, ...] = ("pi_kp1", "pi_kp0.7", "lqg", "mpc", "ppo", "ppo_plain",
-                                         "ppo_residual_lqg")
-#: scenarios of a run without ``--scenarios`` (all of :data:`dss14_env.bench.runner.SCENARIOS`)
-DEFAULT_SCENARIOS: tuple[str, ...] = ("hold_front", "hold_side", "step", "track", "slew")
+#: controllers of a run without ``--controllers`` (the catalog's bench rows)
+DEFAULT_CONTROLLERS: tuple[str, ...] = catalog.controller_names("bench")
+#: scenarios of a run without ``--scenarios`` (the catalog's bench rows)
+DEFAULT_SCENARIOS: tuple[str, ...] = catalog.scenario_names("bench")
 #: wind speeds (km/h) of the error-vs-wind sweep without ``--wind-speeds``
 DEFAULT_WIND_SPEEDS_KMH: tuple[float, ...] = (30.0, 40.0, 50.0, 60.0, 70.0)
 QUICK_WIND_SPEEDS_KMH: tuple[float, ...] = (30.0, 50.0, 70.0)
 #: warm-up of a sweep point, s (the hold scenarios')
 SWEEP_WARMUP_S = 5.0
 #: the sweep's directions, the hold scenario each extends and the axis the wind acts on most
-SWEEP_DIRECTIONS: dict[str, tuple[str, str]] = {"front": ("hold_front", "el"),
-                                                "side": ("hold_side", "az")}
+SWEEP_DIRECTIONS: Mapping[str, tuple[str, str]] = MappingProxyType(
+    {r.sweep: (r.name, r.loaded_axes[0]) for r in SCENARIO_ROWS if r.sweep is not None})
 #: the axis the wind loads per scenario (bold in the tables; the precision target's axis)
-LOADED_AXES: dict[str, tuple[str, ...]] = {"hold_front": ("el",), "hold_side": ("az",)}
+LOADED_AXES: Mapping[str, tuple[str, ...]] = MappingProxyType(
+    {r.name: r.loaded_axes for r in SCENARIO_ROWS if r.loaded_axes})
 #: default BLAS threads while running
 DEFAULT_THREADS = 1
 
@@ -111,15 +80,18 @@ class ScenarioRun:
 class BenchPlan:
     """Everything a bench run needs, resolved and validated (:func:`build_plan`).
 
-    :param controllers: controller names (runner names or ``"ppo"``)
-    :param scenarios: scenario names of :data:`dss14_env.bench.runner.SCENARIOS`
+    :param controllers: controller names (the names of ``rows``)
+    :param scenarios: scenario names of :data:`dss14_env.bench.catalog.SCENARIOS`
     :param runs: per scenario, its episode length and seeds (:class:`ScenarioRun`)
     :param wind_speeds_kmh: speeds of the error-vs-wind sweep
     :param sweep_directions: ``"front"`` and/or ``"side"`` (those of the selected hold
         scenarios); empty: no sweep
     :param sweep: what a sweep point runs
     :param env_kwargs: environment keys on top of every scenario's
-    :param ppo_model: the PPO policy's path (None: the shipped policy), used if ``"ppo"`` runs
+    :param rows: the catalog rows that run (:func:`controller_rows`; a ``--ppo-model`` policy
+        is a row of its own name)
+    :param dt: the environment's control period, s (seconds to steps)
+    :param ppo_model: ``--ppo-model`` as given (None: the shipped policy of its row)
     :param out: output folder
     :param overwrite: replace the bench's files in an output folder that has them
     :param figures: draw the PNG figures
@@ -137,6 +109,8 @@ class BenchPlan:
     sweep_directions: list[str]
     sweep: ScenarioRun
     env_kwargs: dict[str, Any] = field(default_factory=dict)
+    rows: tuple[ControllerRow, ...] = ()
+    dt: float = 0.02
     ppo_model: str | None = None
     out: Path = Path("bench_out")
     overwrite: bool = False
@@ -149,38 +123,32 @@ class BenchPlan:
 
     def scenario(self, name: str) -> Scenario:
         """The runner scenario ``name`` with the plan's episode length."""
-        return dataclasses.replace(SCENARIOS[name], steps=self.runs[name].steps)
+        return dataclasses.replace(catalog.SCENARIOS[name].scenario(), steps=self.runs[name].steps)
 
     def as_dict(self) -> dict[str, Any]:
         """The plan, JSON-ready (the ``bench.config`` entry of results.json)."""
         d = dataclasses.asdict(self)
         d["out"] = str(self.out)
-        d["runs"] = {s: {"steps": r.steps, "seconds": r.steps / STEPS_PER_S, "seeds": list(r.seeds),
-                         "sequential_seeds": list(r.sequential_seeds),
-                         "warmup_s": SCENARIOS[s].warmup_s} for s, r in self.runs.items()}
-        d["sweep"] = {"steps": self.sweep.steps, "seconds": self.sweep.steps / STEPS_PER_S,
-                      "seeds": list(self.sweep.seeds),
-                      "sequential_seeds": list(self.sweep.sequential_seeds), "warmup_s": SWEEP_WARMUP_S}
-        d["ppo_policy"] = self.ppo_policy_path() if "ppo" in self.controllers else None
+        d["runs"] = {s: self._run_dict(r, self.scenario(s).warmup_s) for s, r in self.runs.items()}
+        d["sweep"] = self._run_dict(self.sweep, SWEEP_WARMUP_S)
+        d["rows"] = [r.name for r in self.rows]
+        d["policies"] = {r.name: str(r.policy_path()) for r in self.rows if r.policy is not None}
         return d
 
-    def ppo_policy_path(self) -> str:
-        """The PPO policy that runs: ``ppo_model`` or the shipped one."""
-        if self.ppo_model is not None:
-            return str(self.ppo_model)
-        from dss14_env.agents.policy import DEFAULT_POLICY
-        return str(DEFAULT_POLICY)
+    def _run_dict(self, r: ScenarioRun, warmup_s: float) -> dict[str, Any]:
+        return {"steps": r.steps, "seconds": r.steps * self.dt, "seeds": list(r.seeds),
+                "sequential_seeds": list(r.sequential_seeds), "warmup_s": warmup_s}
 
     def describe(self) -> str:
         """One line: what the plan runs."""
-        parts = [f"{s} {r.steps / STEPS_PER_S:g} s x {len(r.seeds)} (one-at-a-time: {r.sequential})"
+        parts = [f"{s} {r.steps * self.dt:g} s x {len(r.seeds)} (one-at-a-time: {r.sequential})"
                  for s, r in self.runs.items()]
         line = (f"bench: {len(self.controllers)} controllers ({', '.join(self.controllers)}); "
                 f"episodes per scenario: {'; '.join(parts)}")
         if self.sweep_directions:
             line += (f"; wind sweep {'/'.join(self.sweep_directions)} at "
                      f"{', '.join(f'{v:g}' for v in self.wind_speeds_kmh)} km/h "
-                     f"({self.sweep.steps / STEPS_PER_S:g} s x {len(self.sweep.seeds)}, one-at-a-time: "
+                     f"({self.sweep.steps * self.dt:g} s x {len(self.sweep.seeds)}, one-at-a-time: "
                      f"{self.sweep.sequential})")
         if self.env_kwargs:
             line += f"; env {self.env_kwargs}"
@@ -292,20 +260,54 @@ def _count(value: Any, option: str, low: int, what: str) -> int | None:
     return int(value)
 
 
-def ppo_problem(path: str | Path | None) -> str | None:
-    """Why the PPO policy at ``path`` (None: the shipped one) cannot be loaded, or None
-    (:func:`dss14_env.agents.policy.policy_problem`: the folder's layout, and a foreign pickled
-    policy refused; nothing is loaded).
-    """
-    from dss14_env.agents.policy import DEFAULT_POLICY, policy_problem
+def _budget(scenario: str, quick: bool) -> Budget:
+    row = catalog.SCENARIOS[scenario]
+    return row.quick if quick else row.default
 
-    return policy_problem(DEFAULT_POLICY if path is None else Path(path))
+
+def control_period(env_kwargs: Mapping[str, Any] | None = None) -> float:
+    """The environment's control period ``dt``, s (``configs/env.yaml`` with ``env_kwargs``)."""
+    from dss14_env.envs.config import load_env_config
+    return float(load_env_config(**dict(env_kwargs or {})).dt)
+
+
+def controller_rows(names: Sequence[str] | None, ppo_model: str | Path | None = None
+                    ) -> tuple[list[ControllerRow], list[str]]:
+    """The catalog rows of ``--controllers`` (None: the bench's default rows), with
+    ``--ppo-model`` replacing the :data:`~dss14_env.bench.catalog.POLICY_OPTION_ROW` row by the
+    given policy under its own name, and the notes of default policies that cannot be loaded
+    (those are left out; a policy asked for explicitly is an error).
+
+    :raises BenchOptionError: ``--ppo-model`` without its row, a policy that cannot be loaded,
+        or a policy named like another controller
+    """
+    opt_row = catalog.POLICY_OPTION_ROW
+    chosen = list(catalog.controller_names("bench")) if names is None else list(names)
+    if ppo_model is not None and opt_row not in chosen:
+        raise BenchOptionError(f"--ppo-model: given, but {opt_row!r} is not among --controllers")
+    rows, notes = [], []
+    for name in chosen:
+        row, option = catalog.CONTROLLERS[name], f"--controllers {name}"
+        if name == opt_row and ppo_model is not None:
+            row, option = catalog.policy_row(ppo_model), "--ppo-model"
+            if row.name in chosen:
+                raise BenchOptionError(f"--ppo-model: the policy's name {row.name!r} is a "
+                                       f"controller's already; rename its folder")
+        problem = row.policy_problem()
+        if problem is None:
+            rows.append(row)
+        elif names is not None or option == "--ppo-model":
+            raise BenchOptionError(f"{option}: {problem}")
+        else:
+            notes.append(f"no shipped policy for {name!r} ({problem}); running without it "
+                         f"(give --ppo-model PATH to bench a trained policy)")
+    return rows, notes
 
 
 def _run_for(budget: Budget, seeds: list[int] | None, steps: int | None, sequential: int | None,
-             label: str) -> ScenarioRun:
+             label: str, dt: float) -> ScenarioRun:
     s = list(range(budget.episodes)) if seeds is None else list(seeds)
-    n_steps = int(round(budget.seconds * STEPS_PER_S)) if steps is None else steps
+    n_steps = int(round(budget.seconds / dt)) if steps is None else steps
     if sequential is None:
         seq = min(budget.sequential, len(s))
     elif sequential > len(s):
@@ -326,9 +328,9 @@ def build_plan(controllers: Sequence[str] | None = None, scenarios: Sequence[str
                command: str | None = None) -> BenchPlan:
     """Resolve and validate the bench options (None: the default of the option).
 
-    :param controllers: controller names (default :data:`DEFAULT_CONTROLLERS`; there, a
-        missing shipped PPO policy is a warning in ``notes`` and PPO is left out; asked for
-        explicitly, it is an error)
+    :param controllers: controller names of the catalog (default :data:`DEFAULT_CONTROLLERS`;
+        there, a missing shipped policy is a warning in ``notes`` and its row is left out;
+        asked for explicitly, it is an error)
     :param scenarios: scenario names (default :data:`DEFAULT_SCENARIOS`)
     :param seeds: the batched controllers' seeds in every scenario: an int is that many seeds
         from 0, ints are those seeds, strings are ``--seeds`` values (:func:`parse_seeds`: one
@@ -339,8 +341,8 @@ def build_plan(controllers: Sequence[str] | None = None, scenarios: Sequence[str
     :param steps: episode length of every scenario and sweep point, control periods (default:
         each scenario's)
     :param quick: the short version; options given explicitly still apply
-    :param ppo_model: PPO policy (run folder, ``eval/best`` folder or zip; default the shipped
-        one, :data:`dss14_env.agents.policy.DEFAULT_POLICY`)
+    :param ppo_model: a trained policy (run folder, ``eval/best`` folder or zip) that replaces
+        the ``ppo`` row and scores under its own name (:func:`dss14_env.bench.catalog.policy_name`)
     :param randomize: randomised plant parameters (``randomize_params=True``) every episode
     :param out: output folder (checked when the bench starts, before any work)
     :param figures: draw the PNG figures
@@ -354,45 +356,32 @@ def build_plan(controllers: Sequence[str] | None = None, scenarios: Sequence[str
     :param command: the command line, stored in results.json
     :raises BenchOptionError: a bad option (the message names it)
     """
-    known_ctrl = sorted(runner.CONTROLLERS) + ["ppo"]
-    ctrl = _names(controllers, known_ctrl, "--controllers", "controller")
-    scen = _names(scenarios, sorted(SCENARIOS), "--scenarios", "scenario")
+    ctrl = _names(controllers, catalog.controller_names(), "--controllers", "controller")
+    scen = _names(scenarios, catalog.scenario_names(), "--scenarios", "scenario")
     seed_list = _seed_option(seeds)
     speeds = parse_wind_speeds(wind_speeds)
     steps = _count(steps, "--steps", 1, "the episode length")
     sweep_n = _count(sweep_seeds, "--sweep-seeds", 1, "the number of episodes per sweep point")
     seq = _count(sequential_episodes, "--sequential-episodes", 0, "the number of episodes")
     threads = _count(threads, "--threads", 1, "the number of BLAS threads")
-    notes: list[str] = []
-    explicit_ppo = controllers is not None and "ppo" in ctrl
-    if ctrl is None:
-        ctrl = list(DEFAULT_CONTROLLERS)
-    if ppo_model is not None and "ppo" not in ctrl:
-        raise BenchOptionError("--ppo-model: given, but 'ppo' is not among --controllers")
-    if "ppo" in ctrl:
-        problem = ppo_problem(ppo_model)
-        if problem is not None:
-            if explicit_ppo or ppo_model is not None:
-                opt = "--ppo-model" if ppo_model is not None else "--controllers ppo"
-                raise BenchOptionError(f"{opt}: {problem}")
-            notes.append(f"no shipped PPO policy ({problem}); running without 'ppo' "
-                         f"(give --ppo-model PATH to bench a trained policy)")
-            ctrl = [c for c in ctrl if c != "ppo"]
-    scen = list(DEFAULT_SCENARIOS) if scen is None else scen
-    budgets = QUICK_BUDGETS if quick else DEFAULT_BUDGETS
-    runs = {s: _run_for(budgets[s], seed_list, steps, seq, s) for s in scen}
+    rows, notes = controller_rows(ctrl, ppo_model)
+    scen = list(catalog.scenario_names("bench")) if scen is None else scen
+    env_kwargs = {"randomize_params": True} if randomize else {}
+    dt = control_period(env_kwargs)
+    runs = {s: _run_for(_budget(s, quick), seed_list, steps, seq, s, dt) for s in scen}
     sb = QUICK_SWEEP if quick else DEFAULT_SWEEP
     sweep_run = _run_for(sb, list(range(sweep_n)) if sweep_n is not None else None, steps, seq,
-                         "a sweep point")
+                         "a sweep point", dt)
     directions = [d for d, (s, _) in SWEEP_DIRECTIONS.items() if s in scen] if sweep else []
     if sweep and not directions and speeds is not None:
-        notes.append("--wind-speeds ignored: the wind sweep extends the hold scenarios, and "
-                     "neither hold_front nor hold_side is among --scenarios")
+        anchors = " nor ".join(s for s, _ in SWEEP_DIRECTIONS.values())
+        notes.append(f"--wind-speeds ignored: the wind sweep extends the hold scenarios, and "
+                     f"neither {anchors} is among --scenarios")
     if speeds is None:
         speeds = list(QUICK_WIND_SPEEDS_KMH if quick else DEFAULT_WIND_SPEEDS_KMH)
-    return BenchPlan(controllers=ctrl, scenarios=scen, runs=runs, wind_speeds_kmh=speeds,
+    return BenchPlan(controllers=[r.name for r in rows], scenarios=scen, runs=runs, wind_speeds_kmh=speeds,
                      sweep_directions=directions, sweep=sweep_run,
-                     env_kwargs={"randomize_params": True} if randomize else {},
+                     env_kwargs=env_kwargs, rows=tuple(rows), dt=dt,
                      ppo_model=None if ppo_model is None else str(ppo_model), out=Path(out),
                      overwrite=bool(overwrite), figures=bool(figures), threads=threads,
                      quick=bool(quick), notes=notes, command=command)
@@ -405,7 +394,7 @@ def sweep_scenario(direction: str, speed_kmh: float, steps: int) -> Scenario:
     :param speed_kmh: mean wind speed, km/h
     :param steps: episode length, control periods
     """
-    base = SCENARIOS[SWEEP_DIRECTIONS[direction][0]]
+    base = catalog.SCENARIOS[SWEEP_DIRECTIONS[direction][0]].scenario()
     return Scenario({**base.env, "wind_speed_kmh": float(speed_kmh)}, int(steps), SWEEP_WARMUP_S,
                     f"hold, {speed_kmh:g} km/h {direction} wind (sweep)")
 
@@ -418,4 +407,5 @@ def sweep_name(direction: str, speed_kmh: float) -> str:
 __all__ = ["BenchOptionError", "BenchPlan", "Budget", "DEFAULT_BUDGETS", "DEFAULT_CONTROLLERS",
            "DEFAULT_SCENARIOS", "DEFAULT_SWEEP", "DEFAULT_WIND_SPEEDS_KMH", "LOADED_AXES",
            "QUICK_BUDGETS", "QUICK_SWEEP", "ScenarioRun", "SWEEP_DIRECTIONS", "build_plan",
-           "parse_seeds", "parse_wind_speeds", "ppo_problem", "sweep_name", "sweep_scenario"]
+           "control_period", "controller_rows", "parse_seeds", "parse_wind_speeds", "sweep_name",
+           "sweep_scenario"]

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from dss14_env.bench.plan import LOADED_AXES, STEPS_PER_S, SWEEP_DIRECTIONS, SWEEP_WARMUP_S, BenchPlan
+from dss14_env.bench.plan import LOADED_AXES, SWEEP_DIRECTIONS, SWEEP_WARMUP_S, BenchPlan
 from dss14_env.bench.runner import flatten
 from dss14_env.core.outdir import atomic_write_text
 from dss14_env.core.units import AXES
@@ -170,7 +170,7 @@ def assemble_results(plan: BenchPlan, ran: Mapping[str, Any], wall_time_s: float
     if plan.sweep_directions:
         s = ran["sweep"]
         sweep = {"speeds_kmh": list(plan.wind_speeds_kmh), "directions": list(plan.sweep_directions),
-                 "steps": plan.sweep.steps, "seconds": plan.sweep.steps / STEPS_PER_S,
+                 "steps": plan.sweep.steps, "seconds": plan.sweep.steps * plan.dt,
                  "warmup_s": SWEEP_WARMUP_S, "seeds": list(plan.sweep.seeds),
                  "sequential_seeds": list(plan.sweep.sequential_seeds),
                  "points": {n: {"direction": d, "speed_kmh": v, "same_as": same}

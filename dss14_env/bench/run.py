@@ -10,31 +10,20 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 
 from dss14_env.bench import runner
+from dss14_env.bench.catalog import SCENARIO_ROWS
 from dss14_env.bench.plan import SWEEP_DIRECTIONS, BenchPlan, ScenarioRun, sweep_name, sweep_scenario
 from dss14_env.bench.runner import Scenario
 
-#: scenarios whose first seed's time histories the figures draw
-TRACED = ("hold_front", "hold_side", "step")
-
-
-def ppo_factory(path: str | Path | None = None) -> Callable[[Any], Any]:
-    """Factory of the ``"ppo"`` controller: :func:`dss14_env.agents.policy.load_policy` on the env.
-
-    :param path: the policy (None: the shipped one)
-    """
-    def make(env: Any) -> Any:
-        from dss14_env.agents.policy import load_policy
-        return load_policy(path, env=env)
-    return make
+#: scenarios whose first seed's time histories the figures draw (the catalog's traced rows)
+TRACED = tuple(r.name for r in SCENARIO_ROWS if r.traced)
 
 
 def controller_entries(plan: BenchPlan) -> list[Any]:
-    """The runner's controller arguments: names, and a (name, factory) pair for PPO."""
-    return [("ppo", ppo_factory(plan.ppo_model)) if c == "ppo" else c for c in plan.controllers]
+    """The runner's controller arguments: the plan's catalog rows."""
+    return list(plan.rows)
 
 
 def sweep_points(plan: BenchPlan) -> list[tuple[str, str, float, Scenario, str | None]]:
@@ -84,14 +73,10 @@ def _run_one(plan: BenchPlan, ctrls: list[Any], name: str, sc: Scenario, r: Scen
 
 
 def _expected_episodes(plan: BenchPlan, runs: list[ScenarioRun]) -> int:
-    """Episodes of the run, counting ``mpc`` as the one controller that runs one at a time
-    (the progress bar's total; corrected as the run goes).
+    """Episodes of the run (the progress bar's total; corrected as the run goes): every seed
+    for a batchable row, the first ``sequential`` for the others.
     """
-    n = 0
-    for r in runs:
-        for c in plan.controllers:
-            n += r.sequential if c == "mpc" else len(r.seeds)
-    return n
+    return sum(len(r.seeds) if row.batchable else r.sequential for r in runs for row in plan.rows)
 
 
 def run_plan(plan: BenchPlan, progress: bool = True) -> dict[str, Any]:
@@ -133,4 +118,4 @@ def run_plan(plan: BenchPlan, progress: bool = True) -> dict[str, Any]:
             "wall_time_s": {"main": t1 - t0, "sweep": t2 - t1}}
 
 
-__all__ = ["TRACED", "controller_entries", "ppo_factory", "run_plan", "sweep_points", "SWEEP_DIRECTIONS"]
+__all__ = ["TRACED", "controller_entries", "run_plan", "sweep_points", "SWEEP_DIRECTIONS"]

@@ -60,20 +60,21 @@ interval contains 1 (None without an interval).
 
 from __future__ import annotations
 
-import importlib
 import math
 import time
 import zlib
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
 
 from dss14_env.baselines.base import Controller
+from dss14_env.bench import catalog
+from dss14_env.bench.catalog import SCENARIO_ROWS, ControllerRow, Scenario
 from dss14_env.core import stats
 from dss14_env.core.units import AXES, KMH
-from dss14_env.envs.presets import PRESETS
 
 #: pointing-error axes (elevation and cross-elevation)
 POINTING_AXES = ("el", "xel")
@@ -88,78 +89,19 @@ MAX_ROW_STEPS = 1_000_000
 REFERENCE = "pi_kp1"
 
 
-@dataclass(frozen=True)
-class Scenario:
-    """One benchmark scenario: environment keys, episode length and metric window.
-
-    :param env: keyword arguments of :class:`dss14_env.envs.env.DSS14Env`
-    :param steps: control periods per episode
-    :param warmup_s: seconds at the start left out of the error statistics
-    :param description: one line for tables
-    """
-
-    env: Mapping[str, Any]
-    steps: int
-    warmup_s: float = 0.0
-    description: str = ""
-
-
-#: episode lengths of the benchmark scenarios where they differ from the preset's registered
-#: ``max_episode_steps`` (control periods)
-_SCENARIO_STEPS = {"step": 1000, "slew": 2500}
-#: the benchmark scenarios: the environment presets (:data:`dss14_env.envs.presets.PRESETS`)
-#: with one fixed wind direction or none
-SCENARIOS: dict[str, Scenario] = {
-    name: Scenario(dict(PRESETS[name].kwargs), _SCENARIO_STEPS.get(name, PRESETS[name].max_episode_steps),
-                   PRESETS[name].warmup_s, PRESETS[name].description)
-    for name in ("hold_front", "hold_side", "step", "track", "slew")}
-
-
-def _pi(gains: str) -> Callable[[Any], Controller]:
-    def make(env: Any) -> Controller:
-        from dss14_env.baselines.pi import PIController
-        return PIController(env, gains)
-    make.controller_class = ("dss14_env.baselines.pi", "PIController")  # type: ignore[attr-defined]
-    return make
-
-
-def _lazy(module: str, cls: str) -> Callable[[Any], Controller]:
-    def make(env: Any) -> Controller:
-        return getattr(importlib.import_module(module), cls)(env)
-    make.controller_class = (module, cls)  # type: ignore[attr-defined]
-    return make
-
-
-def _shipped(name: str) -> Callable[[Any], Controller]:
-    """A policy shipped with the package (:func:`dss14_env.agents.policy.shipped_policy`)."""
-    def make(env: Any) -> Controller:
-        from dss14_env.agents.policy import load_policy, shipped_policy
-        return load_policy(shipped_policy(name), env=env, name=name)
-    make.controller_class = ("dss14_env.agents.policy", "PolicyController")  # type: ignore[attr-defined]
-    return make
+#: the benchmark scenarios as the runner runs them, by name (the catalog's rows:
+#: :data:`dss14_env.bench.catalog.SCENARIO_ROWS`)
+SCENARIOS: Mapping[str, Scenario] = MappingProxyType({r.name: r.scenario() for r in SCENARIO_ROWS})
+#: controller factories by name (the catalog's rows, each called with the environment)
+CONTROLLERS: Mapping[str, ControllerRow] = catalog.CONTROLLERS
 
 
 def known_unbatchable(factory: Callable[[Any], Controller]) -> bool:
-    """True when the factory's controller class is known and not batchable (then a scenario
+    """True when the factory is a catalog row that runs one episode at a time (then a scenario
     that gives such controllers no episodes need not build it).
     """
-    where = getattr(factory, "controller_class", None)
-    if where is None:
-        return False
-    return not getattr(getattr(importlib.import_module(where[0]), where[1]), "batchable", False)
+    return isinstance(factory, ControllerRow) and not factory.batchable
 
-
-#: controller factories by name (each gets the environment)
-CONTROLLERS: dict[str, Callable[[Any], Controller]] = {
-    "pi_kp1": _pi("kp1"),
-    "pi_kp0.7": _pi("kp0.7"),
-    "lqg": _lazy("dss14_env.baselines.lqg", "LQGController"),
-    "mpc": _lazy("dss14_env.baselines.mpc", "MPCController"),
-    "yardstick": _lazy("dss14_env.baselines.yardstick", "YardstickController"),
-    # the learned agents shipped in agents/policies (docs/rl.md: recipes, seeds, results)
-    "ppo_plain": _shipped("ppo_plain"),
-    "ppo_residual_lqg": _shipped("ppo_residual_lqg"),
-}
 
 #: how each per-episode metric is pooled over episodes (:data:`dss14_env.core.stats.POOLINGS`)
 ERROR_POOLING = {"three_sigma": "rms", "rms": "rms", "max": "mean", "mean": "mean"}
@@ -320,9 +262,11 @@ def _make_vector_env(env_kwargs: Mapping[str, Any], n: int) -> Any:
 
 def _resolve_controller(c: Any) -> tuple[str, Callable[[Any], Controller]]:
     if isinstance(c, str):
-        if c not in CONTROLLERS:
-            raise ValueError(f"unknown controller {c!r}; known: {sorted(CONTROLLERS)}")
-        return c, CONTROLLERS[c]
+        if c not in catalog.CONTROLLERS:
+            raise ValueError(f"unknown controller {c!r}; known: {sorted(catalog.CONTROLLERS)}")
+        return c, catalog.CONTROLLERS[c]
+    if isinstance(c, ControllerRow):
+        return c.name, c
     if isinstance(c, Controller):
         return c.name, (lambda env, _c=c: _c)
     if isinstance(c, tuple) and len(c) == 2 and isinstance(c[0], str) and callable(c[1]):
@@ -333,9 +277,9 @@ def _resolve_controller(c: Any) -> tuple[str, Callable[[Any], Controller]]:
 
 def _resolve_scenario(s: Any) -> tuple[str, Scenario]:
     if isinstance(s, str):
-        if s not in SCENARIOS:
-            raise ValueError(f"unknown scenario {s!r}; known: {sorted(SCENARIOS)}")
-        return s, SCENARIOS[s]
+        if s not in catalog.SCENARIOS:
+            raise ValueError(f"unknown scenario {s!r}; known: {sorted(catalog.SCENARIOS)}")
+        return s, catalog.SCENARIOS[s].scenario()
     if isinstance(s, tuple) and len(s) == 2 and isinstance(s[1], Scenario):
         return s
     raise TypeError(f"a scenario must be a name of {sorted(SCENARIOS)} or a (name, Scenario) "

@@ -40,6 +40,9 @@ SCENARIOS = ("hold", "step", "track", "slew")
 AXES_CHOICES = ("az", "el", "both")
 #: named wind directions besides an angle in rad (``wind_direction``)
 DIRECTION_CHOICES = ("front", "side", "random")
+#: what the reward scores (``reward``): the servo error at the drive encoders ([R] Table 4's
+#: quantity) or the dish's true pointing error (el and xel, deformation included)
+REWARD_CHOICES = ("servo", "pointing")
 
 #: Largest mean wind speed, km/h (assumed).  The DSN antennas stop tracking and are stowed in
 #: high wind, so the model is meant for operating winds: the report's Table 4 is at 50 km/h and
@@ -89,6 +92,7 @@ class EnvConfig:
     error_scale_mdeg: float = spec("mdeg", lo=1.0e-3, hi=1.0e6)
     encoder_bits: int | None = spec("1", kind="integer", lo=8, hi=40, optional=True)
     encoder_noise_mdeg: float = spec("mdeg", lo=0.0, hi=1.0e3)
+    reward: str = spec(None, kind="str", choices=REWARD_CHOICES)
     action_change_weight: float = spec("1", lo=0.0, hi=1.0e6)
     termination_penalty: float = spec("1", lo=0.0, hi=1.0e9)
     max_error_deg: float = spec("deg", lo=0.0, lo_open=True, hi=180.0)

@@ -18,8 +18,9 @@ The pieces, in the order of a step (SI inside; mdeg and deg at the interface)::
     reading = q_enc * floor((start + theta + noise) / q_enc + 1/2)      encoder (absolute angle)
     e      = (c - theta) * R2MD,   e_meas = (c - (reading - start)) * R2MD      servo errors, mdeg
     terminated = |e| > max_error on an axis, or the antenna leaves its travel
-    reward = -((e_az^2 + e_el^2) / error_scale^2 + w ||a - a_prev||^2) [- penalty if terminated]
-    pointing error = [c_el - point_el, c_az cos(E) - point_xel] * R2MD
+    pointing error p = [c_el - point_el, c_az cos(E) - point_xel] * R2MD
+    reward = -((s_1^2 + s_2^2) / error_scale^2 + w ||a - a_prev||^2) [- penalty if terminated]
+             s = e (``reward: servo``, the default) or s = p (``reward: pointing``)
 
 >>> import numpy as np
 >>> from dss14_env.envs.config import load_env_config
@@ -77,6 +78,8 @@ class StepConstants:
     :param el_limits: elevation travel ``(low, high)``, rad
     :param az_centre: azimuth cable-wrap centre, rad
     :param az_half_range: azimuth travel about the centre, rad
+    :param pointing_reward: the reward scores the pointing errors (``reward: pointing``), not
+        the servo errors
     """
 
     dt: float
@@ -92,6 +95,7 @@ class StepConstants:
     el_limits: tuple[float, float]
     az_centre: float
     az_half_range: float
+    pointing_reward: bool = False
 
     @classmethod
     def from_config(cls, c: EnvConfig) -> StepConstants:
@@ -101,7 +105,7 @@ class StepConstants:
                    (2.0 * math.pi / 2 ** c.encoder_bits) if c.encoder_bits else 0.0,
                    c.encoder_noise_mdeg * MDEG, c.error_scale_mdeg, c.action_change_weight,
                    c.termination_penalty, (c.el_limits_deg[0] * DEG, c.el_limits_deg[1] * DEG),
-                   c.az_wrap_centre_deg * DEG, c.az_wrap_half_range_deg * DEG)
+                   c.az_wrap_centre_deg * DEG, c.az_wrap_half_range_deg * DEG, c.reward == "pointing")
 
     @property
     def inv_quantum(self) -> float:
@@ -285,10 +289,11 @@ def terminated(e: np.ndarray, theta: np.ndarray, start: np.ndarray, max_error: n
 
 def reward(e: np.ndarray, a: np.ndarray, a_prev: np.ndarray, term: np.ndarray, k: StepConstants
            ) -> np.ndarray:
-    """``-((e_az^2 + e_el^2) / error_scale^2 + w ||a - a_prev||^2)``, less the termination
+    """``-((e_1^2 + e_2^2) / error_scale^2 + w ||a - a_prev||^2)``, less the termination
     penalty where ``term``.
 
-    :param e: true servo errors ``(N, 2)``, mdeg
+    :param e: the scored errors ``(N, 2)``, mdeg: the true servo errors ``[az, el]``, or the
+        pointing errors ``[el, xel]`` with ``k.pointing_reward`` (:func:`scored_errors`)
     :param a: clipped actions ``(N, 2)``; ``a_prev`` the previous ones
     """
     ib = 1.0 / k.error_scale
@@ -298,6 +303,13 @@ def reward(e: np.ndarray, a: np.ndarray, a_prev: np.ndarray, term: np.ndarray, k
     if term.any():
         cost += term * k.termination_penalty
     return np.negative(cost, out=cost)
+
+
+def scored_errors(e: np.ndarray, pe: np.ndarray, k: StepConstants) -> np.ndarray:
+    """The errors the reward scores: the true servo errors ``e`` or, with
+    ``k.pointing_reward``, the pointing errors ``pe`` (:func:`pointing_errors`), mdeg.
+    """
+    return pe if k.pointing_reward else e
 
 
 def observation(em: np.ndarray, em_prev: np.ndarray | None, c_deg: np.ndarray, cd_scaled: np.ndarray,
@@ -352,26 +364,23 @@ def pointing_errors(c: np.ndarray, point: np.ndarray, xel_scale: float) -> np.nd
     return out
 
 
-def step_info(e: np.ndarray, em: np.ndarray, c: np.ndarray, point: np.ndarray, xel_scale: float,
-              wind: np.ndarray, a_raw: np.ndarray, r: np.ndarray, rate_hit: np.ndarray,
-              acc_hit: np.ndarray, hits: np.ndarray) -> dict[str, Any]:
+def step_info(e: np.ndarray, em: np.ndarray, pe: np.ndarray, wind: np.ndarray, a_raw: np.ndarray,
+              r: np.ndarray, rate_hit: np.ndarray, acc_hit: np.ndarray, hits: np.ndarray) -> dict[str, Any]:
     """The info of a step (keys :data:`INFO_KEYS`), arrays of shape ``(N,)`` (``action_unclipped``
     ``(N, 2)``).
 
     :param e: true servo errors (mdeg); ``em`` measured
-    :param c: commands relative to the start, rad; ``point`` the pointing outputs
-        ``[point_el, point_xel]`` (rad) and ``xel_scale`` as for :func:`pointing_errors`
+    :param pe: pointing errors ``[el, xel]`` (mdeg, :func:`pointing_errors`)
     :param wind: ``[speed (m/s), direction (rad)]`` per row
     :param a_raw: the actions as given
     :param r: applied rate commands, rad/s
     :param rate_hit: the rate clip acted; ``acc_hit`` the acceleration limit
     :param hits: the episode's limiter hit counts ``[rate, accel]``
     """
-    pe = pointing_errors(c, point, xel_scale)
     rd = r * R2D
     return {"servo_error_az_mdeg": e[:, 0], "servo_error_el_mdeg": e[:, 1],
             "measured_error_az_mdeg": em[:, 0].copy(), "measured_error_el_mdeg": em[:, 1].copy(),
-            "pointing_error_el_mdeg": pe[:, 0], "pointing_error_xel_mdeg": pe[:, 1],
+            "pointing_error_el_mdeg": pe[:, 0].copy(), "pointing_error_xel_mdeg": pe[:, 1].copy(),
             "wind_speed_mps": wind[:, 0].copy(), "wind_direction_rad": wind[:, 1].copy(),
             "action_unclipped": a_raw, "rate_command_az_deg_s": rd[:, 0], "rate_command_el_deg_s": rd[:, 1],
             "rate_limited": rate_hit, "accel_limited": acc_hit,
@@ -398,7 +407,7 @@ def step_constants(k: StepConstants, start: tuple[float, float], max_error: floa
             max_error, s_az - k.az_centre, k.el_limits[0], k.el_limits[1], k.az_half_range,
             k.inv_error_scale * k.inv_error_scale, k.action_change_weight, k.termination_penalty,
             k.inv_error_scale, k.error_rate_scale, k.inv_rate_limit, k.clamp_always(max_error), xel_scale,
-            wind_speed, wind_direction)
+            wind_speed, wind_direction, k.pointing_reward)
 
 
 def _clamp(x: float, b: float) -> float:
@@ -443,7 +452,7 @@ def step_1(action: Any, st: tuple, M: np.ndarray, row: list, sc: tuple) -> tuple
         a0, a1 = as_actions(action, (2,)).tolist()
     cur, nxt, rp0, rp1, ap0, ap1, em0_az, em0_el, j, n_rate, n_acc = st
     (scale, rate_clip, rl, dr, s_az, s_el, quantum, inv_q, me, az_off0, el_lo, el_hi, az_h, inv_es2, w,
-     penalty, inv_es, rate_scale, inv_rl, clamp_always, xel_scale, wind_speed, wind_direction) = sc
+     penalty, inv_es, rate_scale, inv_rl, clamp_always, xel_scale, wind_speed, wind_direction, pointing) = sc
     # command limiter
     c0 = 1.0 if a0 > 1.0 else (-1.0 if a0 < -1.0 else a0)
     c1 = 1.0 if a1 > 1.0 else (-1.0 if a1 < -1.0 else a1)
@@ -499,8 +508,10 @@ def step_1(action: Any, st: tuple, M: np.ndarray, row: list, sc: tuple) -> tuple
     az_off = az_off0 + th_az
     term = (e_az > me or e_az < -me or e_el > me or e_el < -me or el < el_lo or el > el_hi
             or az_off > az_h or az_off < -az_h)
+    pe_el, pe_xel = (c_el - p_el) * R2MD, (c_az * xel_scale - p_xel) * R2MD
+    s0, s1 = (pe_el, pe_xel) if pointing else (e_az, e_el)
     d0, d1 = c0 - ap0, c1 - ap1
-    cost = (e_az * e_az + e_el * e_el) * inv_es2 + w * (d0 * d0 + d1 * d1)
+    cost = (s0 * s0 + s1 * s1) * inv_es2 + w * (d0 * d0 + d1 * d1)
     if term:
         cost += penalty
     if not cost < 1.0e300:  # NaN or inf
@@ -516,8 +527,7 @@ def step_1(action: Any, st: tuple, M: np.ndarray, row: list, sc: tuple) -> tuple
                   r0 * inv_rl, r1 * inv_rl), _f32)
     info = {"servo_error_az_mdeg": e_az, "servo_error_el_mdeg": e_el,
             "measured_error_az_mdeg": em_az, "measured_error_el_mdeg": em_el,
-            "pointing_error_el_mdeg": (c_el - p_el) * R2MD,
-            "pointing_error_xel_mdeg": (c_az * xel_scale - p_xel) * R2MD,
+            "pointing_error_el_mdeg": pe_el, "pointing_error_xel_mdeg": pe_xel,
             "wind_speed_mps": wind_speed, "wind_direction_rad": wind_direction,
             "action_unclipped": (a0, a1), "rate_command_az_deg_s": r0 * R2D,
             "rate_command_el_deg_s": r1 * R2D, "rate_limited": rate_hit, "accel_limited": acc_hit,

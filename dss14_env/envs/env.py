@@ -145,6 +145,14 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
     step at the 1-deg error bound) more, so that running into a limit is not a cheap way out
     of a costly episode.
 
+    ``reward="pointing"`` scores the dish's true pointing error instead of the servo error:
+    ``e = [pointing_error_el_mdeg, pointing_error_xel_mdeg]`` of the info (the command less the
+    structure's pointing angles, deformation included), same weights, same penalty.  The
+    observation stays the encoders' (what a controller can measure), so the agent must learn
+    the structure's deflection from what the encoders show.  The default ``reward="servo"``
+    scores the servo error at the drive encoders, [R] Table 4's quantity.  Termination is on
+    the servo error in both cases.
+
     ## Starting state
 
     The absolute start position is drawn (az uniform in [-200, 200] deg about the wrap centre,

@@ -4,7 +4,7 @@ benchmark's scenarios.
 Each preset is a set of environment keys (on top of ``configs/env.yaml``), the episode length
 of its registered id and the warm-up that statistics leave out.  ``import dss14_env`` registers
 every preset's id (:func:`register_presets`; nothing is built); the benchmark's scenarios
-(:data:`dss14_env.bench.runner.SCENARIOS`) are the same presets by name.
+(:data:`dss14_env.bench.catalog.SCENARIOS`) are the same presets by name.
 
 >>> PRESETS["hold_front"].env_id, dict(PRESETS["hold_front"].kwargs)["wind_direction"]
 ('DSS14-HoldFront-v0', 'front')
@@ -31,6 +31,9 @@ class Preset:
     :param warmup_s: seconds at the start that error statistics leave out
     :param description: one line for tables and docs
     :param purpose: what the id is for (the manual's table of registered ids)
+    :param loaded_axes: the axes its one fixed wind loads most (``"az"``, ``"el"``): the axis
+        its figures are scored on (the bench's bold columns, the agents' evaluation tasks);
+        empty without a fixed wind direction
     """
 
     env_id: str
@@ -39,6 +42,7 @@ class Preset:
     warmup_s: float = 0.0
     description: str = ""
     purpose: str = ""
+    loaded_axes: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "kwargs", MappingProxyType(dict(self.kwargs)))
@@ -60,11 +64,11 @@ PRESETS: Mapping[str, Preset] = MappingProxyType({
     "hold_front": Preset("DSS14-HoldFront-v0", {"scenario": "hold", "wind_speed_kmh": 50.0,
                                                 "wind_direction": "front"},
                          3000, 5.0, "hold, 50 km/h front wind (Table 4)",
-                         "wind rejection in front wind: elevation loaded (bench scenario)"),
+                         "wind rejection in front wind: elevation loaded (bench scenario)", ("el",)),
     "hold_side": Preset("DSS14-HoldSide-v0", {"scenario": "hold", "wind_speed_kmh": 50.0,
                                               "wind_direction": "side"},
                         3000, 5.0, "hold, 50 km/h side wind (Table 4)",
-                        "wind rejection in side wind: azimuth loaded (bench scenario)"),
+                        "wind rejection in side wind: azimuth loaded (bench scenario)", ("az",)),
     "step": Preset("DSS14-Step-v0", {"scenario": "step", "step_deg": 0.1, "step_axes": "both",
                                      "wind_speed_kmh": 0.0},
                    2000, 0.0, "0.1 deg step on both axes at 1 s, no wind (Fig. 21)",

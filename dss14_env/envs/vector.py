@@ -52,8 +52,10 @@ from dss14_env.envs.core import (
     check_seeds,
     limit_commands,
     observation,
+    pointing_errors,
     read_encoders,
     reward,
+    scored_errors,
     servo_errors,
     start_action,
     step_info,
@@ -255,9 +257,9 @@ class DSS14VectorEnv(VectorEnv):
         em = servo_errors(c, rel)
         self._em[idx] = em
         obs = observation(em, None, c * R2D, cd * (1.0 / k.rate_limit), rel, self._rp[idx], True, k)
-        info = step_info(servo_errors(c, theta), em, c, Y[:, 2:4], self.plants.xel_scale, self._wind[idx],
-                         np.full((idx.size, 2), np.nan), self._rp[idx], np.zeros(idx.size, bool),
-                         np.zeros(idx.size, bool), self._hits[idx])
+        pe = pointing_errors(c, Y[:, 2:4], self.plants.xel_scale)
+        info = step_info(servo_errors(c, theta), em, pe, self._wind[idx], np.full((idx.size, 2), np.nan),
+                         self._rp[idx], np.zeros(idx.size, bool), np.zeros(idx.size, bool), self._hits[idx])
         return obs, {key: info[key] for key in _RESET_KEYS}
 
     def _reset_obs(self, idx: np.ndarray) -> np.ndarray:
@@ -361,7 +363,8 @@ class DSS14VectorEnv(VectorEnv):
         em, e = servo_errors(c, rel), servo_errors(c, theta)
         term = terminated(e, theta, self._start, self._max_e, kc)
         any_term = bool(term.any())
-        rew = reward(e, a, self._ap, term, kc)
+        pe = pointing_errors(c, Y[:, 2:4], self.plants.xel_scale)
+        rew = reward(scored_errors(e, pe, kc), a, self._ap, term, kc)
         obs = observation(em, self._em, row[:, 2:4], row[:, 4:6], rel, R, any_term or self._clamp_always, kc)
         if not np.isfinite(rew.sum()):
             bad = np.flatnonzero(~np.isfinite(rew)).tolist()
@@ -372,8 +375,7 @@ class DSS14VectorEnv(VectorEnv):
         self._em, self._ap, self._rp = em, a, R
         self._hits[:, 0] += rate_hit
         self._hits[:, 1] += acc_hit
-        info = step_info(e, em, c, Y[:, 2:4], self.plants.xel_scale, self._wind, A, R, rate_hit, acc_hit,
-                         self._hits)
+        info = step_info(e, em, pe, self._wind, A, R, rate_hit, acc_hit, self._hits)
         # autoreset (NEXT_STEP): sub-environments that ended on the previous step
         if done.any():
             idx = np.flatnonzero(done)
