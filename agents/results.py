@@ -348,6 +348,11 @@ def _seeds_cell(row: Mapping[str, Any], n_test: int) -> str:
     return f"{n_test}" if row["kind"] == "reference" else "–"
 
 
+def _label(row: Mapping[str, Any]) -> str:
+    """A row's label, marked † when the row is kept from earlier results (``kept_from``)."""
+    return f"{row['label']} †" if row.get("kept_from") else row["label"]
+
+
 def _error_table(results: Mapping[str, Any], error: str) -> str:
     """Markdown: every row's score of one error per hold with its interval and its ratios to
     PI and LQG ("–": not measured).
@@ -360,7 +365,7 @@ def _error_table(results: Mapping[str, Any], error: str) -> str:
         head += [f"{hold.replace('hold_', '')} wind: {axis} {what} 3σ (mdeg)", "÷ PI", "÷ LQG"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for key, row in results["rows"].items():
-        cells = [row["label"], _seeds_cell(row, n_test)]
+        cells = [_label(row), _seeds_cell(row, n_test)]
         for hold in axes:
             cells += [_score(row, hold, error)] + [_ratio_cell(row, key, hold, error, ref)
                                                    for ref in ("pi_kp1", "lqg")]
@@ -386,7 +391,13 @@ def main_table(results: Mapping[str, Any]) -> str:
         f"seeds [95 % bootstrap interval]. Ratios: two-level bootstrap over training and "
         f"(paired) test seeds; n.s.: the interval contains 1, not significant. Seeds column: "
         f"training × test seeds. –: not measured. Generated from "
-        f"`docs/results/rl_results.json` (`scripts/rl_results.py`).\n\n")
+        f"`docs/results/rl_results.json` (`scripts/rl_results.py`).")
+    kept = sorted({r["kept_from"] for r in results["rows"].values() if r.get("kept_from")})
+    if kept:
+        caption += (f" †: a campaign whose trained runs are not in the repository: its row is the "
+                    f"one computed on {', '.join(kept)} (servo error only; its ratios divide by "
+                    f"the references of that time, on the same test seeds).")
+    caption += "\n\n"
     return (caption + "**Pointing error**\n\n" + _error_table(results, "pointing")
             + "\n**Servo error**\n\n" + _error_table(results, "servo"))
 
@@ -406,7 +417,7 @@ def seeds_table(results: Mapping[str, Any]) -> str:
         if row["kind"] != "agent":
             continue
         for i, seed in enumerate(row["training_seeds"]):
-            cells = [row["label"], str(seed)]
+            cells = [_label(row), str(seed)]
             for error in ("pointing", "servo"):
                 for hold, _ in holds:
                     d = _error(row, hold, error)
