@@ -52,13 +52,15 @@ from dss14_env.baselines.design import default_controllers_config
 from dss14_env.baselines.lqg import LQGController, PointingLQGController
 from dss14_env.baselines.pi import PIController
 from dss14_env.core.units import DEG, MDEG
+from dss14_env.envs.core import OBS, OBS_HIGH, OBS_SIZE
 
 #: bound of the extra observation entries (integral term, estimates), for the Box only
 FEATURE_BOUND = 1.0e3
 #: observation entries kept in the history by default: servo errors, previous applied rates
-HISTORY_ENTRIES = (0, 1, 10, 11)
+#: (entries 0, 1, 10, 11)
+HISTORY_ENTRIES = OBS.entries("error", "prev_rate")
 #: the observation without the absolute command and encoder angles (entries 4, 5, 8, 9)
-NO_ABSOLUTE_ANGLES = (0, 1, 2, 3, 6, 7, 10, 11)
+NO_ABSOLUTE_ANGLES = OBS.entries("error", "error_rate", "command_rate", "prev_rate")
 #: the LQG features and their widths, in the order they appear (module doc)
 LQG_FEATURE_WIDTHS = {"command": 2, "disturbance": 2, "output": 2, "law": 6}
 #: the base controllers: None, the PI, and the LQG designs (encoder or pointing error)
@@ -69,7 +71,7 @@ LQG_BASES = ("lqg", "lqg_pointing")
 def _entries(value: Any, name: str) -> tuple[int, ...]:
     """Distinct observation indices 0-11 (a clear error naming ``name`` otherwise)."""
     ok = isinstance(value, (list, tuple)) and len(value) > 0 and all(
-        isinstance(i, (int, np.integer)) and not isinstance(i, bool) and 0 <= i < 12 for i in value)
+        isinstance(i, (int, np.integer)) and not isinstance(i, bool) and 0 <= i < OBS_SIZE for i in value)
     if not ok or len(set(int(i) for i in value)) != len(value):
         raise ValueError(f"{name} must be distinct observation indices 0-11, got {value!r}")
     return tuple(int(i) for i in value)
@@ -186,7 +188,7 @@ class PolicyInterface:
                                   else PointingLQGController(env_config, pointing=pointing))
                 self.lqg_batch.reset_batch(self.n)
         self.n_features = n_feat
-        self.entries = list(range(12)) if spec.obs_entries is None else list(spec.obs_entries)
+        self.entries = list(range(OBS_SIZE)) if spec.obs_entries is None else list(spec.obs_entries)
         self.obs_dim = len(self.entries) + n_feat + spec.history * len(spec.history_entries)
         self.base_action = np.zeros((self.n, 2))
         self._past = np.zeros((self.n, spec.history, len(spec.history_entries)), np.float32)
@@ -221,8 +223,8 @@ class PolicyInterface:
         :return: ``(n, obs_dim)`` float32
         """
         o = np.asarray(obs, np.float32)
-        if o.shape != (self.n, 12):
-            raise ValueError(f"observation must have shape ({self.n}, 12), got {o.shape}")
+        if o.shape != (self.n, OBS_SIZE):
+            raise ValueError(f"observation must have shape ({self.n}, {OBS_SIZE}), got {o.shape}")
         parts = [o[:, self.entries]]
         if self.pi is not None:
             self.base_action = self.pi.act(o).astype(np.float64)
@@ -255,7 +257,7 @@ class PolicyInterface:
         observations): what :meth:`observe` would return for them.
         """
         rows = np.asarray(rows)
-        o = np.asarray(obs, np.float32).reshape(rows.size, 12)
+        o = np.asarray(obs, np.float32).reshape(rows.size, OBS_SIZE)
         parts = [o[:, self.entries]]
         if self.pi is not None:
             pi = copy.deepcopy(self.pi)
@@ -377,8 +379,6 @@ class InterfaceWrapper(gym.Wrapper):
 
 def interface_observation_space(interface: PolicyInterface) -> spaces.Box:
     """The policy's observation space (bounds of the environment's entries, then features)."""
-    from dss14_env.envs.env import OBS_HIGH
-
     s = interface.spec
     high = np.concatenate([OBS_HIGH[interface.entries],
                            np.full(interface.n_features, FEATURE_BOUND, np.float32),

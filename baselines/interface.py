@@ -21,6 +21,7 @@ import numpy as np
 
 from dss14_env.core.units import DEG, MDEG
 from dss14_env.envs.config import load_env_config
+from dss14_env.envs.core import OBS
 
 
 @dataclass(frozen=True)
@@ -119,4 +120,5 @@ class ObservationReader:
 
     def read(self, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         rl = self.interface.rate_limit
-        return obs[:, 8:10] * DEG, obs[:, 4:6] * DEG, obs[:, 6:8] * rl, obs[:, 10:12] * rl
+        return (obs[:, OBS.encoder] * DEG, obs[:, OBS.command] * DEG, obs[:, OBS.command_rate] * rl,
+                obs[:, OBS.prev_rate] * rl)

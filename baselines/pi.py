@@ -32,6 +32,7 @@ from dss14_env.baselines.base import (
     check_observations,
 )
 from dss14_env.core.units import DEG, MDEG
+from dss14_env.envs.core import OBS
 from dss14_env.model.config import load_model_config
 
 
@@ -154,12 +155,12 @@ class PIController(Controller):
     # ---------------------------------------------------------------- control
     def _step(self, obs: np.ndarray) -> np.ndarray:
         """One period for all rows; ``obs`` checked, float64 ``(n, 12)``."""
-        e = obs[:, 0:2] * self.error_unit
+        e = obs[:, OBS.error] * self.error_unit
         f = self._fresh
         go = ~f
         self._integral[go] += 0.5 * self.dt * (e[go] + self._e_prev[go])
         if f.any():
-            r_prev = obs[f, 10:12] * self.rate_limit if self.bumpless else 0.0
+            r_prev = obs[f, OBS.prev_rate] * self.rate_limit if self.bumpless else 0.0
             self._integral[f] = (r_prev - self.kp * e[f]) / self.ki
             self._fresh[:] = False
         r = self.kp * e + self.ki * self._integral

@@ -11,6 +11,7 @@ import pytest
 
 import dss14_env  # noqa: F401  (registers the ids)
 from dss14_env.envs.config import EPISODE_KEYS, load_env_config
+from dss14_env.envs.core import OBS, OBS_SIZE
 from dss14_env.envs.env import OBS_NAMES, DSS14Env
 from dss14_env.envs.vector import DSS14VectorEnv
 from dss14_env.model.assembly import default_model
@@ -204,11 +205,14 @@ def test_unknown_config_key_raises_naming_it() -> None:
     ({"wind_direction": "north"}, "wind_direction"),
     ({"dt": 0.01}, "dt"),  # not an episode key
     ({"foo": 1}, "foo"),
+    ({1: 2}, "^reset options: field 1: must be an episode key"),  # not a string: named, not a KeyError
+    ({None: "x" * 500}, r"^reset options: field None: must be an episode key .*\.\.\.$"),
 ])
 def test_bad_reset_option_raises_naming_it(options: dict, match: str) -> None:
     env = DSS14Env()
-    with pytest.raises(ValueError, match=match):
+    with pytest.raises(ValueError, match=match) as err:
         env.reset(seed=0, options=options)
+    assert "\n" not in str(err.value)
 
 
 def test_reset_options_apply_to_one_episode_only() -> None:
@@ -227,15 +231,22 @@ def test_observation_layout_matches_info_and_command() -> None:
     env = DSS14Env(scenario="track", wind_speed_kmh=50.0, encoder_bits=None)
     obs, _ = env.reset(seed=1)
     cfg = env.config
-    assert len(OBS_NAMES) == obs.shape[0] == 12
+    assert len(OBS_NAMES) == obs.shape[0] == OBS_SIZE == 12
+    # the documented table (DSS14Env): pairs [az, el] in this order
+    assert [(OBS_NAMES[2 * i], getattr(OBS, f)) for i, f in enumerate(OBS._fields)] == [
+        ("error_az", slice(0, 2)), ("error_rate_az", slice(2, 4)), ("command_az", slice(4, 6)),
+        ("command_rate_az", slice(6, 8)), ("encoder_az", slice(8, 10)), ("prev_rate_az", slice(10, 12))]
     for _ in range(20):
         obs, _, _, _, info = env.step(np.array([0.01, -0.01], np.float32))
-    assert obs[0] * cfg.error_scale_mdeg == pytest.approx(info["measured_error_az_mdeg"], rel=1e-6)
-    assert obs[1] * cfg.error_scale_mdeg == pytest.approx(info["measured_error_el_mdeg"], rel=1e-6)
+    err = obs[OBS.error] * cfg.error_scale_mdeg
+    assert err[0] == pytest.approx(info["measured_error_az_mdeg"], rel=1e-6)
+    assert err[1] == pytest.approx(info["measured_error_el_mdeg"], rel=1e-6)
     # exact encoders: measured == true error; servo error = command - encoder (both in deg)
     assert info["measured_error_az_mdeg"] == pytest.approx(info["servo_error_az_mdeg"], abs=1e-9)
-    assert (obs[4] - obs[8]) * 1e3 == pytest.approx(info["servo_error_az_mdeg"], abs=1e-3)
-    assert obs[10] * cfg.rate_limit_deg_s == pytest.approx(info["rate_command_az_deg_s"], rel=1e-6)
+    c_minus_enc = (obs[OBS.command][0] - obs[OBS.encoder][0]) * 1e3
+    assert c_minus_enc == pytest.approx(info["servo_error_az_mdeg"], abs=1e-3)
+    rate = obs[OBS.prev_rate][0] * cfg.rate_limit_deg_s
+    assert rate == pytest.approx(info["rate_command_az_deg_s"], rel=1e-6)
 
 
 @pytest.mark.parametrize("bits", [20, 16])

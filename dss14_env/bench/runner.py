@@ -75,6 +75,7 @@ from dss14_env.bench import catalog
 from dss14_env.bench.catalog import SCENARIO_ROWS, ControllerRow, Scenario
 from dss14_env.core import stats
 from dss14_env.core.units import AXES, KMH
+from dss14_env.envs.core import OBS, OBS_SIZE
 
 #: pointing-error axes (elevation and cross-elevation)
 POINTING_AXES = ("el", "xel")
@@ -350,15 +351,15 @@ def run_rows(driver: Any, env: Any, seeds: Sequence[int], steps: int, warmup_s: 
             break
         tc[k] = (time.perf_counter() - t0) / n
         obs, rew, term, _, info = env.step(a)
-        o = obs.reshape(n, 12)
+        o = obs.reshape(n, OBS_SIZE)
         E[k, :, 0], E[k, :, 1] = info["servo_error_az_mdeg"], info["servo_error_el_mdeg"]
         P[k, :, 0], P[k, :, 1] = info["pointing_error_el_mdeg"], info["pointing_error_xel_mdeg"]
-        Cm[k] = o[:, 4:6]
+        Cm[k] = o[:, OBS.command]
         R[k, :, 0], R[k, :, 1] = info["rate_command_az_deg_s"], info["rate_command_el_deg_s"]
         cost[k] = -np.asarray(rew)
         hits[k, :, 0], hits[k, :, 1] = info["rate_limited"], info["accel_limited"]
         if enc is not None:
-            enc[k] = o[0, 8:10]
+            enc[k] = o[0, OBS.encoder]
         if pending.any():
             driver.restart(pending)
             pending[:] = False

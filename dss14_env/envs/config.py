@@ -209,16 +209,22 @@ class EnvConfig:
         if not isinstance(options, Mapping):
             raise ConfigError(f"reset options: must be a mapping of episode keys or None, got "
                               f"{type(options).__name__}")
-        bad = sorted(set(map(str, options)) - EPISODE_KEYS)
+        bad = sorted((k for k in options if not isinstance(k, str) or k not in EPISODE_KEYS), key=repr)
         if bad:
-            raise ConfigError(f"reset options: field '{bad[0]}': must be an episode key (one of "
-                              f"{', '.join(sorted(EPISODE_KEYS))}), got {options[bad[0]]!r}")
+            raise ConfigError(f"reset options: field {bad[0]!r}: must be an episode key (one of "
+                              f"{', '.join(sorted(EPISODE_KEYS))}), got {_short(options[bad[0]])}")
         return self.updated(options, "reset options")
 
     def as_dict(self) -> dict[str, Any]:
         """The keys and values (lists for pairs and grids), as in ``configs/env.yaml``."""
         return {f.name: (list(v) if isinstance(v := getattr(self, f.name), tuple) else v)
                 for f in dataclasses.fields(self)}
+
+
+def _short(value: Any) -> str:
+    """``repr(value)`` on one line of at most 80 characters."""
+    text = " ".join(repr(value).split())
+    return text if len(text) <= 80 else text[:77] + "..."
 
 
 def _check_params(params: Mapping[str, Any] | None, source: str) -> dict[str, float] | None:

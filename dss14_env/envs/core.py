@@ -1,13 +1,20 @@
 """The step of the DSS14 environments, once: input checks, command limiter, encoders, servo and
 pointing errors, episode end, reward, observation and info.
 
+FuncEnv-style: the step's dynamic state is one typed :class:`StepState` (previous rate command,
+action and measured error, limiter hit counts, noise-block row); :func:`reset_state` makes it
+with the first observation and info (both environments reset through it), each step maps it
+to the next.  The observation's layout is named once (:data:`OBS`, :class:`ObsLayout`).
+
 Every piece is a function of ``(N, ...)`` numpy arrays (N sub-environments); the vector
 environment (:mod:`dss14_env.envs.vector`) calls them.  The single environment
 (:mod:`dss14_env.envs.env`) runs one step in a few microseconds, where a numpy call costs about
-one, so it calls the *scalar twins* of the pieces (suffix ``_1``: the same formulas on Python
-floats, in the same order of operations).  ``tests/test_env_core.py`` holds each twin equal to
-its batched piece, bit for bit, on random inputs (hypothesis), limiter edges, quantisation
-and termination boundaries and clamping included.
+one, so it calls the *scalar twin* :func:`step_1` (the same formulas on Python floats, in the
+same order of operations; the episode end and the reward are the very functions the batched
+pieces call, :func:`beyond_bounds` and :func:`step_cost`, which take floats or arrays).
+``tests/test_env_core.py`` holds the twin equal to the batched pieces, bit for bit, on random
+inputs (hypothesis), limiter edges, quantisation and termination boundaries and clamping
+included.
 
 The pieces, in the order of a step (SI inside; mdeg and deg at the interface)::
 
@@ -34,25 +41,64 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from dss14_env.core.units import DEG, MDEG, R2D, R2MD
 from dss14_env.envs.config import EnvConfig
 
-#: observation names, in order
-OBS_NAMES = ("error_az", "error_el", "error_rate_az", "error_rate_el", "command_az", "command_el",
-             "command_rate_az", "command_rate_el", "encoder_az", "encoder_el",
-             "prev_rate_az", "prev_rate_el")
+
+class ObsLayout(NamedTuple):
+    """The observation's layout, named once: each field is the slice ``[az, el]`` of its pair of
+    entries (the table in :class:`dss14_env.envs.env.DSS14Env`).
+
+    >>> OBS.prev_rate, OBS.entries("error", "prev_rate")
+    (slice(10, 12, None), (0, 1, 10, 11))
+    """
+
+    #: measured servo error, ``error_scale_mdeg``
+    error: slice
+    #: servo-error rate, ``error_scale_mdeg`` per s
+    error_rate: slice
+    #: commanded position relative to the start, deg
+    command: slice
+    #: commanded rate, ``rate_limit_deg_s``
+    command_rate: slice
+    #: encoder reading relative to the start, deg
+    encoder: slice
+    #: previous applied rate command (limiter output), ``rate_limit_deg_s``
+    prev_rate: slice
+
+    def entries(self, *names: str) -> tuple[int, ...]:
+        """The indices of the named pairs' entries, in the order given.
+
+        :raises ValueError: an unknown name
+        """
+        bad = [n for n in names if n not in self._fields]
+        if bad:
+            raise ValueError(f"observation entries must be named from {', '.join(self._fields)}, "
+                             f"got {bad[0]!r}")
+        return tuple(i for n in names for i in range(getattr(self, n).start, getattr(self, n).stop))
+
+
+#: the observation layout (:class:`ObsLayout`)
+OBS = ObsLayout(*(slice(2 * i, 2 * i + 2) for i in range(len(ObsLayout._fields))))
+#: number of observation entries
+OBS_SIZE = 2 * len(ObsLayout._fields)
+#: observation names, in order (``<pair>_az``, ``<pair>_el``)
+OBS_NAMES = tuple(f"{pair}_{axis}" for pair in ObsLayout._fields for axis in ("az", "el"))
 #: bounds of the observation (see the table in DSS14Env); errors and error rates are clamped to
 #: them, which without encoder noise can only act on a terminating step
 OBS_ERROR_BOUND = 1.0e4
 OBS_ERROR_RATE_BOUND = 1.0e6
 OBS_POSITION_BOUND_DEG = 720.0
-OBS_HIGH = np.array([OBS_ERROR_BOUND] * 2 + [OBS_ERROR_RATE_BOUND] * 2 + [OBS_POSITION_BOUND_DEG] * 2
-                    + [1.0] * 2 + [OBS_POSITION_BOUND_DEG] * 2 + [1.0] * 2, dtype=np.float32)
-_LOW4, _HIGH4 = -OBS_HIGH[:4].astype(np.float64), OBS_HIGH[:4].astype(np.float64)
+_BOUNDS = {"error": OBS_ERROR_BOUND, "error_rate": OBS_ERROR_RATE_BOUND, "command": OBS_POSITION_BOUND_DEG,
+           "command_rate": 1.0, "encoder": OBS_POSITION_BOUND_DEG, "prev_rate": 1.0}
+OBS_HIGH = np.array([_BOUNDS[pair] for pair in ObsLayout._fields for _ in range(2)], dtype=np.float32)
+#: the clamped entries (errors and error rates)
+_CLAMPED = slice(OBS.error.start, OBS.error_rate.stop)
+_LOW4, _HIGH4 = -OBS_HIGH[_CLAMPED].astype(np.float64), OBS_HIGH[_CLAMPED].astype(np.float64)
 #: the info keys of every step, in order
 INFO_KEYS = ("servo_error_az_mdeg", "servo_error_el_mdeg", "measured_error_az_mdeg",
              "measured_error_el_mdeg", "pointing_error_el_mdeg", "pointing_error_xel_mdeg",
@@ -280,11 +326,33 @@ def terminated(e: np.ndarray, theta: np.ndarray, start: np.ndarray, max_error: n
 
     :return: ``(N,)`` bool
     """
-    big = np.abs(e) > np.reshape(max_error, (-1, 1))
     el = start[:, 1] + theta[:, 1]
     az_off = (start[:, 0] - k.az_centre) + theta[:, 0]
-    return (big[:, 0] | big[:, 1] | (el < k.el_limits[0]) | (el > k.el_limits[1])
-            | (np.abs(az_off) > k.az_half_range))
+    return beyond_bounds(e[:, 0], e[:, 1], el, az_off, np.asarray(max_error), k.el_limits[0], k.el_limits[1],
+                         k.az_half_range)
+
+
+def beyond_bounds(e_az: Any, e_el: Any, el: Any, az_off: Any, max_error: Any, el_lo: float, el_hi: float,
+                  az_half_range: float) -> Any:
+    """The episode-end rule, written once for floats (the single environment) and arrays (the
+    vector environment): a servo error beyond ``max_error`` (mdeg) on an axis, the elevation
+    outside ``[el_lo, el_hi]`` or the azimuth beyond ``az_half_range`` of the wrap centre
+    (``az_off``; rad).
+    """
+    return ((abs(e_az) > max_error) | (abs(e_el) > max_error) | (el < el_lo) | (el > el_hi)
+            | (abs(az_off) > az_half_range))
+
+
+def step_cost(s0: Any, s1: Any, d0: Any, d1: Any, inv_scale2: float, weight: float, term: Any,
+              penalty: float) -> Any:
+    """The cost (minus the reward), written once for floats and arrays:
+    ``(s0^2 + s1^2) inv_scale2 + weight (d0^2 + d1^2)``, plus ``penalty`` where ``term``.
+
+    :param s0: the scored errors (mdeg; :func:`scored_errors`), ``s1`` the other axis
+    :param d0: the action changes ``a - a_prev``, ``d1`` the other axis
+    :param inv_scale2: ``1 / error_scale^2``
+    """
+    return (s0 * s0 + s1 * s1) * inv_scale2 + weight * (d0 * d0 + d1 * d1) + term * penalty
 
 
 def reward(e: np.ndarray, a: np.ndarray, a_prev: np.ndarray, term: np.ndarray, k: StepConstants
@@ -296,12 +364,9 @@ def reward(e: np.ndarray, a: np.ndarray, a_prev: np.ndarray, term: np.ndarray, k
         pointing errors ``[el, xel]`` with ``k.pointing_reward`` (:func:`scored_errors`)
     :param a: clipped actions ``(N, 2)``; ``a_prev`` the previous ones
     """
-    ib = 1.0 / k.error_scale
     d = a - a_prev
-    e0, e1, d0, d1 = e[:, 0], e[:, 1], d[:, 0], d[:, 1]
-    cost = (e0 * e0 + e1 * e1) * (ib * ib) + k.action_change_weight * (d0 * d0 + d1 * d1)
-    if term.any():
-        cost += term * k.termination_penalty
+    cost = step_cost(e[:, 0], e[:, 1], d[:, 0], d[:, 1], k.inv_error_scale * k.inv_error_scale,
+                     k.action_change_weight, term, k.termination_penalty)
     return np.negative(cost, out=cost)
 
 
@@ -324,27 +389,27 @@ def observation(em: np.ndarray, em_prev: np.ndarray | None, c_deg: np.ndarray, c
     :param r: applied rate commands, rad/s
     :param clamp: clamp the errors and error rates to their bounds
     """
-    out = np.empty((em.shape[0], 12), np.float32)
-    if clamp:
-        o = np.empty((em.shape[0], 4))
-        np.multiply(em, 1.0 / k.error_scale, out=o[:, 0:2])
+    out = np.empty((em.shape[0], OBS_SIZE), np.float32)
+    if clamp:  # the clamped entries in float64 first (_CLAMPED starts at entry 0)
+        o = np.empty((em.shape[0], _CLAMPED.stop))
+        np.multiply(em, 1.0 / k.error_scale, out=o[:, OBS.error])
         if em_prev is None:
-            o[:, 2:4] = 0.0
+            o[:, OBS.error_rate] = 0.0
         else:
-            np.multiply(em - em_prev, k.error_rate_scale, out=o[:, 2:4])
+            np.multiply(em - em_prev, k.error_rate_scale, out=o[:, OBS.error_rate])
         np.maximum(o, _LOW4, out=o)
         np.minimum(o, _HIGH4, out=o)
-        out[:, 0:4] = o
+        out[:, _CLAMPED] = o
     else:
-        np.multiply(em, 1.0 / k.error_scale, out=out[:, 0:2], casting="same_kind")
+        np.multiply(em, 1.0 / k.error_scale, out=out[:, OBS.error], casting="same_kind")
         if em_prev is None:
-            out[:, 2:4] = 0.0
+            out[:, OBS.error_rate] = 0.0
         else:
-            np.multiply(em - em_prev, k.error_rate_scale, out=out[:, 2:4], casting="same_kind")
-    out[:, 4:6] = c_deg
-    out[:, 6:8] = cd_scaled
-    np.multiply(rel, R2D, out=out[:, 8:10], casting="same_kind")
-    np.multiply(r, 1.0 / k.rate_limit, out=out[:, 10:12], casting="same_kind")
+            np.multiply(em - em_prev, k.error_rate_scale, out=out[:, OBS.error_rate], casting="same_kind")
+    out[:, OBS.command] = c_deg
+    out[:, OBS.command_rate] = cd_scaled
+    np.multiply(rel, R2D, out=out[:, OBS.encoder], casting="same_kind")
+    np.multiply(r, 1.0 / k.rate_limit, out=out[:, OBS.prev_rate], casting="same_kind")
     return out
 
 
@@ -387,13 +452,103 @@ def step_info(e: np.ndarray, em: np.ndarray, pe: np.ndarray, wind: np.ndarray, a
             "n_rate_limited": hits[:, 0].copy(), "n_accel_limited": hits[:, 1].copy()}
 
 
+# ------------------------------------------------------------------------------ state and reset
+#: the keys of the reset info of both environments (the single one adds ``scenario``, the start
+#: position and ``params``)
+RESET_INFO_KEYS = ("servo_error_az_mdeg", "servo_error_el_mdeg", "measured_error_az_mdeg",
+                   "measured_error_el_mdeg", "pointing_error_el_mdeg", "pointing_error_xel_mdeg",
+                   "wind_speed_mps", "wind_direction_rad", "rate_command_az_deg_s", "rate_command_el_deg_s")
+
+
+class StepState(NamedTuple):
+    """The dynamic state a step reads and writes besides the plant (FuncEnv-style:
+    :func:`reset_state` makes it, a step maps it to the next one).
+
+    In the vector environment each field holds every sub-environment (arrays ``(N, 2)``, ``j``
+    ``(N,)``); in the single environment's scalar step (:func:`step_1`) the pairs are tuples of
+    floats and ``j`` an int.  The plant state lives beside it in each environment's own layout
+    (the single one's step buffers, the vector one's slot-ordered batch).
+    """
+
+    #: previous applied rate command ``[az, el]``, rad/s (the limiter's memory)
+    r_prev: Any
+    #: previous clipped action ``[az, el]`` (the reward's action change)
+    a_prev: Any
+    #: previous measured servo error ``[az, el]``, mdeg (the observed error rate)
+    em_prev: Any
+    #: the episode's limiter hit counts ``[rate, accel]``
+    hits: Any
+    #: the next step's row in its noise block
+    j: Any
+
+
+def reset_state(c: np.ndarray, cd: np.ndarray, y: np.ndarray, start: np.ndarray, noise: np.ndarray,
+                r0: np.ndarray, wind: np.ndarray, xel_scale: float, k: StepConstants
+                ) -> tuple[StepState, np.ndarray, dict[str, np.ndarray]]:
+    """The reset, written once for both environments: the step state, first observation and
+    reset info (keys :data:`RESET_INFO_KEYS`) of freshly drawn episodes, one row each.
+
+    :param c: commands at t = 0 relative to the start ``(N, 2)``, rad; ``cd`` their rates, rad/s
+    :param y: plant outputs at t = 0 ``(N, >= 4)``: encoder angles, pointing angles (rad)
+    :param start: absolute start positions ``(N, 2)``, rad
+    :param noise: encoder noise of the reading at t = 0 ``(N, 2)``, rad
+    :param r0: the rate commands that hold the start motion ``(N, 2)``, rad/s (clipped to the
+        rate limit here: the previous applied rate command)
+    :param wind: ``[speed (m/s), direction (rad)]`` per row
+    :param xel_scale: as for :func:`pointing_errors`
+    """
+    rp = np.clip(r0, -k.rate_limit, k.rate_limit)
+    theta = y[:, 0:2]
+    rel = read_encoders(theta, start, noise, k)
+    em, e = servo_errors(c, rel), servo_errors(c, theta)
+    obs = observation(em, None, c * R2D, cd * (1.0 / k.rate_limit), rel, rp, True, k)
+    n = c.shape[0]
+    none, zeros = np.zeros(n, bool), np.zeros((n, 2), np.int64)
+    info = step_info(e, em, pointing_errors(c, y[:, 2:4], xel_scale), wind, np.full((n, 2), np.nan), rp,
+                     none, none, zeros)
+    state = StepState(rp, start_action(rp, k), em, zeros, np.zeros(n, np.int64))
+    return state, obs, {key: info[key] for key in RESET_INFO_KEYS}
+
+
 # ------------------------------------------------------------------------------ scalar twin
 # The single environment's step on Python floats: the pieces above in one function (a call
 # costs as much as a piece here), in the same order of operations, so that the results are
 # the same bit for bit; tests/test_env_core.py holds each of its results against the batched
-# piece it replaces.
+# piece it replaces.  The episode end and the reward are the batched pieces' own formulas
+# (:func:`beyond_bounds`, :func:`step_cost`), called on floats.
+class EpisodeConstants(NamedTuple):
+    """What the scalar step (:func:`step_1`) reads that is fixed for one episode
+    (:func:`step_constants`; SI, errors in mdeg).
+    """
+
+    action_scale: float
+    rate_clip: bool
+    rate_limit: float
+    rate_step: float
+    start_az: float
+    start_el: float
+    quantum: float
+    inv_quantum: float
+    max_error: float
+    az_offset: float
+    el_lo: float
+    el_hi: float
+    az_half_range: float
+    inv_error_scale2: float
+    action_change_weight: float
+    termination_penalty: float
+    inv_error_scale: float
+    error_rate_scale: float
+    inv_rate_limit: float
+    clamp_always: bool
+    xel_scale: float
+    wind_speed: float
+    wind_direction: float
+    pointing_reward: bool
+
+
 def step_constants(k: StepConstants, start: tuple[float, float], max_error: float, xel_scale: float,
-                   wind_speed: float, wind_direction: float) -> tuple:
+                   wind_speed: float, wind_direction: float) -> EpisodeConstants:
     """The constants of :func:`step_1` for one episode.
 
     :param start: absolute start position ``(az, el)``, rad
@@ -403,11 +558,12 @@ def step_constants(k: StepConstants, start: tuple[float, float], max_error: floa
     :param wind_speed: the episode's mean wind, m/s; ``wind_direction`` its direction, rad
     """
     s_az, s_el = float(start[0]), float(start[1])
-    return (k.action_scale, k.rate_clip, k.rate_limit, k.rate_step, s_az, s_el, k.quantum, k.inv_quantum,
-            max_error, s_az - k.az_centre, k.el_limits[0], k.el_limits[1], k.az_half_range,
-            k.inv_error_scale * k.inv_error_scale, k.action_change_weight, k.termination_penalty,
-            k.inv_error_scale, k.error_rate_scale, k.inv_rate_limit, k.clamp_always(max_error), xel_scale,
-            wind_speed, wind_direction, k.pointing_reward)
+    return EpisodeConstants(
+        k.action_scale, k.rate_clip, k.rate_limit, k.rate_step, s_az, s_el, k.quantum, k.inv_quantum,
+        max_error, s_az - k.az_centre, k.el_limits[0], k.el_limits[1], k.az_half_range,
+        k.inv_error_scale * k.inv_error_scale, k.action_change_weight, k.termination_penalty,
+        k.inv_error_scale, k.error_rate_scale, k.inv_rate_limit, k.clamp_always(max_error), xel_scale,
+        wind_speed, wind_direction, k.pointing_reward)
 
 
 def _clamp(x: float, b: float) -> float:
@@ -415,12 +571,14 @@ def _clamp(x: float, b: float) -> float:
 
 
 _dot, _array, _f32, _floor = np.dot, np.array, np.float32, math.floor  # the hot path's names
+_tuple_new = tuple.__new__  # a StepState without the NamedTuple constructor's call overhead
 
 
 _F32, _F64 = np.dtype(np.float32), np.dtype(np.float64)
 
 
-def step_1(action: Any, st: tuple, M: np.ndarray, row: list, sc: tuple) -> tuple:
+def step_1(action: Any, bufs: tuple, st: StepState, M: np.ndarray, row: list, sc: EpisodeConstants
+           ) -> tuple[np.ndarray, float, bool, dict[str, Any], tuple, StepState]:
     """One step of one environment on floats: :func:`as_actions` (a fast path for float32 and
     float64 arrays of shape (2,), the same rule), :func:`limit_commands`, the plant map
     (:meth:`dss14_env.envs.plant.Plant.episode_map`), :func:`read_encoders`, :func:`servo_errors`,
@@ -428,17 +586,15 @@ def step_1(action: Any, st: tuple, M: np.ndarray, row: list, sc: tuple) -> tuple
     :func:`pointing_errors`).
 
     :param action: the action as given
-    :param st: the state ``(cur, nxt, r_prev_az, r_prev_el, a_prev_az, a_prev_el, em_prev_az,
-        em_prev_el, j, n_rate, n_acc)``: the step buffers' views
-        (:func:`dss14_env.envs.plant.buffer_views`; ``cur`` holds the plant state), the
-        previous applied rate command (rad/s), clipped action and measured servo error (mdeg),
-        the step's row in its block and the episode's limiter hit counts
+    :param bufs: ``(cur, nxt)``, the step buffers' views
+        (:func:`dss14_env.envs.plant.buffer_views`; ``cur`` holds the plant state)
+    :param st: the :class:`StepState` (pairs of floats)
     :param M: the episode's plant map (:meth:`dss14_env.envs.plant.Plant.episode_map`)
     :param row: the step's row ``[c_az, c_el, c_az_deg, c_el_deg, cd_az, cd_el, n_az, n_el, xi...]``
         of :func:`dss14_env.envs.scenarios.block_rows`: command at the step's end (rad, deg), its
         rate in units of the rate limit, encoder noise (rad), standard normals of the gust noise
     :param sc: :func:`step_constants`
-    :return: ``(obs, reward, terminated, info, st_next)``
+    :return: ``(obs, reward, terminated, info, bufs_next, st_next)``
     :raises ValueError: a bad action (:func:`as_actions`), before anything changes
     :raises FloatingPointError: the plant state became non-finite (it left the range it is
         meant for)
@@ -450,7 +606,8 @@ def step_1(action: Any, st: tuple, M: np.ndarray, row: list, sc: tuple) -> tuple
             a0, a1 = as_actions(action, (2,)).tolist()  # x - x is NaN for NaN and +-inf
     except (AttributeError, TypeError, ValueError):
         a0, a1 = as_actions(action, (2,)).tolist()
-    cur, nxt, rp0, rp1, ap0, ap1, em0_az, em0_el, j, n_rate, n_acc = st
+    cur, nxt = bufs
+    (rp0, rp1), (ap0, ap1), (em0_az, em0_el), (n_rate, n_acc), j = st
     (scale, rate_clip, rl, dr, s_az, s_el, quantum, inv_q, me, az_off0, el_lo, el_hi, az_h, inv_es2, w,
      penalty, inv_es, rate_scale, inv_rl, clamp_always, xel_scale, wind_speed, wind_direction, pointing) = sc
     # command limiter
@@ -503,21 +660,15 @@ def step_1(action: Any, st: tuple, M: np.ndarray, row: list, sc: tuple) -> tuple
     rel_az, rel_el = a_az - s_az, a_el - s_el
     em_az, em_el = (c_az - rel_az) * R2MD, (c_el - rel_el) * R2MD
     e_az, e_el = (c_az - th_az) * R2MD, (c_el - th_el) * R2MD
-    # episode end and reward
-    el = s_el + th_el
-    az_off = az_off0 + th_az
-    term = (e_az > me or e_az < -me or e_el > me or e_el < -me or el < el_lo or el > el_hi
-            or az_off > az_h or az_off < -az_h)
+    # episode end and reward (the batched pieces' formulas)
+    term = beyond_bounds(e_az, e_el, s_el + th_el, az_off0 + th_az, me, el_lo, el_hi, az_h)
     pe_el, pe_xel = (c_el - p_el) * R2MD, (c_az * xel_scale - p_xel) * R2MD
     s0, s1 = (pe_el, pe_xel) if pointing else (e_az, e_el)
-    d0, d1 = c0 - ap0, c1 - ap1
-    cost = (s0 * s0 + s1 * s1) * inv_es2 + w * (d0 * d0 + d1 * d1)
-    if term:
-        cost += penalty
+    cost = step_cost(s0, s1, c0 - ap0, c1 - ap1, inv_es2, w, term, penalty)
     if not cost < 1.0e300:  # NaN or inf
         raise FloatingPointError(f"the reward became {-cost} (servo errors {e_az}, {e_el} mdeg): the "
                                  "plant left the range it is meant for")
-    # observation and info
+    # observation (layout OBS) and info
     o0, o1 = em_az * inv_es, em_el * inv_es
     o2, o3 = (em_az - em0_az) * rate_scale, (em_el - em0_el) * rate_scale
     if term or clamp_always:
@@ -532,4 +683,5 @@ def step_1(action: Any, st: tuple, M: np.ndarray, row: list, sc: tuple) -> tuple
             "action_unclipped": (a0, a1), "rate_command_az_deg_s": r0 * R2D,
             "rate_command_el_deg_s": r1 * R2D, "rate_limited": rate_hit, "accel_limited": acc_hit,
             "n_rate_limited": n_rate, "n_accel_limited": n_acc}
-    return obs, -cost, term, info, (nxt, cur, r0, r1, c0, c1, em_az, em_el, j + 1, n_rate, n_acc)
+    return obs, -cost, term, info, (nxt, cur), _tuple_new(StepState, ((r0, r1), (c0, c1), (em_az, em_el),
+                                                                      (n_rate, n_acc), j + 1))

@@ -20,13 +20,10 @@ from dss14_env.envs.core import (
     OBS_HIGH,
     OBS_NAMES,
     StepConstants,
+    StepState,
     as_actions,
     check_seed,
-    observation,
-    pointing_errors,
-    read_encoders,
-    servo_errors,
-    start_action,
+    reset_state,
     step_1,
     step_constants,
 )
@@ -274,7 +271,8 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         self.constants = StepConstants.from_config(c)
         self._renderer = Renderer(render_mode, c.dt, c.render_window_s) if render_mode else None
         self.episode: Episode | None = None
-        self._st: tuple | None = None
+        self._st: StepState | None = None
+        self._bufs: tuple = ()
 
     # ------------------------------------------------------------------ reset
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
@@ -309,14 +307,10 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         # encoder noise of the reading at t = 0, then the first noise block (this order)
         ne = self.np_random.standard_normal(2) * k.encoder_sigma if k.encoder_sigma else np.zeros(2)
         self._next_block(0)
-        # the first observation and info through the batched core (N = 1)
-        start = ep.start[None]
-        r0 = np.clip(ep.r0, -k.rate_limit, k.rate_limit)[None]
+        # the state, first observation and info through the batched core (N = 1)
         c, cd = command(ep.traj, np.zeros(1))
-        theta = y0[None, 0:2]
-        rel = read_encoders(theta, start, ne[None], k)
-        em, e = servo_errors(c, rel), servo_errors(c, theta)
-        obs = observation(em, None, c * R2D, cd * (1.0 / k.rate_limit), rel, r0, True, k)[0]
+        st, obs, rinfo = reset_state(c, cd, y0[None], ep.start[None], ne[None], ep.r0[None],
+                                     np.array([[ep.wind_speed, ep.wind_direction]]), p.xel_scale, k)
         me = cfg.max_error_deg * DEG * R2MD
         s_az, s_el = float(ep.start[0]), float(ep.start[1])
         # everything step() reads that is fixed for the episode
@@ -324,16 +318,12 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         self._sc = step_constants(k, (s_az, s_el), me, p.xel_scale, ep.wind_speed, ep.wind_direction)
         self._extras = cfg.info_state or self._renderer is not None
         self._info_state = cfg.info_state
-        (rp0, rp1), (em0, em1) = r0[0].tolist(), em[0].tolist()
-        self._st = self._views(False) + (rp0, rp1, *start_action(r0, k)[0].tolist(), em0, em1, 0, 0, 0)
-        pe = pointing_errors(c, y0[None, 2:4], p.xel_scale)[0]
+        self._bufs = self._views(False)
+        self._st = StepState(*(tuple(v[0].tolist()) for v in st[:4]), 0)
         info = {"scenario": cfg.scenario, "start_az_deg": s_az * R2D, "start_el_deg": s_el * R2D,
-                "wind_speed_mps": ep.wind_speed, "wind_direction_rad": ep.wind_direction,
-                "params": dict(ep.params),
-                "servo_error_az_mdeg": float(e[0, 0]), "servo_error_el_mdeg": float(e[0, 1]),
-                "measured_error_az_mdeg": em0, "measured_error_el_mdeg": em1,
-                "pointing_error_el_mdeg": float(pe[0]), "pointing_error_xel_mdeg": float(pe[1]),
-                "rate_command_az_deg_s": rp0 * R2D, "rate_command_el_deg_s": rp1 * R2D}
+                "params": dict(ep.params), **{key: float(v[0]) for key, v in rinfo.items()}}
+        rp0, rp1 = self._st.r_prev
+        obs = obs[0]
         if cfg.info_state:
             info["plant_state"] = ep.x0.copy()
         if self._renderer is not None:
@@ -368,7 +358,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         """
         if self._st is None:
             raise RuntimeError("call reset() before wind_gust()")
-        return self._gust_of(self._st[0][2][:self._m])
+        return self._gust_of(self._bufs[0][2][:self._m])
 
     def _gust_of(self, x: np.ndarray) -> float:
         tg = self._C_gust @ x  # x: the episode's one-copy state
@@ -377,17 +367,17 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
     @property
     def elapsed_steps(self) -> int:
         """Steps taken in the current episode."""
-        return self._k0 + self._st[8]
+        return self._k0 + self._st.j
 
     @property
     def n_rate_limited(self) -> int:
         """Steps of the current episode in which the rate clip acted."""
-        return self._st[9] if self._st is not None else 0
+        return self._st.hits[0] if self._st is not None else 0
 
     @property
     def n_accel_limited(self) -> int:
         """Steps of the current episode in which the acceleration limit acted."""
-        return self._st[10] if self._st is not None else 0
+        return self._st.hits[1] if self._st is not None else 0
 
     # ------------------------------------------------------------------ step
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
@@ -401,23 +391,24 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         st = self._st
         if st is None:
             raise RuntimeError("call reset() before step()")
-        j = st[8]
+        j = st.j
         if j == NOISE_BLOCK:
             as_actions(action, (2,))  # checked before the next noise block changes the generator
             self._next_block(self._k0 + j)
-            st, j = st[:8] + (0,) + st[9:], 0
-        obs, rew, term, info, self._st = step_1(action, st, self._M, self._rows[j], self._sc)
+            st, j = st._replace(j=0), 0
+        obs, rew, term, info, self._bufs, self._st = step_1(action, self._bufs, st, self._M, self._rows[j],
+                                                            self._sc)
         if self._extras:
             self._step_extras(info)
         return obs, rew, term, False, info
 
     def _step_extras(self, info: dict) -> None:
         """``info["plant_state"]`` and the render history, when asked for."""
-        x = self._st[0][2][:self._m]
+        x = self._bufs[0][2][:self._m]
         if self._info_state:
             info["plant_state"] = self._state_map @ x
         if self._renderer is not None:
-            cd = self._rows[self._st[8] - 1][4:6]
+            cd = self._rows[self._st.j - 1][4:6]
             rl = self.constants.rate_limit
             self._renderer.record(self.elapsed_steps * self.constants.dt, info["servo_error_az_mdeg"],
                                   info["servo_error_el_mdeg"], info["rate_command_az_deg_s"],
@@ -428,7 +419,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
 
     # ------------------------------------------------------------------ copies and state
     #: the attributes of the dynamic state (:meth:`get_state`)
-    _STATE = ("_z", "_st", "_rows", "_k0", "_np_random", "_np_random_seed", "episode", "_M", "_sc",
+    _STATE = ("_z", "_bufs", "_st", "_rows", "_k0", "_np_random", "_np_random_seed", "episode", "_M", "_sc",
               "_m", "_rank", "_state_map", "_C_gust", "_gust_az", "_gust_inv", "_info_state", "_extras")
     #: the parts of it that never change in place (kept by reference in a snapshot)
     _SHARED = ("episode", "_M", "_sc", "_rows", "_state_map", "_C_gust")
@@ -436,13 +427,13 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()
         if self._st is not None:  # views do not survive a copy: keep which buffer is current
-            state["_st"] = (self._st[0][0] is self._z[1],) + self._st[2:]
+            state["_bufs"] = self._bufs[0][0] is self._z[1]
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         self.__dict__.update(state)
         if self._st is not None:
-            self._st = self._views(self._st[0]) + self._st[1:]
+            self._bufs = self._views(self._bufs)
 
     def get_state(self) -> EnvState:
         """A snapshot of the dynamic state (plant, limiter, noise, generator, counters) that

@@ -48,16 +48,17 @@ from dss14_env.envs.config import EnvConfig, load_env_config
 from dss14_env.envs.core import (
     OBS_HIGH,
     StepConstants,
+    StepState,
     as_actions,
     check_seeds,
     limit_commands,
     observation,
     pointing_errors,
     read_encoders,
+    reset_state,
     reward,
     scored_errors,
     servo_errors,
-    start_action,
     step_info,
     terminated,
 )
@@ -154,13 +155,12 @@ class DSS14VectorEnv(VectorEnv):
         self._start = np.zeros((N, 2))
         self._traj = {key: np.zeros((N, 2)) for key in _TRAJ_KEYS}
         self._k = np.zeros(N, np.int64)
-        self._j = np.zeros(N, np.int64)
         self._blocks = np.zeros((NOISE_BLOCK, N, 8 + k))  # block_rows, time-major
-        self._rp = np.zeros((N, 2))
-        self._ap = np.zeros((N, 2))
-        self._em = np.zeros((N, 2))
-        self._ne0 = np.zeros((N, 2))
-        self._hits = np.zeros((N, 2), np.int64)
+        #: the step state of every sub-environment (:class:`~dss14_env.envs.core.StepState`)
+        self._s = StepState(np.zeros((N, 2)), np.zeros((N, 2)), np.zeros((N, 2)), np.zeros((N, 2), np.int64),
+                            np.zeros(N, np.int64))
+        self._r0 = np.zeros((N, 2))  # the drawn start rate commands and t = 0 encoder noise,
+        self._ne0 = np.zeros((N, 2))  # until _reset_rows makes the state of them
         self._max_e = np.zeros(N)
         self._wind = np.zeros((N, 2))  # speed (m/s), direction (rad)
         self._pid = np.zeros(N, np.int64)
@@ -201,8 +201,7 @@ class DSS14VectorEnv(VectorEnv):
             self._Zs[slot, :n] = ep.x0
             self._Zs[slot, n + 2:n + 4] = ep.t_mean
             self._Y[i] = p.C[:N_STEP_OUTPUTS] @ ep.x0
-            self._rp[i] = np.clip(ep.r0, -k.rate_limit, k.rate_limit)
-            self._ap[i] = start_action(self._rp[i], k)
+            self._r0[i] = ep.r0
             self._kappa[i] = ep.kappa
             self._start[i] = ep.start
             for key in _TRAJ_KEYS:
@@ -211,8 +210,7 @@ class DSS14VectorEnv(VectorEnv):
             self._wind[i] = ep.wind_speed, ep.wind_direction
             self._ne0[i] = ne
         self._k[idx] = 0
-        self._j[idx] = 0
-        self._hits[idx] = 0
+        self._s.j[idx] = 0
         self._regroup(inv_old)
         self._clamp_always = any(k.clamp_always(me) for me in np.unique(self._max_e).tolist())
 
@@ -244,23 +242,17 @@ class DSS14VectorEnv(VectorEnv):
             self._inv = None if perm is None else np.argsort(perm, kind="stable")
         self._kappa_s = self._kappa if self._perm is None else self._kappa[self._perm]
         self._any_noise = bool(np.any(self._kappa))
-        self._j_uniform = bool(np.all(self._j == self._j[0]))
+        self._j_uniform = bool(np.all(self._s.j == self._s.j[0]))
 
     def _reset_rows(self, idx: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
         """Observation rows and info of freshly reset sub-environments ``idx`` (as DSS14Env.reset)."""
-        k = self.constants
         tr = {key: v[idx] for key, v in self._traj.items()}
         c, cd = command(tr, np.zeros(idx.size))
-        Y, start = self._Y[idx], self._start[idx]
-        theta = Y[:, 0:2]
-        rel = read_encoders(theta, start, self._ne0[idx], k)
-        em = servo_errors(c, rel)
-        self._em[idx] = em
-        obs = observation(em, None, c * R2D, cd * (1.0 / k.rate_limit), rel, self._rp[idx], True, k)
-        pe = pointing_errors(c, Y[:, 2:4], self.plants.xel_scale)
-        info = step_info(servo_errors(c, theta), em, pe, self._wind[idx], np.full((idx.size, 2), np.nan),
-                         self._rp[idx], np.zeros(idx.size, bool), np.zeros(idx.size, bool), self._hits[idx])
-        return obs, {key: info[key] for key in _RESET_KEYS}
+        st, obs, info = reset_state(c, cd, self._Y[idx], self._start[idx], self._ne0[idx], self._r0[idx],
+                                    self._wind[idx], self.plants.xel_scale, self.constants)
+        for name in ("r_prev", "a_prev", "em_prev", "hits"):
+            getattr(self._s, name)[idx] = getattr(st, name)
+        return obs, info
 
     def _reset_obs(self, idx: np.ndarray) -> np.ndarray:
         """Observation rows of freshly reset sub-environments ``idx`` (:meth:`_reset_rows`)."""
@@ -269,12 +261,12 @@ class DSS14VectorEnv(VectorEnv):
     @property
     def n_rate_limited(self) -> np.ndarray:
         """Steps of the current episodes in which the rate clip acted, per sub-environment."""
-        return self._hits[:, 0].copy()
+        return self._s.hits[:, 0].copy()
 
     @property
     def n_accel_limited(self) -> np.ndarray:
         """Steps of the current episodes in which the acceleration limit acted."""
-        return self._hits[:, 1].copy()
+        return self._s.hits[:, 1].copy()
 
     def plant_states(self) -> np.ndarray:
         """Plant states ``(N, n)`` (balanced coordinates of each sub-environment's plant)."""
@@ -288,7 +280,7 @@ class DSS14VectorEnv(VectorEnv):
         sub-environments about to be reset).
         """
         N, k, kc = self.num_envs, self._k_rank, self.constants
-        j = self._j
+        j = self._s.j
         enc = kc.encoder_sigma > 0.0
         if self._j_uniform:
             j0 = int(j[0])
@@ -352,8 +344,8 @@ class DSS14VectorEnv(VectorEnv):
             raise RuntimeError("call reset() before step()")
         kc = self.constants
         A = as_actions(actions, (self.num_envs, 2))
-        done = self._prev_done
-        a, R, rate_hit, acc_hit = limit_commands(A, self._rp, kc)
+        done, s = self._prev_done, self._s
+        a, R, rate_hit, acc_hit = limit_commands(A, s.r_prev, kc)
         row = self._rows(done)
         self._Y = Y = self._advance(R, row[:, 8:])
         self._k += 1
@@ -364,18 +356,18 @@ class DSS14VectorEnv(VectorEnv):
         term = terminated(e, theta, self._start, self._max_e, kc)
         any_term = bool(term.any())
         pe = pointing_errors(c, Y[:, 2:4], self.plants.xel_scale)
-        rew = reward(scored_errors(e, pe, kc), a, self._ap, term, kc)
-        obs = observation(em, self._em, row[:, 2:4], row[:, 4:6], rel, R, any_term or self._clamp_always, kc)
+        rew = reward(scored_errors(e, pe, kc), a, s.a_prev, term, kc)
+        obs = observation(em, s.em_prev, row[:, 2:4], row[:, 4:6], rel, R, any_term or self._clamp_always, kc)
         if not np.isfinite(rew.sum()):
             bad = np.flatnonzero(~np.isfinite(rew)).tolist()
             raise FloatingPointError(f"the reward became non-finite in sub-environment(s) {bad}: the plant "
                                      "left the range it is meant for")
         trunc = (self._k >= self.max_episode_steps) if self.max_episode_steps is not None else np.zeros(
             self.num_envs, bool)
-        self._em, self._ap, self._rp = em, a, R
-        self._hits[:, 0] += rate_hit
-        self._hits[:, 1] += acc_hit
-        info = step_info(e, em, pe, self._wind, A, R, rate_hit, acc_hit, self._hits)
+        s.hits[:, 0] += rate_hit
+        s.hits[:, 1] += acc_hit
+        self._s = s = StepState(R, a, em, s.hits, s.j)
+        info = step_info(e, em, pe, self._wind, A, R, rate_hit, acc_hit, s.hits)
         # autoreset (NEXT_STEP): sub-environments that ended on the previous step
         if done.any():
             idx = np.flatnonzero(done)
@@ -397,8 +389,8 @@ class DSS14VectorEnv(VectorEnv):
 
     # ------------------------------------------------------------------ copies and state
     #: the attributes of the dynamic state (:meth:`get_state`)
-    _STATE = ("_Zs", "_Os", "_Y", "_kappa", "_kappa_s", "_start", "_traj", "_k", "_j", "_blocks", "_rp",
-              "_ap", "_em", "_ne0", "_hits", "_max_e", "_wind", "_pid", "_plants", "_groups", "_prev_done",
+    _STATE = ("_Zs", "_Os", "_Y", "_kappa", "_kappa_s", "_start", "_traj", "_k", "_s", "_blocks", "_r0",
+              "_ne0", "_max_e", "_wind", "_pid", "_plants", "_groups", "_prev_done",
               "_j_uniform", "_any_noise", "_clamp_always", "_perm", "_inv", "_rngs", "_np_random",
               "_np_random_seed")
 
@@ -426,8 +418,3 @@ class DSS14VectorEnv(VectorEnv):
     def close_extras(self, **kwargs: Any) -> None:
         """Nothing to release."""
 
-
-#: the keys of the reset info
-_RESET_KEYS = ("servo_error_az_mdeg", "servo_error_el_mdeg", "measured_error_az_mdeg",
-               "measured_error_el_mdeg", "pointing_error_el_mdeg", "pointing_error_xel_mdeg",
-               "wind_speed_mps", "wind_direction_rad", "rate_command_az_deg_s", "rate_command_el_deg_s")
