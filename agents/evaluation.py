@@ -29,6 +29,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from dss14_env.core.results import ErrorStats
 from dss14_env.envs.config import load_env_config
 from dss14_env.envs.presets import PRESETS
 
@@ -145,12 +146,12 @@ def run_task(ctrl: Any, task: EvalTask, seeds: Sequence[int], steps: int | None 
 
 
 def _three_sigma(rows: list[list[float]] | None, n: int) -> np.ndarray:
-    """3σ (3 x the standard deviation) of each row's errors; NaN for rows of fewer than two
-    values or when nothing was recorded (``rows`` None).
+    """3σ (:class:`~dss14_env.core.results.ErrorStats`) of each row's errors; NaN for rows of
+    fewer than two values or when nothing was recorded (``rows`` None).
     """
     if rows is None:
         return np.full(n, np.nan)
-    return np.array([3.0 * np.std(e) if len(e) > 1 else np.nan for e in rows])
+    return np.array([ErrorStats.of(e).three_sigma if len(e) > 1 else np.nan for e in rows])
 
 
 def check_seed_protocol(seed: int, n_envs: int, eval_seeds: Sequence[int], source: str) -> None:
