@@ -52,7 +52,7 @@ class HydraulicsConfig:
     k_v: float = spec("1", lo=0.0, lo_open=True)
     mu: float = spec("Pa*s", lo=0.0, lo_open=True)
     k_a2: float = spec("m^3", lo=0.0, lo_open=True)
-    beta: float = spec("Pa", lo=0.0, lo_open=True)
+    beta: float = spec("Pa", lo=0.0, lo_open=True, hi=1.0e12)  # oil: ~1.3e9 Pa; steel 1.6e11
     v_o: dict = spec("m^3", lo=0.0, lo_open=True, axis=True)
 
 
@@ -91,8 +91,10 @@ class StructureConfig:
     k_wheel_el: float = spec("N*m/rad", lo=0.0, lo_open=True)
     k_counterweight: float = spec("N*m/rad", lo=0.0, lo_open=True)
     el_drive_lever: float = spec("m")
-    n_ribs: int = spec("1", kind="integer", lo=1)
-    n_rib_nodes: int = spec("1", kind="integer", lo=1)
+    # at most 32 x 16 nodes (4 x the shipped 16 x 8): the model's eigenproblems and balanced
+    # reduction grow with the cube of their number
+    n_ribs: int = spec("1", kind="integer", lo=1, hi=32)
+    n_rib_nodes: int = spec("1", kind="integer", lo=1, hi=16)
     rib_r_inner: float = spec("m", lo=0.0, lo_open=True)
     rib_r_outer: float = spec("m", lo=0.0, lo_open=True)
     rib_node_mass: float = spec("kg", lo=0.0, lo_open=True)
@@ -146,6 +148,9 @@ class ModelConfig:
     calibration: CalibrationTargets
     params: dict  # "block.name" or "block.name.axis" -> Param
     path: str
+    #: the file's ``recalibrate_wind`` key: the environment refits the wind-load coefficients
+    #: to [R] Table 4 on this model instead of keeping the shipped ones (default False)
+    recalibrate_wind: bool = False
 
     def replace(self, **overrides: float) -> ModelConfig:
         """Return a copy with some scalar parameters replaced (SI values).
@@ -188,10 +193,13 @@ def load_model_config(path: str | Path | None = None) -> ModelConfig:
     """
     data, source = read_config("model" if path is None else path)
     registry: dict[str, Param] = {}
-    extra = set(data) - set(SECTIONS) - {"position_loop"}
+    extra = set(data) - set(SECTIONS) - {"position_loop", "recalibrate_wind"}
     if extra:
         raise ConfigError(f"{source}: unknown section(s) {sorted(extra)}; known: "
-                          f"{sorted(SECTIONS) + ['position_loop']}")
+                          f"{sorted(SECTIONS) + ['position_loop', 'recalibrate_wind']}")
+    recalibrate = data.get("recalibrate_wind", False)
+    if not isinstance(recalibrate, bool):
+        raise ConfigError(f"{source}: field 'recalibrate_wind': must be true or false, got {recalibrate!r}")
     kw = dict(documented=True, registry=registry, defaults=False)
     blocks = {name: load_section(cls, data.get(name), source, name, **kw)
               for name, cls in SECTIONS.items()}
@@ -214,4 +222,4 @@ def load_model_config(path: str | Path | None = None) -> ModelConfig:
         raise ConfigError(f"{source}: field 'calibration.structure_az_peaks': must have 2 entries, "
                           f"got {len(cal.structure_az_peaks)}")
     return ModelConfig(blocks["board"], blocks["hydraulics"], blocks["gearbox"], struct,
-                       blocks["reduction"], gains, cal, registry, source)
+                       blocks["reduction"], gains, cal, registry, source, recalibrate)
