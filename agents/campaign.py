@@ -39,12 +39,20 @@ from typing import Any
 import numpy as np
 import yaml
 
-from dss14_env.agents.config import TrainConfig, as_config
+from dss14_env.agents.config import MAX_SEED, TrainConfig, as_config
 from dss14_env.agents.envs import check_env, resolve_env
 from dss14_env.agents.evaluation import DSS14_TASKS, TEST_SEEDS, TEST_STEPS, EvalTask, run_task
 from dss14_env.agents.policy import load_policy
 from dss14_env.agents.train import train
-from dss14_env.core.outdir import atomic_write_bytes, atomic_write_text, prepare_output_dir
+from dss14_env.core.outdir import (
+    atomic_write_bytes,
+    atomic_write_text,
+    manifest_kept,
+    prepare_output_dir,
+    remove_run_files,
+    reopen_output_dir,
+    update_manifest,
+)
 from dss14_env.core.parallel import Executor, SerialExecutor, pinned_threads
 from dss14_env.core.stats import iqm_ci
 
@@ -85,6 +93,20 @@ def parse_seeds(values: Sequence[str | int]) -> list[int]:
 def training_seed(config: TrainConfig, k: int) -> int:
     """The training seed of seed index ``k``: ``config.seed + SEED_STRIDE * k``."""
     return config.seed + SEED_STRIDE * int(k)
+
+
+def check_training_seeds(cfg: TrainConfig, seeds: Sequence[int]) -> None:
+    """Refuse seed indices whose training seed (:func:`training_seed`) passes the largest seed
+    (:data:`~dss14_env.agents.config.MAX_SEED`), before any work.
+
+    :raises ValueError: naming ``--seeds``
+    """
+    for k in seeds:
+        s = training_seed(cfg, k)
+        if s + cfg.n_envs - 1 > MAX_SEED:
+            raise ValueError(f"--seeds: seed index {k} trains with seed {cfg.seed} + "
+                             f"{SEED_STRIDE} x {k} = {s} (and its {cfg.n_envs} sub-environments "
+                             f"the next ones), past the largest seed {MAX_SEED}")
 
 
 def campaign_tasks(cfg: TrainConfig) -> list[EvalTask]:
@@ -155,14 +177,15 @@ def _continue_campaign(cfg: TrainConfig, out: str | Path, seeds: Sequence[int]) 
     """
     folder = Path(out)
     check_saved_config(cfg, folder)
-    prepare_output_dir(folder, ("summary.json", "curves_*.png"), True, "--out")
+    reopen_output_dir(folder, owned_files(folder), "--out")
+    remove_run_files(folder, ("summary.json", "curves_*.png"))
     finished = set()
     for k in seeds:
         run = folder / f"seed_{k}"
         if finished_run(cfg.replace(seed=training_seed(cfg, k)), run):
             finished.add(k)
         elif run.exists():
-            prepare_output_dir(folder, (run.name,), True, "--out")
+            remove_run_files(folder, (run.name,))
     return folder, finished
 
 
@@ -199,6 +222,7 @@ def open_campaign(cfg: TrainConfig, out: str | Path, seeds: Sequence[int], overw
     atomic_write_text(folder / "config.yaml", f"# shared configuration of the campaign (from "
                       f"{cfg.source}); run k trains with seed {cfg.seed} + {SEED_STRIDE} k\n"
                       + yaml.safe_dump(cfg.to_dict(), sort_keys=False))
+    update_manifest(folder)
     return folder, set()
 
 
@@ -266,6 +290,7 @@ def write_summary(cfg: TrainConfig, folder: Path, seeds: Sequence[int], per_seed
     atomic_write_text(folder / "summary.json", json.dumps(summary, indent=2) + "\n")
     if figures:
         write_curves(folder, [folder / f"seed_{k}" for k in seeds], tasks)
+    update_manifest(folder)
     return summary
 
 
@@ -297,15 +322,17 @@ def train_seeds(config: TrainConfig | Mapping[str, Any] | str | Path, seeds: Seq
         raise ValueError(f"{cfg.source}: field 'sweep': a sweep trains one campaign per point "
                          f"(dss14_env.agents.sweep.train_sweep)")
     seeds = [int(k) for k in seeds]
+    check_training_seeds(cfg, seeds)
     campaign_tasks(cfg)  # an environment the tasks cannot be made of: before any work
     with pinned_threads(1):  # a training environment that cannot be made: before any work
         check_env(cfg)
     folder, finished = open_campaign(cfg, out, seeds, overwrite, resume)
-    items = seed_items(cfg, folder, seeds, finished, test_seeds, test_steps)
-    ex = executor if executor is not None else SerialExecutor()
-    done = dict(ex.map_unordered(train_one_seed, items, labels=[f"seed {k}" for k in seeds]))
-    write_summary(cfg, folder, seeds, [done[i] for i in range(len(seeds))], test_seeds, test_steps,
-                  figures)
+    with manifest_kept(folder):
+        items = seed_items(cfg, folder, seeds, finished, test_seeds, test_steps)
+        ex = executor if executor is not None else SerialExecutor()
+        done = dict(ex.map_unordered(train_one_seed, items, labels=[f"seed {k}" for k in seeds]))
+        write_summary(cfg, folder, seeds, [done[i] for i in range(len(seeds))], test_seeds,
+                      test_steps, figures)
     return folder
 
 
@@ -383,7 +410,8 @@ def write_curves(folder: Path, runs: Sequence[Path], tasks: Sequence[EvalTask]) 
     return written
 
 
-__all__ = ["CAMPAIGN_FILES", "SEED_STRIDE", "campaign_tasks", "check_saved_config", "finished_run",
+__all__ = ["CAMPAIGN_FILES", "SEED_STRIDE", "campaign_tasks", "check_saved_config",
+           "check_training_seeds", "finished_run",
            "owned_files",
            "learning_curves", "open_campaign", "parse_seeds", "seed_items", "train_one_seed", "train_seeds",
            "training_seed", "write_curves", "write_summary"]

@@ -43,7 +43,7 @@ from dss14_env.bench.report import (
 )
 from dss14_env.bench.run import run_plan
 from dss14_env.bench.threads import blas_threads
-from dss14_env.core.outdir import prepare_output_dir
+from dss14_env.core.outdir import manifest_kept, prepare_output_dir
 
 #: what the bench owns in its output folder (removed by ``--overwrite``, nothing else)
 OWNED_FILES: tuple[str, ...] = RESULT_FILES + FIGURES
@@ -71,6 +71,12 @@ def bench(plan: BenchPlan, progress: bool = True) -> dict[str, Any]:
         ``ran`` (:func:`dss14_env.bench.run.run_plan`'s output, with the time histories)
     """
     prepare_out(plan)
+    with manifest_kept(plan.out):
+        return _bench_in(plan, progress)
+
+
+def _bench_in(plan: BenchPlan, progress: bool) -> dict[str, Any]:
+    """The bench itself, in the checked output folder (:func:`bench`)."""
     t0, c0 = time.perf_counter(), time.process_time()
     load0 = load_average()
     with blas_threads(plan.threads) as bt:

@@ -67,12 +67,20 @@ from dss14_env.bench.campaign_spec import (  # noqa: F401 - the options, re-expo
     CampaignOptionError,
     CampaignSpec,
     Condition,
+    check_policy,
     check_spec,
     known_controllers,
     parse_directions,
     parse_wind_speeds,
 )
-from dss14_env.core.outdir import OutputDirError, atomic_write_text, prepare_output_dir
+from dss14_env.core.outdir import (
+    OutputDirError,
+    atomic_write_text,
+    manifest_kept,
+    prepare_output_dir,
+    reopen_output_dir,
+    update_manifest,
+)
 from dss14_env.core.parallel import Executor, SerialExecutor
 
 
@@ -237,13 +245,14 @@ def open_campaign(spec: CampaignSpec, out: str | os.PathLike, resume: bool = Fal
             raise CampaignOptionError(f"--resume: {out} holds a campaign with other options ("
                                       f"{'; '.join(spec_differences(old, spec))}); pass the same "
                                       f"options, --overwrite to replace it, or choose another folder")
-        prepare_output_dir(out, owned=())  # still a writable folder
+        reopen_output_dir(out, OWNED)  # still a writable folder; its manifest kept
         (out / "chunks").mkdir(exist_ok=True)
         return out, finished_chunks(out, spec)
     prepare_output_dir(out, OWNED, overwrite=overwrite)
-    (out / "chunks").mkdir()
+    (out / "chunks").mkdir(exist_ok=True)
     atomic_write_text(cj, json.dumps({"format": FORMAT, "spec": spec.as_dict(),
                                       "fingerprint": spec.fingerprint()}, indent=1) + "\n")
+    update_manifest(out)
     return out, {}
 
 
@@ -313,8 +322,17 @@ def run_campaign(spec: CampaignSpec, out: str | os.PathLike = "campaign_out",
         main table), ``figures``, ``computed`` / ``resumed`` (chunk indices), ``out``
     """
     reqs = report.check_requirements(requirements)
+    check_policy(spec)
     t0 = time.perf_counter()
     out, done = open_campaign(spec, out, resume=resume, overwrite=overwrite)
+    with manifest_kept(out):
+        return _run_in(spec, out, done, executor, reqs, figures, progress, command, t0)
+
+
+def _run_in(spec: CampaignSpec, out: Path, done: dict[int, dict[str, Any]],
+            executor: Executor | Callable[[], Executor] | None, reqs: Mapping[str, float],
+            figures: bool, progress: bool, command: str | None, t0: float) -> dict[str, Any]:
+    """The campaign in its opened folder (:func:`run_campaign`)."""
     resumed = sorted(done)
     owned = executor is None or (callable(executor) and not hasattr(executor, "map_unordered"))
     ex = SerialExecutor() if executor is None else (executor() if owned else executor)

@@ -187,8 +187,24 @@ def _check_controllers(names: Sequence[str]) -> None:
         raise CampaignOptionError(f"--controllers: controller named twice: {', '.join(dup)}")
 
 
+def check_policy(spec: CampaignSpec) -> None:
+    """Refuse a learned controller's policy that cannot act on a DSS14 environment (missing
+    path, unreadable files, another environment's sizes) before any work.
+
+    :raises CampaignOptionError: one line naming the option and the problem
+    """
+    for name, row in zip(spec.controllers, spec.rows(), strict=True):
+        problem = row.policy_problem()
+        if problem is not None:
+            opt = ("--ppo-model" if name == catalog.POLICY_OPTION_ROW and spec.ppo_model is not None
+                   else f"--controllers {name}")
+            raise CampaignOptionError(f"{opt}: {problem}")
+
+
 def check_spec(spec: CampaignSpec) -> None:
     """Raise :class:`CampaignOptionError` naming the first bad option."""
+    from dss14_env.envs.config import WIND_SPEED_MAX_KMH  # (the environment, loaded when used)
+
     _check_controllers(spec.controllers)
     _positive_int(spec.plants, "--plants")
     _positive_int(spec.first_plant, "--first-plant", 0)
@@ -197,8 +213,11 @@ def check_spec(spec: CampaignSpec) -> None:
     if not spec.wind_speeds_kmh:
         raise CampaignOptionError("--wind-speeds: give at least one speed in km/h")
     for s in spec.wind_speeds_kmh:
-        if isinstance(s, bool) or not isinstance(s, (int, float)) or not (math.isfinite(s) and 0 < s <= 150):
-            raise CampaignOptionError(f"--wind-speeds: speeds are in km/h, > 0 and <= 150, got {s!r}")
+        if isinstance(s, bool) or not isinstance(s, (int, float)) or not (
+                math.isfinite(s) and 0 < s <= WIND_SPEED_MAX_KMH):
+            raise CampaignOptionError(f"--wind-speeds: {s!r} km/h is outside (0, "
+                                      f"{WIND_SPEED_MAX_KMH:g}] km/h, the environment's "
+                                      f"wind_speed_kmh range (WIND_SPEED_MAX_KMH)")
     if len(set(spec.wind_speeds_kmh)) != len(spec.wind_speeds_kmh):
         raise CampaignOptionError(f"--wind-speeds: a speed is repeated: {list(spec.wind_speeds_kmh)}")
     if not spec.directions:
@@ -260,5 +279,6 @@ def parse_wind_speeds(values: Iterable[str | float] | None) -> tuple[float, ...]
 
 __all__ = ["CampaignOptionError", "CampaignSpec", "Condition", "DEFAULT_CHUNK_SIZE",
            "DEFAULT_CONTROLLERS", "DEFAULT_DIRECTIONS", "DEFAULT_PLANTS", "DEFAULT_STEPS",
-           "DEFAULT_WIND_SPEEDS_KMH", "FORMAT", "WARMUP_S", "check_spec", "known_controllers",
+           "DEFAULT_WIND_SPEEDS_KMH", "FORMAT", "WARMUP_S", "check_policy", "check_spec",
+           "known_controllers",
            "parse_directions", "parse_wind_speeds"]
