@@ -132,6 +132,7 @@ class ClosedLoop:
     D_rv: np.ndarray
     C_rprev: np.ndarray
     R: np.ndarray
+    C_p: np.ndarray | None = None  # pointing error [el, xel] = -Cp x (hold), when the plant has it
 
     def eigenvalues(self) -> np.ndarray:
         return np.linalg.eigvals(self.A)
@@ -167,7 +168,11 @@ def closed_loop(plant: DesignModel, ctrl: LinearController) -> ClosedLoop:
     C_r[:, n:n + nc] = ctrl.Cc
     C_rprev = np.zeros((2, N))
     C_rprev[:, n + nc:] = np.eye(2)
-    return ClosedLoop(A, W, C_e, C_r, ctrl.Dc, C_rprev, plant.R)
+    C_p = None
+    if plant.Cp is not None:
+        C_p = np.zeros((2, N))
+        C_p[:, :n] = -plant.Cp
+    return ClosedLoop(A, W, C_e, C_r, ctrl.Dc, C_rprev, plant.R, C_p)
 
 
 def stationary_performance(cl: ClosedLoop, weights: Weights) -> dict[str, Any]:
@@ -176,8 +181,11 @@ def stationary_performance(cl: ClosedLoop, weights: Weights) -> dict[str, Any]:
     Solves ``X = A X A' + W`` (:func:`scipy.linalg.solve_discrete_lyapunov`).
 
     :return: dict with ``three_sigma_mdeg`` ([az, el]), ``rms_mdeg``, ``rate_rms`` (rad/s),
-        ``cost`` (expected ``|e/sigma_e|^2 + w |da|^2`` per step), ``cost_error``,
-        ``cost_action`` and ``spectral_radius``
+        ``command_change_rms_rad_s`` (rms of the rate command's change per period, per axis),
+        ``cost`` (expected ``|e/sigma_e|^2 + w |da|^2`` per step, ``e`` the servo error),
+        ``cost_error``, ``cost_action`` and ``spectral_radius``; with a plant that has pointing
+        outputs also ``pointing_three_sigma_mdeg`` and ``pointing_rms_mdeg`` ([el, xel]) and
+        ``cost_pointing`` (the cost with the pointing error in place of the servo error)
     :raises ValueError: if the loop is not asymptotically stable
     """
     rho = cl.spectral_radius()
@@ -192,9 +200,17 @@ def stationary_performance(cl: ClosedLoop, weights: Weights) -> dict[str, Any]:
     ce = float(var_e.sum() / weights.error_scale ** 2)
     ca = float(weights.action_change * var_da.sum())
     sig = np.sqrt(var_e) * R2MD
-    return {"three_sigma_mdeg": (3 * sig).tolist(), "rms_mdeg": sig.tolist(),
-            "rate_rms_rad_s": np.sqrt(var_r).tolist(), "cost": ce + ca, "cost_error": ce,
-            "cost_action": ca, "spectral_radius": rho}
+    dt_acc = np.sqrt(var_da) * weights.action_scale
+    out = {"three_sigma_mdeg": (3 * sig).tolist(), "rms_mdeg": sig.tolist(),
+           "rate_rms_rad_s": np.sqrt(var_r).tolist(), "cost": ce + ca, "cost_error": ce,
+           "cost_action": ca, "spectral_radius": rho}
+    if cl.C_p is not None:
+        var_p = np.diag(cl.C_p @ X @ cl.C_p.T)
+        sp = np.sqrt(var_p) * R2MD
+        out.update({"pointing_three_sigma_mdeg": (3 * sp).tolist(), "pointing_rms_mdeg": sp.tolist(),
+                    "cost_pointing": float(var_p.sum() / weights.error_scale ** 2) + ca})
+    out["command_change_rms_rad_s"] = dt_acc.tolist()
+    return out
 
 
 # ------------------------------------------------------------------------- the sampled PI

@@ -62,6 +62,11 @@ from dss14_env.wind.loads import WindLoads, default_wind_loads, direction_angle
 
 ENCODER_OUTPUTS = ("enc_az", "enc_el")
 RATE_OUTPUTS = ("enc_rate_az", "enc_rate_el")
+#: the structure's pointing outputs of the rate loop (rad): elevation, cross-elevation
+POINTING_OUTPUTS = ("point_el", "point_xel")
+#: what a design's quadratic error term scores: the drive-encoder servo error or the dish's
+#: true pointing error
+ERROR_OUTPUTS = ("encoder", "pointing")
 COMMAND_INPUTS = ("r_a", "r_e")
 WIND_INPUTS = ("Tw_az", "Tw_el")
 #: floor of the measurement-noise standard deviation (rad): 1e-3 mdeg, for exact encoders
@@ -120,12 +125,29 @@ class MPCConfig:
 
 
 @dataclass(frozen=True)
+class PointingConfig:
+    """Section ``pointing``: the pointing-aware LQG and MPC (everything else as ``lqg``/``mpc``).
+
+    Their quadratic error term is the dish's true pointing error ``[el, xel]`` (the structure's
+    pointing outputs of the design model) plus ``encoder_error_weight`` times the encoder
+    servo error; ``order`` is the reduced order of a design model that balances the
+    deformation outputs too.
+    """
+
+    order: int = spec("1", kind="integer", lo=2)
+    action_change_weight: float = spec("1", lo=0.0, lo_open=True)
+    encoder_error_weight: float = spec("1", lo=0.0)
+    mpc_action_change_weight: float = spec("1", lo=0.0, lo_open=True)
+
+
+@dataclass(frozen=True)
 class ControllersConfig:
     """The whole ``configs/controllers.yaml`` in SI plus its parameter registry."""
 
     design: DesignConfig
     lqg: LQGConfig
     mpc: MPCConfig
+    pointing: PointingConfig
     params: dict
     path: str
 
@@ -140,13 +162,14 @@ def load_controllers_config(path: str | Path | None = None) -> ControllersConfig
     data, source = read_config("controllers" if path is None else path)
     registry: dict[str, Param] = {}
     kw = dict(documented=True, registry=registry, defaults=False)
-    sections = {"design": DesignConfig, "lqg": LQGConfig, "mpc": MPCConfig}
+    sections = {"design": DesignConfig, "lqg": LQGConfig, "mpc": MPCConfig, "pointing": PointingConfig}
     extra = set(data) - set(sections)
     if extra:
         raise ConfigError(f"{source}: unknown section(s) {sorted(extra)}; known: {sorted(sections)}")
     blocks = {name: load_section(cls, data.get(name), source, name, **kw)
               for name, cls in sections.items()}
-    return ControllersConfig(blocks["design"], blocks["lqg"], blocks["mpc"], registry, source)
+    return ControllersConfig(blocks["design"], blocks["lqg"], blocks["mpc"], blocks["pointing"], registry,
+                             source)
 
 
 @lru_cache(maxsize=1)
@@ -172,13 +195,17 @@ class StableRateLoop:
     """The rate loop split into encoder-angle integrators and a stable part (exact).
 
     ``theta' = C x + D [r; T_w]``, ``x' = A x + B [r; T_w]`` with ``A`` Hurwitz; inputs in the
-    order ``r_a, r_e, Tw_az, Tw_el``.
+    order ``r_a, r_e, Tw_az, Tw_el``.  The structure's deformation ``delta = Cd x`` (rad, rows
+    el, xel) is the pointing less its rigid part: ``[point_el, point_xel] = S theta + delta``
+    with ``S = [[0, 1], [cos E, 0]]`` (:func:`rigid_pointing`).
     """
 
     A: np.ndarray
     B: np.ndarray
     C: np.ndarray
     D: np.ndarray
+    Cd: np.ndarray
+    xel_scale: float
 
 
 def split_rate_loop(model: DSS14Model) -> StableRateLoop:
@@ -187,11 +214,13 @@ def split_rate_loop(model: DSS14Model) -> StableRateLoop:
     The (balanced, :func:`dss14_env.model.linsys.balance`) rate loop is brought to an ordered real
     Schur form with the stable eigenvalues first; a Sylvester equation removes the coupling
     block, so ``x = T [x_s; x_0]`` with ``x_s' = A_s x_s + B_s u``.  The encoder rate reads
-    only ``x_s`` (the zero modes are the rigid rotations), and the angle is its integral.
+    only ``x_s`` (the zero modes are the rigid rotations), and the angle is its integral.  A
+    rigid rotation turns the beam with the encoders, so the deformation (pointing less
+    ``S theta``) reads only ``x_s`` too (checked).
 
     :param model: calibrated servo model
-    :raises ValueError: if the rate loop does not have exactly two eigenvalues at zero or the
-        encoder angle is not the integral of the encoder rate
+    :raises ValueError: if the rate loop does not have exactly two eigenvalues at zero, the
+        encoder angle is not the integral of the encoder rate, or a rigid rotation deforms
     """
     rl = model.rate_loop
     il, ol = list(rl.input_labels), list(rl.output_labels)
@@ -216,7 +245,21 @@ def split_rate_loop(model: DSS14Model) -> StableRateLoop:
     As = (Ti @ A @ Tm)[:n_s, :n_s]
     Bs = (Ti @ B)[:n_s]
     Cs = (C[iv] @ Tm)[:, :n_s]
-    return StableRateLoop(As, Bs, Cs, np.zeros((2, len(ii))))
+    xel_scale = math.cos(model.cfg.structure.elevation_angle)
+    ip = [ol.index(s) for s in POINTING_OUTPUTS]
+    if np.any(rl.D[np.ix_(ip, ii)]):
+        raise ValueError("the rate loop's pointing outputs have a feedthrough")
+    Cdef = (C[ip] - rigid_pointing(xel_scale) @ C[ie]) @ Tm
+    if np.abs(Cdef[:, n_s:]).max() > 1e-9 * np.abs(C[ip]).max():
+        raise ValueError("a rigid rotation of the rate loop deforms the structure")
+    return StableRateLoop(As, Bs, Cs, np.zeros((2, len(ii))), Cdef[:, :n_s], xel_scale)
+
+
+def rigid_pointing(xel_scale: float) -> np.ndarray:
+    """``S``: the pointing ``[el, xel]`` of a rigid rotation by the encoder angles ``[az, el]``
+    (the structure's xel output of an azimuth rotation is ``cos(E)`` times it).
+    """
+    return np.array([[0.0, 1.0], [float(xel_scale), 0.0]])
 
 
 def balanced_reduction(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray,
@@ -273,6 +316,9 @@ def gust_torque_std(loads: WindLoads, speed: float, direction: str | float) -> n
 class ReducedRateLoop:
     """The rate loop as ``theta' = C x + D u``, ``x' = A x + B u``, ``u = [r; T_w]`` (SI).
 
+    With the pointing outputs (``pointing=True`` of :func:`reduce_rate_loop`) the deformation
+    ``delta = Cd x + Dd u`` (rad, el and xel) is kept too; ``Cd`` and ``Dd`` are None otherwise.
+
     :param hsv: Hankel singular values of the scaled stable part (all 58)
     :param input_scale: scaling used for the balancing (rad/s for r, N*m for T_w)
     """
@@ -284,6 +330,9 @@ class ReducedRateLoop:
     hsv: np.ndarray
     input_scale: np.ndarray
     order: int
+    Cd: np.ndarray | None = None
+    Dd: np.ndarray | None = None
+    xel_scale: float = 1.0
 
     def freqresp_angle(self, f_hz: Sequence[float]) -> np.ndarray:
         """Frequency response ``[r; T_w] -> theta`` (``(len(f), 2, 4)``), f > 0."""
@@ -312,7 +361,7 @@ def _cached(key: tuple, refs: tuple, build: Any) -> Any:
 
 def reduce_rate_loop(order: int | None, model: DSS14Model | None = None,
                      loads: WindLoads | None = None, speed: float | None = None,
-                     rate_limit: float | None = None) -> ReducedRateLoop:
+                     rate_limit: float | None = None, pointing: bool = False) -> ReducedRateLoop:
     """Balanced residualisation of the rate loop's stable part (see the module docstring).
 
     :param order: states kept of the 58-state stable part; ``None``: all (exact)
@@ -320,23 +369,37 @@ def reduce_rate_loop(order: int | None, model: DSS14Model | None = None,
     :param loads: wind loads, default :func:`default_wind_loads`
     :param speed: design wind speed (m/s) for the torque scaling, default from the config
     :param rate_limit: rate-command scaling (rad/s), default from the config
+    :param pointing: balance and keep the structure's deformation as outputs too (scaled by
+        :data:`DEFORMATION_SCALE_S` times the rate limit), for the pointing designs
     """
     model = model or default_model()
     loads = loads or default_wind_loads()
-    return _cached(("reduce", order, speed, rate_limit), (model, loads),
-                   lambda: _reduce(order, model, loads, speed, rate_limit))
+    return _cached(("reduce", order, speed, rate_limit, bool(pointing)), (model, loads),
+                   lambda: _reduce(order, model, loads, speed, rate_limit, bool(pointing)))
 
 
-def _reduce(order, model, loads, speed, rate_limit) -> ReducedRateLoop:
+#: output scaling of the deformation in the balancing of a pointing design, s: a deformation of
+#: this many seconds of full-rate motion weighs like a full-rate encoder-rate error
+DEFORMATION_SCALE_S = 0.01
+
+
+def _reduce(order, model, loads, speed, rate_limit, pointing=False) -> ReducedRateLoop:
     cfg = default_controllers_config().design
     speed = cfg.wind_speed if speed is None else float(speed)
     rate_limit = cfg.rate_limit if rate_limit is None else float(rate_limit)
     srl = _split(model)
     t_std = np.max([gust_torque_std(loads, speed, d) for d in WIND_DIRECTIONS], axis=0)
     su = np.concatenate([[rate_limit, rate_limit], t_std])
-    Ar, Br, Cr, Dr, hsv = balanced_reduction(srl.A, srl.B * su, srl.C / rate_limit, srl.D * su / rate_limit,
+    sy = np.full(2, rate_limit)
+    C, D = srl.C, srl.D
+    if pointing:
+        sy = np.concatenate([sy, np.full(2, DEFORMATION_SCALE_S * rate_limit)])
+        C, D = np.vstack([C, srl.Cd]), np.vstack([D, np.zeros_like(D)])
+    Ar, Br, Cr, Dr, hsv = balanced_reduction(srl.A, srl.B * su, C / sy[:, None], D * su / sy[:, None],
                                              order)
-    return ReducedRateLoop(Ar, Br / su, Cr * rate_limit, Dr * rate_limit / su, hsv, su, Ar.shape[0])
+    Cr, Dr = Cr * sy[:, None], Dr * sy[:, None] / su
+    Cd, Dd = (Cr[2:], Dr[2:]) if pointing else (None, None)
+    return ReducedRateLoop(Ar, Br / su, Cr[:2], Dr[:2], hsv, su, Ar.shape[0], Cd, Dd, srl.xel_scale)
 
 
 def _split(model: DSS14Model) -> StableRateLoop:
@@ -407,11 +470,32 @@ class DesignModel:
     order: int
     wind: Any
     hsv: np.ndarray = field(repr=False)
+    Cp: np.ndarray | None = field(default=None, repr=False)
+    xel_scale: float = 1.0
+    error_output: str = "encoder"
 
     @property
     def n(self) -> int:
         """Number of states."""
         return self.A.shape[0]
+
+    @property
+    def Cz(self) -> np.ndarray:
+        """The outputs whose error the design scores: the encoder angles ``C`` (rows az, el) or
+        the dish's pointing ``Cp`` (rows el, xel), by :attr:`error_output`.
+        """
+        return self.Cp if self.error_output == "pointing" else self.C
+
+    def deformation_map(self) -> np.ndarray:
+        """``Cd`` ``(2, n)``: the deformation part of the pointing, ``Cp x - S theta`` (rad).
+
+        :raises ValueError: for a model built without the pointing outputs
+        """
+        if self.Cp is None:
+            raise ValueError("this design model has no pointing outputs (build it with pointing=True)")
+        out = self.Cp.copy()
+        out[:, :2] -= rigid_pointing(self.xel_scale)
+        return out
 
     def rate_dc_gain(self) -> np.ndarray:
         """DC gain (2x2) rate command -> encoder rate of the model."""
@@ -471,7 +555,8 @@ def _wind_model(loads: WindLoads, wind: Any) -> tuple[np.ndarray, np.ndarray, np
 
 def build_design_model(dt: float, order: int | None | str = "config", wind: Any = None,
                        encoder_noise: float = 0.0, bits: int | None | str = "config",
-                       model: DSS14Model | None = None, loads: WindLoads | None = None) -> DesignModel:
+                       model: DSS14Model | None = None, loads: WindLoads | None = None,
+                       pointing: bool = False, error_output: str = "encoder") -> DesignModel:
     """Nominal design model, discretised exactly for the period ``dt``.
 
     :param dt: control period, s
@@ -485,10 +570,17 @@ def build_design_model(dt: float, order: int | None | str = "config", wind: Any 
         :data:`MIN_MEASUREMENT_NOISE` keeps the Kalman problem regular)
     :param model: nominal model, default :func:`default_model`
     :param loads: wind loads, default :func:`default_wind_loads`
-    :raises ValueError: for a non-positive ``dt`` or an unknown wind specification
+    :param pointing: carry the structure's pointing outputs ``Cp`` (rows el, xel; rad), the
+        reduction balancing them too (:func:`reduce_rate_loop`)
+    :param error_output: ``"encoder"`` or ``"pointing"`` (implies ``pointing``): the outputs
+        whose error a design on this model scores (:attr:`DesignModel.Cz`)
+    :raises ValueError: for a non-positive ``dt``, an unknown wind specification or error output
     """
     if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
         raise ValueError(f"dt must be a positive period in s, got {dt!r}")
+    if error_output not in ERROR_OUTPUTS:
+        raise ValueError(f"error_output must be one of {ERROR_OUTPUTS}, got {error_output!r}")
+    pointing = bool(pointing) or error_output == "pointing"
     cfg = default_controllers_config().design
     if order == "config":
         order = cfg.order
@@ -499,13 +591,16 @@ def build_design_model(dt: float, order: int | None | str = "config", wind: Any 
     model = model or default_model()
     loads = loads or default_wind_loads()
     wind = tuple(wind)
-    return _cached(("design", float(dt), order, wind, float(encoder_noise), bits), (model, loads),
-                   lambda: _build(float(dt), order, wind, float(encoder_noise), bits, model, loads))
+    key = ("design", float(dt), order, wind, float(encoder_noise), bits, pointing, error_output)
+    return _cached(key, (model, loads),
+                   lambda: _build(float(dt), order, wind, float(encoder_noise), bits, model, loads,
+                                  pointing, error_output))
 
 
 @single_threaded
-def _build(dt, order, wind, encoder_noise, bits, model, loads) -> DesignModel:
-    red = reduce_rate_loop(order, model, loads)
+def _build(dt, order, wind, encoder_noise, bits, model, loads, pointing=False,
+           error_output="encoder") -> DesignModel:
+    red = reduce_rate_loop(order, model, loads, pointing=pointing)
     A_w, G_w, C_w = _wind_model(loads, wind)
     nv, nw = red.A.shape[0], A_w.shape[0]
     n = 2 + nv + nw
@@ -526,7 +621,14 @@ def _build(dt, order, wind, encoder_noise, bits, model, loads) -> DesignModel:
     Ad, Bd, Qd = discretize(A, B, dt, G)
     q2 = encoder_step(bits) ** 2 / 12.0 if bits is not None else 0.0
     R = max(q2 + encoder_noise ** 2, MIN_MEASUREMENT_NOISE ** 2) * np.eye(2)
-    return DesignModel(dt, A, B, G, C, Ad, Bd, Qd, R, 2, nv, nw, nv, wind, red.hsv)
+    Cp = None
+    if pointing:
+        Cp = np.zeros((2, n))
+        Cp[:, :2] = rigid_pointing(red.xel_scale)
+        Cp[:, v] = red.Cd
+        Cp[:, w] = red.Dd[:, 2:] @ C_w
+    return DesignModel(dt, A, B, G, C, Ad, Bd, Qd, R, 2, nv, nw, nv, wind, red.hsv, Cp,
+                       red.xel_scale, error_output)
 
 
 def smallest_order(budget_rel: float) -> int:
@@ -545,6 +647,29 @@ def rate_dc_gains(model: DSS14Model | None = None) -> np.ndarray:
     """DC gains (2x4) ``[r_a, r_e, Tw_az, Tw_el] -> encoder rates`` of the nominal rate loop."""
     srl = _split(model or default_model())
     return srl.D - srl.C @ np.linalg.solve(srl.A, srl.B)
+
+
+def deformation_dc_gains(model: DSS14Model | None = None) -> np.ndarray:
+    """DC gains (2x4) ``[r_a, r_e, Tw_az, Tw_el] -> deformation [el, xel]`` (rad per input) of the
+    nominal rate loop's stable part (:class:`StableRateLoop`).
+    """
+    srl = _split(model or default_model())
+    return -srl.Cd @ np.linalg.solve(srl.A, srl.B)
+
+
+def static_deflection_map(model: DSS14Model | None = None) -> np.ndarray:
+    """``F`` (2x2): the structure's static deflection ``[el, xel]`` (rad) under the constant
+    wind torque that a command-level input disturbance ``d`` (rad/s, the LQG estimator's) stands
+    for, with the encoders held still.
+
+    The estimator models the mean wind torque ``T`` as a command offset ``d`` with the same
+    effect on the encoder rate, ``G_r d = G_T T`` (:func:`rate_dc_gains`); held still
+    (``G_r r + G_T T = 0``, so ``r = -d``) the structure deflects by ``Def_r r + Def_T T``
+    (:func:`deformation_dc_gains`), hence ``F = Def_T G_T^-1 G_r - Def_r``.  The model itself,
+    driven by ``r + d = 0``, does not deflect: the pointing designs add ``F d`` to it.
+    """
+    G, Dg = rate_dc_gains(model), deformation_dc_gains(model)
+    return Dg[:, 2:] @ np.linalg.solve(G[:, 2:], G[:, :2]) - Dg[:, :2]
 
 
 def infer_wind(r0: np.ndarray, c_rate0: np.ndarray, model: DSS14Model | None = None,

@@ -47,9 +47,12 @@ from dss14_env.baselines.base import (
 from dss14_env.baselines.design import (
     DesignModel,
     LQGConfig,
+    PointingConfig,
     build_design_model,
     default_controllers_config,
     infer_wind,
+    rigid_pointing,
+    static_deflection_map,
 )
 from dss14_env.baselines.interface import ControlInterface, ObservationReader, Weights, as_interface
 from dss14_env.baselines.shaping import CommandShaper, ReferenceGenerator
@@ -99,9 +102,11 @@ class LQGDesign:
 
 
 def augmented_lqr_problem(dm: DesignModel, weights: Weights, w_e: float, w_a: float,
-                          w_i: float | None) -> tuple[np.ndarray, ...]:
+                          w_i: float | None, w_enc: float = 0.0) -> tuple[np.ndarray, ...]:
     """Matrices ``(Az, Bz, Qz, Rz, Sz)`` of the LQR on ``z = [x; xi; r_prev]`` (see the module
-    docstring); ``w_i=None`` leaves the integrator out (the yardstick).
+    docstring); ``w_i=None`` leaves the integrator out (the yardstick).  The error term scores
+    ``dm.Cz`` (the encoder or the pointing error); ``w_enc`` adds the encoder servo error
+    with that weight (for a pointing design that should keep the encoders near the command).
     """
     n, dt = dm.n, dm.dt
     ni = 0 if w_i is None else 2
@@ -117,7 +122,7 @@ def augmented_lqr_problem(dm: DesignModel, weights: Weights, w_e: float, w_a: fl
     qe = w_e / weights.error_scale ** 2
     qa = w_a * weights.action_change / weights.action_scale ** 2
     Qz = np.zeros((nz, nz))
-    Qz[:n, :n] = qe * dm.C.T @ dm.C
+    Qz[:n, :n] = qe * dm.Cz.T @ dm.Cz + w_enc / weights.error_scale ** 2 * dm.C.T @ dm.C
     if ni:
         Qz[n:n + 2, n:n + 2] = w_i / weights.error_scale ** 2 * np.eye(2)
     Qz[n + ni:, n + ni:] = qa * np.eye(2)
@@ -131,7 +136,7 @@ def augmented_lqr_problem(dm: DesignModel, weights: Weights, w_e: float, w_a: fl
 @single_threaded
 def design_lqg(dm: DesignModel, weights: Weights, w_e: float = 1.0, w_a: float = 1.0,
                w_i: float | None = 1e-3, input_noise: float = 0.0, disturbance_drift: float | None = 0.0,
-               rate_limit: float | None = None) -> LQGDesign:
+               rate_limit: float | None = None, w_enc: float = 0.0) -> LQGDesign:
     """LQR (with optional integral action) + steady-state Kalman filter on ``dm``.
 
     :param dm: design model (:func:`dss14_env.baselines.design.build_design_model`)
@@ -146,8 +151,10 @@ def design_lqg(dm: DesignModel, weights: Weights, w_e: float = 1.0, w_a: float =
         torque's effect) as a random walk whose step has this standard deviation (fraction of
         ``rate_limit``; 0 is allowed: ``d`` is then set once, at the start, and not estimated)
     :param rate_limit: rad/s, needed when ``input_noise > 0`` or ``disturbance_drift > 0``
+    :param w_enc: extra weight on the normalised encoder servo error when ``dm`` scores the
+        pointing (:func:`augmented_lqr_problem`)
     """
-    Az, Bz, Qz, Rz, Sz = augmented_lqr_problem(dm, weights, w_e, w_a, w_i)
+    Az, Bz, Qz, Rz, Sz = augmented_lqr_problem(dm, weights, w_e, w_a, w_i, w_enc)
     # Scale angles (theta, xi) by the error scale and the commands by the action scale so the
     # Riccati solvers see O(1) numbers (an exact similarity, undone below).
     nz = Az.shape[0]
@@ -206,7 +213,9 @@ class DesignMaps:
 
     ``Ae, Be, Ce``: estimator model on ``[x; d]``; reference maps ``x_ref = Xc c + Xv c_rate``,
     ``r_ref = Rv c_rate``; ``Kx`` the LQR gain's state block; ``reference`` the reference model
-    (None without a command shaper).
+    (None without a command shaper).  ``Hx, Hd``: for a pointing design, the shift of the
+    reference's encoder angles that puts the dish's pointing (not the encoders) on the command,
+    ``theta_ref += x_ref Hx + d Hd`` (:meth:`reference_shift`); None for an encoder design.
     """
 
     design: LQGDesign
@@ -218,6 +227,22 @@ class DesignMaps:
     Rv: np.ndarray
     Kx: np.ndarray
     reference: ReferenceGenerator | None
+    Hx: np.ndarray | None = None
+    Hd: np.ndarray | None = None
+
+    def reference_shift(self, x_ref: np.ndarray, dist: np.ndarray) -> np.ndarray | None:
+        """The encoder-angle shift ``(k, 2)`` (rad) of the rows' reference states ``x_ref`` under
+        the command-level disturbances ``dist`` (``(k, 2)``, rad/s); None for an encoder design.
+
+        The pointing is ``S theta + deformation``; the reference's deformation is the model's,
+        ``Cd x_ref`` (a ramp bends the structure), plus the static deflection ``F d`` of the mean
+        wind torque that the model represents as the command offset ``d``
+        (:func:`dss14_env.baselines.design.static_deflection_map`).  The shift
+        ``-S^-1 (Cd x_ref + F d)`` makes ``S theta_ref + deformation = S c``.
+        """
+        if self.Hx is None:
+            return None
+        return x_ref @ self.Hx + dist @ self.Hd
 
     @classmethod
     def build(cls, design: LQGDesign, interface: ControlInterface, shaped: bool,
@@ -248,7 +273,12 @@ class DesignMaps:
             K_ref[:, :2] = reference_pull * np.eye(2)
             reference = ReferenceGenerator(dm, K_ref, interface.rate_limit, interface.rate_step,
                                            accel_ff=1.0)
-        return cls(design, Ae, Be, Ce, Xc, Xv, Rv, design.split_gain()[0], reference)
+        Hx = Hd = None
+        if dm.error_output == "pointing":
+            Sinv_T = np.linalg.inv(rigid_pointing(dm.xel_scale)).T
+            Hx = -dm.deformation_map().T @ Sinv_T
+            Hd = -static_deflection_map().T @ Sinv_T
+        return cls(design, Ae, Be, Ce, Xc, Xv, Rv, design.split_gain()[0], reference, Hx, Hd)
 
 
 class EstimatorController(Controller):
@@ -498,14 +528,23 @@ class EstimatorController(Controller):
             if est.any():
                 x_ref[est], r_ff[est] = M.reference.advance(self._xr[idx, :n][est], self._rr[idx][est],
                                                             cs[est], vs[est], acc[est])
+            shift = M.reference_shift(x_ref, dist)
+            if shift is not None:
+                x_ref[:, :2] += shift
             z, r_ss = self._deviation(D, xe, x_ref, r_ff, dist, xi, r_prev)
             beta = self._condition(M, z, r_ss, r_prev, xe, x_ref)
             z, r_ss = self._deviation(D, xe, x_ref, r_ff, dist, xi, r_prev)
+            c_int = x_ref[:, :2].copy()
+            if shift is not None:
+                x_ref[:, :2] -= shift  # the reference model runs on the command, unshifted
             self._xr[idx, :n], self._rr[idx] = x_ref, r_ff
-            c_int = x_ref[:, :2]
         else:
-            z, r_ss = self._deviation(D, xe, c @ M.Xc.T + cd @ M.Xv.T, cd @ M.Rv.T, dist, xi, r_prev)
-            c_int = c
+            x_ref = c @ M.Xc.T + cd @ M.Xv.T
+            shift = M.reference_shift(x_ref, dist)
+            if shift is not None:
+                x_ref[:, :2] += shift
+            z, r_ss = self._deviation(D, xe, x_ref, cd @ M.Rv.T, dist, xi, r_prev)
+            c_int = x_ref[:, :2]
         r = self.law_rows(D, idx, z, r_ss, r_prev)
         if D.integral:
             self._xi[idx] = xi + self.interface.dt * np.clip(c_int - y, -self.integral_clip,
@@ -568,18 +607,28 @@ class EstimatorController(Controller):
 
 
 def lqg_design_from_config(interface: ControlInterface, cfg: LQGConfig | None = None,
-                           order: Any = "config", wind: Any = None) -> LQGDesign:
+                           order: Any = "config", wind: Any = None,
+                           pointing: PointingConfig | None = None) -> LQGDesign:
     """The LQG design of ``configs/controllers.yaml`` for an environment interface.
 
     :param wind: ``None``: the direction-free design wind; ``(speed, direction)``: a coherent gust
+    :param pointing: ``None``: the encoder design (section ``lqg``); a :class:`PointingConfig`:
+        the pointing design -- the error term scores the dish's pointing error plus the
+        section's encoder weight, the action-change multiplier and (with ``order="config"``)
+        the reduced order are the section's, everything else is ``cfg``'s
     """
     cfg = cfg or default_controllers_config().lqg
     noise = math.hypot(interface.encoder_noise, cfg.measurement_noise)
+    w_a, w_enc, error_output = cfg.action_change_weight, 0.0, "encoder"
+    if pointing is not None:
+        order = pointing.order if order == "config" else order
+        w_a, w_enc, error_output = pointing.action_change_weight, pointing.encoder_error_weight, "pointing"
     dm = build_design_model(interface.dt, order=order, wind=wind, encoder_noise=noise,
-                            bits=interface.encoder_bits)
-    return design_lqg(dm, interface.weights, w_e=cfg.error_weight, w_a=cfg.action_change_weight,
+                            bits=interface.encoder_bits, error_output=error_output)
+    return design_lqg(dm, interface.weights, w_e=cfg.error_weight, w_a=w_a,
                       w_i=cfg.integral_weight, input_noise=cfg.input_noise,
-                      disturbance_drift=cfg.disturbance_drift, rate_limit=interface.rate_limit)
+                      disturbance_drift=cfg.disturbance_drift, rate_limit=interface.rate_limit,
+                      w_enc=w_enc)
 
 
 #: the inferred wind directions are rounded to this step for the design cache, rad
@@ -601,10 +650,14 @@ class LQGController(EstimatorController):
         defaults) -- only its interface is read, never its plant
     :param name: label, default ``"LQG"``
     :param config: LQG settings, default section ``lqg`` of ``configs/controllers.yaml``
+    :param pointing: None (the encoder design) or the pointing design's settings (section
+        ``pointing``; :func:`lqg_design_from_config`, :class:`PointingLQGController`)
     """
 
-    def __init__(self, env: Any = None, name: str = "LQG", config: LQGConfig | None = None) -> None:
+    def __init__(self, env: Any = None, name: str = "LQG", config: LQGConfig | None = None,
+                 pointing: PointingConfig | None = None) -> None:
         interface = as_interface(env)
+        self.pointing = pointing
         self.config = cfg = config or default_controllers_config().lqg
         self._designs_by_wind: dict[Any, LQGDesign] = {}
         self.interface = interface
@@ -616,7 +669,8 @@ class LQGController(EstimatorController):
     def design_for(self, wind: Any) -> LQGDesign:
         """The design for a wind key (:meth:`wind_key`; cached)."""
         if wind not in self._designs_by_wind:
-            self._designs_by_wind[wind] = lqg_design_from_config(self.interface, self.config, wind=wind)
+            self._designs_by_wind[wind] = lqg_design_from_config(self.interface, self.config, wind=wind,
+                                                                 pointing=self.pointing)
         return self._designs_by_wind[wind]
 
     def wind_key(self, r0: np.ndarray, c_rate0: np.ndarray) -> tuple[float, float] | None:
@@ -648,3 +702,27 @@ class LQGController(EstimatorController):
 
     def episode_info(self) -> dict[str, Any]:
         return {"design_wind": self._wind_keys[0]}
+
+
+class PointingLQGController(LQGController):
+    """The LQG designed for the dish's true pointing error (``lqg_pointing``).
+
+    Everything as :class:`LQGController` (Kalman filter on the drive encoders, wind inference,
+    shaper, integrator, conditioning) except the design: the design model carries the
+    structure's pointing outputs ``[el, xel]`` (reduced to ``pointing.order`` with the
+    deformation balanced too), the LQR scores the pointing error plus ``encoder_error_weight``
+    times the encoder servo error with ``action_change_weight`` on the action change, and the
+    reference's encoder angles are shifted so that the POINTING sits on the command: the
+    model's deformation of the reference motion and the static deflection of the mean wind
+    torque are taken out (:meth:`DesignMaps.reference_shift`).
+
+    :param env: the environment (or its config / a :class:`ControlInterface`)
+    :param name: label, default ``"LQG-pointing"``
+    :param config: the shared LQG settings, default section ``lqg``
+    :param pointing: the pointing settings, default section ``pointing`` of
+        ``configs/controllers.yaml``
+    """
+
+    def __init__(self, env: Any = None, name: str = "LQG-pointing", config: LQGConfig | None = None,
+                 pointing: PointingConfig | None = None) -> None:
+        super().__init__(env, name, config, pointing or default_controllers_config().pointing)

@@ -106,6 +106,10 @@ CONTROLLER_ROWS: tuple[ControllerRow, ...] = (
     ControllerRow("mpc", "dss14_env.baselines.mpc", "MPCController",
                   "MPC on the same estimator, OSQP (`baselines/mpc.py`)", batchable=False,
                   config="mpc", campaign=True),
+    ControllerRow("lqg_pointing", "dss14_env.baselines.lqg", "PointingLQGController",
+                  "LQG designed for the dish's true pointing error: Kalman filter on the drive "
+                  "encoders, the LQR scores the structure's pointing (deformation included) "
+                  "(`baselines/lqg.py`, docs/controllers.md)", config="pointing", campaign=True),
     _policy_row("ppo", "residual_pi", "PPO residual on the report's PI, the policy shipped with the "
                 "package (`agents/policies/residual_pi`); `--ppo-model PATH` replaces it by a "
                 "trained policy, scored under its own name"),
