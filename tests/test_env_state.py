@@ -66,10 +66,11 @@ def test_single_env_refuses_empty_cut_off_and_misshaped_snapshots() -> None:
 
 
 @pytest.mark.parametrize("make, match", [
-    (lambda: DSS14VectorEnv(num_envs=3, **KW), "^state must come from a DSS14VectorEnv with num_envs = 2, got "
-                                               "a snapshot of num_envs = 3"),
+    (lambda: DSS14VectorEnv(num_envs=3, **KW),
+     "^state must come from a DSS14VectorEnv with num_envs = 2, got a snapshot of num_envs = 3"),
     (lambda: DSS14VectorEnv(num_envs=2, **{**KW, "dt": 0.01}), "field 'dt'"),
-    (lambda: DSS14Env(**KW), "^state must be an EnvState of a DSS14VectorEnv .*got an EnvState of a DSS14Env"),
+    (lambda: DSS14Env(**KW),
+     "^state must be an EnvState of a DSS14VectorEnv .*got an EnvState of a DSS14Env"),
 ])
 def test_vector_env_refuses_a_snapshot_of_another_env(make, match: str) -> None:
     src = make()
