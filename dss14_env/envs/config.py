@@ -43,6 +43,10 @@ DIRECTION_CHOICES = ("front", "side", "random")
 #: what the reward scores (``reward``): the servo error at the drive encoders ([R] Table 4's
 #: quantity) or the dish's true pointing error (el and xel, deformation included)
 REWARD_CHOICES = ("servo", "pointing")
+#: what the encoders measure (``encoders``): the drive angles (the report's computer mode, the
+#: default) or the structure's pointing angles at the axes ([R]'s "encoders located close to
+#: the axes")
+ENCODER_CHOICES = ("drive", "axis")
 
 #: Largest mean wind speed, km/h (assumed).  The DSN antennas stop tracking and are stowed in
 #: high wind, so the model is meant for operating winds: the report's Table 4 is at 50 km/h and
@@ -90,6 +94,7 @@ class EnvConfig:
     rate_limit_deg_s: float = spec("deg/s", lo=RATE_MIN_DEG_S, hi=RATE_MAX_DEG_S)
     accel_limit_deg_s2: float = spec("deg/s^2", lo=RATE_MIN_DEG_S, hi=ACCEL_MAX_DEG_S2)
     error_scale_mdeg: float = spec("mdeg", lo=1.0e-3, hi=1.0e6)
+    encoders: str = spec(None, kind="str", choices=ENCODER_CHOICES)
     encoder_bits: int | None = spec("1", kind="integer", lo=8, hi=40, optional=True)
     encoder_noise_mdeg: float = spec("mdeg", lo=0.0, hi=1.0e3)
     reward: str = spec(None, kind="str", choices=REWARD_CHOICES)

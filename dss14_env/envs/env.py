@@ -163,6 +163,15 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
     antennas' encoders; ``None`` = exact) plus optional white Gaussian noise
     (``encoder_noise_mdeg``, default 0).  Servo error ``e = c - theta_measured`` in axis angle.
 
+    Where the encoders sit (``encoders``, also ``env.unwrapped.config.encoders`` for a
+    controller to read): ``"drive"`` (default) at the drives -- the azimuth ring and the
+    elevation wheel, the report's computer mode, whose Table 4 the model is calibrated to;
+    ``"axis"`` at the axes -- they read the structure's pointing angles (elevation
+    ``point_el``, azimuth ``point_xel / cos(E)``; [R]'s conclusion: "master equatorial or new
+    encoders located close to the axes"), quantised alike.  With axis encoders the servo error
+    is the pointing error (elevation; cross-elevation divided by ``cos(E)``), and the start
+    state holds the axis encoders at zero.
+
     | index  | observation                                              | unit |
     |--------|----------------------------------------------------------|------|
     | 0, 1   | servo error az, el                                       | ``error_scale_mdeg`` (10 mdeg) |

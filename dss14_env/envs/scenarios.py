@@ -190,7 +190,7 @@ def draw_episode(cfg: EnvConfig, rng: np.random.Generator, plants: PlantFactory)
                                           (cfg.start_el_deg, cfg.start_el_range_deg))):
         start[i] = (rng.uniform(*rng_range) if val == "random" else float(val)) * DEG
     tr = trajectory(cfg, rng)
-    plant = plants.plant(speed, cfg.dt, params)  # no draws
+    plant = plants.plant(speed, cfg.dt, params, cfg.encoders)  # no draws
     xi = rng.standard_normal(plant.n_wind)
     kappa = plant.kappa(direction)
     t_mean = plant.mean_torque(direction)
