@@ -26,6 +26,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from dss14_env.core.results import ErrorStats
 from dss14_env.envs.config import load_env_config
 from dss14_env.envs.presets import PRESETS
 
@@ -119,7 +120,7 @@ def run_task(ctrl: Any, task: EvalTask, seeds: Sequence[int], steps: int | None 
             rets.append(ret)
             lens.append(length)
             terms.append(term)
-            sig.append(np.array([3.0 * np.std(e) if len(e) > 1 else np.nan for e in errors]))
+            sig.append(np.array([ErrorStats.of(e).three_sigma if len(e) > 1 else np.nan for e in errors]))
     finally:
         for e in envs:
             e.close()

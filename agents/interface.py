@@ -153,7 +153,7 @@ class PolicyInterface:
     """Batched observation features and action map (see the module docstring).
 
     :param spec: the :class:`InterfaceSpec`
-    :param env_config: the training environment's :class:`~dss14_env.envs.scenarios.EnvConfig`
+    :param env_config: the training environment's :class:`~dss14_env.envs.config.EnvConfig`
         (period, action scale, limits: what the base controllers are designed for)
     :param n: number of rows (sub-environments), default 1
     """

@@ -2,8 +2,8 @@
 
 A controller sees only what the environment observes: it gets the observation vector of
 ``DSS14-v0`` (see :class:`dss14_env.envs.env.DSS14Env`) and returns an action in the environment's
-action space ([-1, 1]^2, scaled rate commands).  The runner (``dss14_env/bench/runner.py``) calls
-every controller the same way, one episode at a time::
+action space ([-1, 1]^2, scaled rate commands).  The episode loop (``baselines/rollout.py``,
+the bench's runner's) calls every controller the same way, one episode at a time::
 
     ctrl.reset(seed)                 # once per episode, before the first act()
     action = ctrl.act(observation)   # once per control period: (12,) -> (2,) float32

@@ -10,7 +10,8 @@ and the action is ``r[k] / action_scale`` (clipped to [-1, 1]).  The first call 
 starts bumplessly: ``I`` is set so that ``r`` equals the previous applied rate command the
 environment reports (observation 10-11), i.e. the controller takes over the antenna in the
 steady motion the episode starts in.  No anti-windup (the report's loop is linear).  Gain sets
-come from ``configs/model.yaml`` (``kp1``: kp 1 1/s, ki 0.3 1/s^2; ``kp0.7``: kp 0.7, ki 0.2).
+come from the environment's own model (the shipped ``configs/model.yaml``: ``kp1``: kp 1 1/s,
+ki 0.3 1/s^2; ``kp0.7``: kp 0.7, ki 0.2).
 
 Batchable (:class:`dss14_env.baselines.base.Controller`): every row is an independent PI.  The
 exact stationary analysis of this sampled PI is
@@ -36,28 +37,42 @@ from dss14_env.envs.core import OBS
 from dss14_env.model.config import load_model_config
 
 
-def gain_set(name: str) -> tuple[np.ndarray, np.ndarray]:
-    """``(kp, ki)`` per axis ``[az, el]`` of a gain set of ``configs/model.yaml``.
+def env_model(env: Any) -> Any:
+    """The calibrated model an environment runs on (its plant factory's), or None (an
+    :class:`~dss14_env.envs.config.EnvConfig`, or anything without one).
+    """
+    plants = getattr(getattr(env, "unwrapped", env), "plants", None)
+    return getattr(plants, "model", None)
+
+
+def gain_set(name: str, model: Any = None) -> tuple[np.ndarray, np.ndarray]:
+    """``(kp, ki)`` per axis ``[az, el]`` of a gain set of the model
+    (:meth:`dss14_env.model.assembly.DSS14Model.gains`; None: the shipped ``configs/model.yaml``).
 
     :raises ValueError: naming the unknown set
     """
-    sets = load_model_config().gain_sets
+    sets = (load_model_config() if model is None else model.cfg).gain_sets
     if name not in sets:
         raise ValueError(f"unknown gain set {name!r}; known: {sorted(sets)}")
+    if model is not None:
+        kp, ki = model.gains(name)
+        return np.array(kp, float), np.array(ki, float)
     g = sets[name]
     return np.array([g.kp, g.kp], float), np.array([g.ki, g.ki], float)
 
 
-def gains_per_axis(gains: str | tuple) -> tuple[np.ndarray, np.ndarray]:
-    """``(kp, ki)`` per axis from a gain-set name or ``(kp, ki)`` (scalars or per-axis pairs)."""
+def gains_per_axis(gains: str | tuple, model: Any = None) -> tuple[np.ndarray, np.ndarray]:
+    """``(kp, ki)`` per axis from a gain-set name of ``model`` (None: the shipped one) or
+    ``(kp, ki)`` (scalars or per-axis pairs).
+    """
     if isinstance(gains, str):
-        return gain_set(gains)
+        return gain_set(gains, model)
     kp, ki = (np.broadcast_to(np.asarray(g, float), (2,)).copy() for g in gains)
     return kp, ki
 
 
 def env_config(env_or_config: Any) -> Any:
-    """The :class:`~dss14_env.envs.scenarios.EnvConfig` of an environment (single or vector,
+    """The :class:`~dss14_env.envs.config.EnvConfig` of an environment (single or vector,
     wrapped or not) or the config itself.
 
     :raises TypeError: for anything else
@@ -74,9 +89,11 @@ class PIController(Controller):
     """The report's PI (Eqs. 57-58), discretised for the environment's period.
 
     :param env: a DSS14 environment (single or vector, wrapped or not) or its
-        :class:`~dss14_env.envs.scenarios.EnvConfig`: supplies ``dt``, the action scale, the rate
+        :class:`~dss14_env.envs.config.EnvConfig`: supplies ``dt``, the action scale, the rate
         limit and the observation's error scale
-    :param gains: a gain-set name of ``configs/model.yaml`` (default ``"kp1"``) or ``(kp, ki)``
+    :param gains: a gain-set name of the environment's model (default ``"kp1"``; an
+        :class:`~dss14_env.envs.config.EnvConfig` alone: of the shipped ``configs/model.yaml``)
+        or ``(kp, ki)``
         (scalars or per-axis pairs, 1/s and 1/s^2)
     :param bumpless: start from the observed previous rate command (default True); False
         starts the integrator at zero
@@ -87,7 +104,7 @@ class PIController(Controller):
 
     def __init__(self, env: Any, gains: str | tuple = "kp1", *, bumpless: bool = True,
                  name: str | None = None) -> None:
-        kp, ki = gains_per_axis(gains)
+        kp, ki = gains_per_axis(gains, env_model(env))
         label = gains if isinstance(gains, str) else f"kp {kp.tolist()}, ki {ki.tolist()}"
         if not (np.all(np.isfinite(kp)) and np.all(np.isfinite(ki)) and np.all(ki > 0)):
             raise ValueError(f"PI gains must be finite with ki > 0, got kp {kp}, ki {ki}")

@@ -177,7 +177,8 @@ def _add_campaign_parser(sub: Any) -> None:
     p.add_argument("--directions", nargs="+", metavar="DIR", default=None,
                    help="front, side or degrees from the boresight (default: front side)")
     p.add_argument("--steps", type=int, default=None,
-                   help="episode length, control periods, 50 per second (default 1500; 5-s warm-up)")
+                   help="episode length, control periods of the environment's dt (default 1500: 30 s "
+                   "at 0.02 s; 5-s warm-up)")
     p.add_argument("--chunk-size", type=int, default=None, metavar="N",
                    help="plants per chunk, the unit of work and of resuming (default 5)")
     p.add_argument("--requirements", nargs="+", metavar="NAME=MDEG", default=None,

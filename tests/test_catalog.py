@@ -103,3 +103,27 @@ def test_the_campaign_scores_a_trained_policy_under_its_name() -> None:
                           ppo_model="runs/x/eval/best")
     assert spec.names == ("pi_kp1", "x/best") and spec.rows()[1].policy == "runs/x/eval/best"
     assert dataclasses.replace(spec, ppo_model=None).names == ("pi_kp1", "ppo")
+
+
+def test_the_pi_takes_its_gains_from_the_environments_model() -> None:
+    """A named gain set is the environment's model's (a user's model may differ from the
+    shipped configs/model.yaml); a bare EnvConfig falls back to the shipped one."""
+    from types import SimpleNamespace
+
+    from dss14_env.baselines.pi import PIController
+    from dss14_env.envs.config import load_env_config
+
+    class Model:
+        cfg = SimpleNamespace(gain_sets={"kp1": None})
+
+        def gains(self, name):
+            return (2.0, 1.5), (0.5, 0.4)
+
+    cfg = load_env_config()
+    env = SimpleNamespace(config=cfg, plants=SimpleNamespace(model=Model()))
+    pi = PIController(env, "kp1")
+    assert pi.kp.tolist() == [2.0, 1.5] and pi.ki.tolist() == [0.5, 0.4]
+    shipped = PIController(cfg, "kp1")
+    assert shipped.kp.tolist() == [1.0, 1.0] and shipped.ki.tolist() == [0.3, 0.3]
+    with pytest.raises(ValueError, match="unknown gain set 'kp0.7'"):
+        PIController(env, "kp0.7")

@@ -12,9 +12,9 @@ The grid is *plants x wind conditions x controllers*:
   random numbers: the controllers are compared on the same gusts);
 * **wind conditions**: every mean speed (km/h) x direction (``front``, ``side`` or degrees
   from the boresight), a ``hold`` episode each (the scenario of [R] Table 4);
-* **controllers**: names of :data:`dss14_env.bench.runner.CONTROLLERS` or ``ppo``.  Each is
+* **controllers**: rows of :data:`dss14_env.bench.catalog.CONTROLLERS`.  Each is
   built from an environment of the *nominal* plant (same keys, no ``params``) and never sees
-  the drawn parameters; each episode is scored by :func:`dss14_env.bench.runner.run_episode`,
+  the drawn parameters; each episode is scored by :func:`dss14_env.baselines.rollout.run_episode`,
   exactly as the bench scores it.
 
 The plants are cut into chunks of ``chunk_size`` consecutive plants.  A chunk is one work item
@@ -40,15 +40,11 @@ end (:mod:`dss14_env.bench.campaign_report`).
 
 from __future__ import annotations
 
-import difflib
-import hashlib
 import json
-import math
 import os
 import platform
 import time
-from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import asdict, dataclass, field
+from collections.abc import Callable, Mapping, Sequence
 from datetime import datetime, timezone
 from functools import lru_cache
 from pathlib import Path
@@ -56,37 +52,28 @@ from typing import Any
 
 import numpy as np
 
-from dss14_env.bench import catalog, runner
-from dss14_env.bench.catalog import ControllerRow
-from dss14_env.bench.plan import control_period
+from dss14_env.bench import campaign_report as report
+from dss14_env.bench import runner
+from dss14_env.bench.campaign_spec import (  # noqa: F401 - the options, re-exported
+    DEFAULT_CHUNK_SIZE,
+    DEFAULT_CONTROLLERS,
+    DEFAULT_DIRECTIONS,
+    DEFAULT_PLANTS,
+    DEFAULT_STEPS,
+    DEFAULT_WIND_SPEEDS_KMH,
+    FORMAT,
+    OWNED,
+    WARMUP_S,
+    CampaignOptionError,
+    CampaignSpec,
+    Condition,
+    check_spec,
+    known_controllers,
+    parse_directions,
+    parse_wind_speeds,
+)
 from dss14_env.core.outdir import OutputDirError, atomic_write_text, prepare_output_dir
 from dss14_env.core.parallel import Executor, SerialExecutor
-from dss14_env.core.units import DEG, WIND_DIRECTIONS
-
-#: the controllers of a campaign by default (the catalog's campaign rows)
-DEFAULT_CONTROLLERS = catalog.controller_names("campaign")
-DEFAULT_PLANTS = 200
-DEFAULT_WIND_SPEEDS_KMH = (50.0,)
-DEFAULT_DIRECTIONS = ("front", "side")
-#: episode length by default, control periods (50 per second): 30 s, of which the first
-#: :data:`WARMUP_S` are left out -- long enough for a 3-sigma over many gust time constants,
-#: short enough for 200 plants x 3 controllers x 2 directions in minutes
-DEFAULT_STEPS = 1500
-WARMUP_S = 5.0
-DEFAULT_CHUNK_SIZE = 5
-#: files and folders a campaign writes into its output folder
-OWNED = ("campaign.json", "chunks", "results.json", "results.md", "cdf_*.png")
-#: version of the chunk and campaign file layout
-FORMAT = 1
-
-
-class CampaignOptionError(ValueError):
-    """A bad campaign option; the message starts with the option's name."""
-
-
-def known_controllers() -> tuple[str, ...]:
-    """The controllers a campaign knows: every row of :data:`dss14_env.bench.catalog.CONTROLLERS`."""
-    return catalog.controller_names()
 
 
 # ---------------------------------------------------------------------------- plants
@@ -111,212 +98,8 @@ def episode_seed(k: int) -> int:
     return int(k)
 
 
-# ---------------------------------------------------------------------------- options
-@dataclass(frozen=True)
-class Condition:
-    """One wind condition: mean speed (km/h) and direction (``"front"``, ``"side"`` or degrees
-    from the boresight).
-    """
-
-    speed_kmh: float
-    direction: str | float
-
-    @property
-    def key(self) -> str:
-        d = self.direction if isinstance(self.direction, str) else f"{self.direction:g}deg"
-        return f"{self.speed_kmh:g}kmh_{d}"
-
-    @property
-    def label(self) -> str:
-        d = self.direction if isinstance(self.direction, str) else f"{self.direction:g}°"
-        return f"{self.speed_kmh:g} km/h {d}"
-
-    def env_keys(self) -> dict[str, Any]:
-        """The environment keys of this condition's hold episodes."""
-        d = self.direction if isinstance(self.direction, str) else float(self.direction) * DEG
-        return {"scenario": "hold", "wind_speed_kmh": float(self.speed_kmh), "wind_direction": d}
-
-
-@dataclass(frozen=True)
-class CampaignSpec:
-    """Everything that determines a campaign's episodes (its chunks depend on nothing else).
-
-    :param controllers: names of :func:`known_controllers`
-    :param plants: number of plants
-    :param first_plant: index of the first plant (plants ``first_plant`` ... ``+ plants - 1``)
-    :param wind_speeds_kmh: mean wind speeds, km/h
-    :param directions: wind directions, ``"front"``, ``"side"`` or degrees from the boresight
-    :param steps: control periods per episode
-    :param warmup_s: seconds at the start left out of the statistics
-    :param chunk_size: plants per chunk (one work item)
-    :param ppo_model: the ``ppo`` policy (None: the shipped one)
-    """
-
-    controllers: tuple[str, ...] = DEFAULT_CONTROLLERS
-    plants: int = DEFAULT_PLANTS
-    first_plant: int = 0
-    wind_speeds_kmh: tuple[float, ...] = DEFAULT_WIND_SPEEDS_KMH
-    directions: tuple[str | float, ...] = DEFAULT_DIRECTIONS
-    steps: int = DEFAULT_STEPS
-    warmup_s: float = WARMUP_S
-    chunk_size: int = DEFAULT_CHUNK_SIZE
-    ppo_model: str | None = None
-    format: int = field(default=FORMAT)
-
-    def __post_init__(self) -> None:
-        for name in ("controllers", "wind_speeds_kmh", "directions"):
-            object.__setattr__(self, name, tuple(getattr(self, name)))
-        check_spec(self)
-        # numbers as floats, so that the options and their fingerprint survive a JSON round trip
-        object.__setattr__(self, "wind_speeds_kmh", tuple(float(s) for s in self.wind_speeds_kmh))
-        object.__setattr__(self, "directions", tuple(d if isinstance(d, str) else float(d)
-                                                     for d in self.directions))
-        object.__setattr__(self, "warmup_s", float(self.warmup_s))
-
-    @property
-    def conditions(self) -> list[Condition]:
-        """Speeds x directions, in this order."""
-        return [Condition(s, d) for s in self.wind_speeds_kmh for d in self.directions]
-
-    @property
-    def plant_indices(self) -> list[int]:
-        return list(range(self.first_plant, self.first_plant + self.plants))
-
-    def chunks(self) -> list[list[int]]:
-        """The plants of each chunk: consecutive runs of ``chunk_size``."""
-        k = self.plant_indices
-        return [k[i:i + self.chunk_size] for i in range(0, len(k), self.chunk_size)]
-
-    def rows(self) -> tuple[ControllerRow, ...]:
-        """The catalog rows of ``controllers``; with ``ppo_model``, the
-        :data:`~dss14_env.bench.catalog.POLICY_OPTION_ROW` row is that policy under its own name.
-        """
-        return tuple(catalog.policy_row(self.ppo_model)
-                     if n == catalog.POLICY_OPTION_ROW and self.ppo_model is not None
-                     else catalog.CONTROLLERS[n] for n in self.controllers)
-
-    @property
-    def names(self) -> tuple[str, ...]:
-        """The controllers' names in the results (:meth:`rows`)."""
-        return tuple(r.name for r in self.rows())
-
-    @property
-    def n_episodes(self) -> int:
-        return self.plants * len(self.conditions) * len(self.controllers)
-
-    def as_dict(self) -> dict[str, Any]:
-        """JSON-ready (``campaign.json``)."""
-        d = asdict(self)
-        for name in ("controllers", "wind_speeds_kmh", "directions"):
-            d[name] = list(d[name])
-        return d
-
-    @classmethod
-    def from_dict(cls, d: Mapping[str, Any]) -> CampaignSpec:
-        known = {f for f in cls.__dataclass_fields__}
-        unknown = sorted(set(d) - known)
-        if unknown:
-            raise CampaignOptionError(f"campaign options: unknown keys {unknown}")
-        return cls(**dict(d))
-
-    def fingerprint(self) -> str:
-        """SHA-256 of the canonical JSON of :meth:`as_dict` (stamped on every chunk file)."""
-        text = json.dumps(self.as_dict(), sort_keys=True, separators=(",", ":"))
-        return hashlib.sha256(text.encode()).hexdigest()
-
-
-def _positive_int(v: Any, option: str, lo: int = 1) -> int:
-    if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
-        raise CampaignOptionError(f"{option}: must be an integer >= {lo}, got {v!r}")
-    return int(v)
-
-
-def _check_controllers(names: Sequence[str]) -> None:
-    if not names:
-        raise CampaignOptionError("--controllers: give at least one controller")
-    known = known_controllers()
-    for n in names:
-        if n not in known:
-            near = difflib.get_close_matches(str(n), known, n=1)
-            hint = f" (did you mean {near[0]!r}?)" if near else ""
-            raise CampaignOptionError(f"--controllers: unknown controller {n!r}{hint}; known: "
-                                      f"{', '.join(known)}")
-    dup = sorted({n for n in names if list(names).count(n) > 1})
-    if dup:
-        raise CampaignOptionError(f"--controllers: controller named twice: {', '.join(dup)}")
-
-
-def check_spec(spec: CampaignSpec) -> None:
-    """Raise :class:`CampaignOptionError` naming the first bad option."""
-    _check_controllers(spec.controllers)
-    _positive_int(spec.plants, "--plants")
-    _positive_int(spec.first_plant, "--first-plant", 0)
-    _positive_int(spec.steps, "--steps")
-    _positive_int(spec.chunk_size, "--chunk-size")
-    if not spec.wind_speeds_kmh:
-        raise CampaignOptionError("--wind-speeds: give at least one speed in km/h")
-    for s in spec.wind_speeds_kmh:
-        if isinstance(s, bool) or not isinstance(s, (int, float)) or not (math.isfinite(s) and 0 < s <= 150):
-            raise CampaignOptionError(f"--wind-speeds: speeds are in km/h, > 0 and <= 150, got {s!r}")
-    if len(set(spec.wind_speeds_kmh)) != len(spec.wind_speeds_kmh):
-        raise CampaignOptionError(f"--wind-speeds: a speed is repeated: {list(spec.wind_speeds_kmh)}")
-    if not spec.directions:
-        raise CampaignOptionError("--directions: give at least one direction")
-    for d in spec.directions:
-        ok = d in WIND_DIRECTIONS if isinstance(d, str) else (
-            not isinstance(d, bool) and isinstance(d, (int, float)) and math.isfinite(d) and 0 <= d < 360)
-        if not ok:
-            raise CampaignOptionError(f"--directions: 'front', 'side' or degrees in [0, 360), got {d!r}")
-    if len(set(spec.directions)) != len(spec.directions):
-        raise CampaignOptionError(f"--directions: a direction is repeated: {list(spec.directions)}")
-    w = spec.warmup_s
-    if isinstance(w, bool) or not isinstance(w, (int, float)) or not (math.isfinite(w) and w >= 0):
-        raise CampaignOptionError(f"warmup_s: must be a finite number >= 0, got {w!r}")
-    dt = control_period()
-    if w >= spec.steps * dt:
-        raise CampaignOptionError(f"--steps: {spec.steps} steps ({dt:g} s each) leave nothing after "
-                                  f"the {w:g}-s warm-up")
-    opt_row = catalog.POLICY_OPTION_ROW
-    if spec.ppo_model is not None and opt_row not in spec.controllers:
-        raise CampaignOptionError(f"--ppo-model: given, but {opt_row!r} is not among --controllers")
-    if len(set(spec.names)) != len(spec.names):
-        raise CampaignOptionError(f"--ppo-model: the policy's name is a controller's already: "
-                                  f"{list(spec.names)}")
-    if spec.format != FORMAT:
-        raise CampaignOptionError(f"campaign format {spec.format!r} is not {FORMAT}")
-
-
-def parse_directions(values: Iterable[str | float] | None) -> tuple[str | float, ...] | None:
-    """``--directions``: ``front``, ``side`` or a number of degrees (kept as a float)."""
-    if values is None:
-        return None
-    out: list[str | float] = []
-    for v in values:
-        if isinstance(v, str) and v in WIND_DIRECTIONS:
-            out.append(v)
-            continue
-        try:
-            out.append(float(v))
-        except (TypeError, ValueError):
-            raise CampaignOptionError(f"--directions: 'front', 'side' or degrees, got {v!r}") from None
-    return tuple(out)
-
-
-def parse_wind_speeds(values: Iterable[str | float] | None) -> tuple[float, ...] | None:
-    """``--wind-speeds``: numbers, km/h."""
-    if values is None:
-        return None
-    out = []
-    for v in values:
-        try:
-            out.append(float(v))
-        except (TypeError, ValueError):
-            raise CampaignOptionError(f"--wind-speeds: {v!r} is not a number (km/h)") from None
-    return tuple(out)
-
-
 # ---------------------------------------------------------------------------- one chunk
-#: per-episode entries of :func:`dss14_env.bench.runner.run_episode` a campaign leaves out:
+#: per-episode entries of :func:`dss14_env.baselines.rollout.run_episode` a campaign leaves out:
 #: wall-clock timings (they differ from run to run) and the limiter's constants
 DROPPED_METRICS = ("controller_time_ms", "limits")
 
@@ -327,7 +110,7 @@ def run_chunk(task: Mapping[str, Any]) -> dict[str, Any]:
     :param task: ``{"spec": CampaignSpec.as_dict(), "chunk": index, "plants": [k, ...]}``
     :return: JSON-ready ``{"format", "fingerprint", "chunk", "plants": [{"index", "params",
         "episode_seed"}], "episodes": [...]}``; each episode is
-        :func:`dss14_env.bench.runner.run_episode`'s metrics (less :data:`DROPPED_METRICS`)
+        :func:`dss14_env.baselines.rollout.run_episode`'s metrics (less :data:`DROPPED_METRICS`)
         plus ``plant``, ``controller``, ``condition``
     """
     from dss14_env.envs.env import DSS14Env
@@ -529,8 +312,6 @@ def run_campaign(spec: CampaignSpec, out: str | os.PathLike = "campaign_out",
     :return: ``results`` (results.json's content), ``markdown`` (results.md), ``table`` (the
         main table), ``figures``, ``computed`` / ``resumed`` (chunk indices), ``out``
     """
-    from dss14_env.bench import campaign_report as report
-
     reqs = report.check_requirements(requirements)
     t0 = time.perf_counter()
     out, done = open_campaign(spec, out, resume=resume, overwrite=overwrite)

@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from dss14_env.bench.campaign_spec import CampaignSpec
 from dss14_env.bench.plan import control_period
 from dss14_env.bench.report import fmt, package_versions
 from dss14_env.core.stats import bootstrap_ci
@@ -193,8 +194,6 @@ def main_table(results: Mapping[str, Any]) -> str:
     """
     c = results["campaign"]
     reqs = c["requirements_mdeg"]
-    from dss14_env.bench.campaign import CampaignSpec
-
     spec = CampaignSpec.from_dict(c["spec"])
     header = ["controller", "wind", "median 3σ", "95th pct 3σ", "worst 3σ"]
     header += [f"≤ {v:g} mdeg ({n})" for n, v in reqs.items()]
@@ -289,8 +288,6 @@ def draw_cdfs(results: Mapping[str, Any], out: str | Path) -> list[str]:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     from matplotlib.ticker import FuncFormatter
-
-    from dss14_env.bench.campaign import CampaignSpec
 
     spec = CampaignSpec.from_dict(results["campaign"]["spec"])
     reqs = results["campaign"]["requirements_mdeg"]

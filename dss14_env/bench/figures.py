@@ -25,6 +25,7 @@ import numpy as np
 from dss14_env.bench.catalog import SCENARIO_ROWS
 from dss14_env.bench.plan import LOADED_AXES
 from dss14_env.core.outdir import atomic_write_bytes
+from dss14_env.core.results import Cell
 from dss14_env.core.units import AXES
 
 #: the figures :func:`draw_figures` can write
@@ -76,8 +77,8 @@ def log_axis(axp: Any, which: str = "y") -> None:
 def _ci(cell: Mapping[str, Any] | None) -> tuple[float, float, float]:
     if cell is None:
         return np.nan, np.nan, np.nan
-    lo, hi = (np.nan if x is None else float(x) for x in cell["ci95"])
-    return float(cell["value"]), lo, hi
+    c = Cell.from_dict(cell)
+    return c.value, c.ci95[0], c.ci95[1]
 
 
 def plot_error_bars(results: Mapping[str, Any], path: Path) -> bool:

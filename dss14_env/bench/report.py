@@ -27,8 +27,9 @@ from typing import Any
 import numpy as np
 
 from dss14_env.bench.plan import LOADED_AXES, SWEEP_DIRECTIONS, SWEEP_WARMUP_S, BenchPlan
-from dss14_env.bench.runner import flatten
+from dss14_env.bench.statistics import flatten
 from dss14_env.core.outdir import atomic_write_text
+from dss14_env.core.results import Cell, RatioCell
 from dss14_env.core.units import AXES
 
 #: distributions whose versions go into results.json
@@ -261,24 +262,23 @@ def _decimals(hw: float) -> int:
     return max(0, -e + (1 if lead < 1.95 else 0))
 
 
-def fmt_ci(cell: Mapping[str, Any] | None, digits: int = 3) -> str:
+def fmt_ci(cell: Mapping[str, Any] | Cell | None, digits: int = 3) -> str:
     """``value ± half-width`` of an estimate ``{"value", "ci95", "n_episodes"}``, rounded to
     the half-width's first significant digit (``2.80 ± 0.06``); a value without an interval
     (one episode) is shown as ``0.50 (1 ep.)``.
     """
     if cell is None:
         return "—"
-    v = cell["value"]
-    lo, hi = (math.nan if x is None else float(x) for x in cell["ci95"])
-    if v is None or math.isnan(float(v)):
+    c = cell if isinstance(cell, Cell) else Cell.from_dict(cell)
+    v, (lo, hi) = c.value, c.ci95
+    if math.isnan(v):
         return "—"
-    v = float(v)
     if math.isinf(v):
         return fmt(v)
     if math.isnan(lo) or math.isnan(hi) or math.isinf(lo) or math.isinf(hi):
-        n = cell.get("n_episodes", 0)
+        n = c.n_episodes
         return f"{fmt(v, digits)} ({n} ep.)" if n == 1 else f"{fmt(v, digits)} (no CI)"
-    hw = 0.5 * (hi - lo)
+    hw = c.half_width
     if hw <= 0:
         return f"{fmt(v, digits)} ± 0"
     d = _decimals(hw)
@@ -287,20 +287,23 @@ def fmt_ci(cell: Mapping[str, Any] | None, digits: int = 3) -> str:
     return f"{v:.{d}f} ± {hw:.{d}f}"
 
 
-def fmt_ratio(r: Mapping[str, Any] | None) -> str:
+def fmt_ratio(r: Mapping[str, Any] | RatioCell | None) -> str:
     """A ratio with its interval, ``0.19 [0.18, 0.20]``, and ``n.s.`` when the interval
     contains 1.
     """
-    if r is None or r.get("value") is None or math.isnan(float(r["value"])):
+    if r is None:
         return "—"
-    lo, hi = (math.nan if x is None else float(x) for x in r["ci95"])
+    c = r if isinstance(r, RatioCell) else RatioCell.from_dict(r)
+    v, (lo, hi) = c.value, c.ci95
+    if math.isnan(v):
+        return "—"
     if math.isnan(lo) or math.isnan(hi):
-        return f"{fmt(r['value'], 2)} (no CI)"
+        return f"{fmt(v, 2)} (no CI)"
     hw = 0.5 * (hi - lo)
     d = _decimals(hw) if hw > 0 else 2
-    d = max(d, 2) if abs(r["value"]) < 10 else d
-    txt = f"{r['value']:.{d}f} [{lo:.{d}f}, {hi:.{d}f}]"
-    return txt + (" n.s." if r.get("significant") is False else "")
+    d = max(d, 2) if abs(v) < 10 else d
+    txt = f"{v:.{d}f} [{lo:.{d}f}, {hi:.{d}f}]"
+    return txt + (" n.s." if c.significant is False else "")
 
 
 def _table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:

@@ -272,9 +272,15 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
       non-finite.
     * ``model_config``: the model the environment runs on -- a model YAML file (like
       ``configs/model.yaml``; :func:`dss14_env.model.config.load_model_config`), or a
-      :class:`dss14_env.envs.plant.PlantFactory` to share one.  The model is built and its
-      wind loads calibrated to [R] Table 4 on it (a few seconds), once per file and content per
-      process (:data:`dss14_env.envs.plant.PLANT_FACTORIES`).  Default: the shipped model.
+      :class:`dss14_env.envs.plant.PlantFactory` to share one.  The model is built (a few
+      seconds), once per file and content per process
+      (:data:`dss14_env.envs.plant.PLANT_FACTORIES`).  It keeps the shipped wind-load (moment)
+      coefficients -- the dish's aerodynamics, which a drive parameter does not change -- so
+      the servo errors show what the model's drive does; ``recalibrate_wind=True`` (or the
+      model file's ``recalibrate_wind: true``) refits them to [R] Table 4 on the model
+      instead (``WindCalibrationError`` if Table 4 cannot be met).  The reset info's
+      ``wind_loads`` says which (``"shipped"`` or ``"refitted to Table 4"``).  Default: the
+      shipped model.
     * ``randomize_params=True`` draws the hydraulic parameters over the model's ranges (stable
       part) at every reset; ``params={name: SI value}`` fixes them (within the model's ranges).
     * ``reset(seed=...)``: None or a non-negative integer (Python or numpy), else
@@ -309,20 +315,23 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
     :param config: YAML path or shipped name, mapping or
         :class:`~dss14_env.envs.config.EnvConfig`, default the shipped ``configs/env.yaml``
     :param model_config: model YAML path, :class:`~dss14_env.envs.plant.PlantFactory` or None
+    :param recalibrate_wind: refit the wind loads to Table 4 on ``model_config`` (None: the
+        model file's choice, default the shipped coefficients)
     :param overrides: configuration keys
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 50}
 
     def __init__(self, render_mode: str | None = None, config: str | EnvConfig | dict | None = None,
-                 model_config: Any = None, **overrides: Any) -> None:
+                 model_config: Any = None, recalibrate_wind: bool | None = None,
+                 **overrides: Any) -> None:
         super().__init__()
         self.config = load_env_config(config, **overrides)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, "
                              f"got {render_mode!r}")
         #: the model's plants (:class:`~dss14_env.envs.plant.PlantFactory`)
-        self.plants: PlantFactory = resolve_factory(model_config)
+        self.plants: PlantFactory = resolve_factory(model_config, recalibrate_wind)
         c = self.config
         if c.params is not None:
             self.plants.check_params(c.params, c.source_of("params"))
@@ -384,7 +393,8 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         self._bufs = self._views(False)
         self._st = StepState(*(tuple(v[0].tolist()) for v in st[:4]), 0)
         info = {"scenario": cfg.scenario, "start_az_deg": s_az * R2D, "start_el_deg": s_el * R2D,
-                "params": dict(ep.params), **{key: float(v[0]) for key, v in rinfo.items()}}
+                "params": dict(ep.params), "wind_loads": self.plants.wind_loads,
+                **{key: float(v[0]) for key, v in rinfo.items()}}
         rp0, rp1 = self._st.r_prev
         obs = obs[0]
         if cfg.info_state:

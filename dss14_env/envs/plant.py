@@ -37,10 +37,14 @@ environment steps the 68-state form, whose matrices serve every direction at onc
 Outputs ``y = C x``: :data:`OUTPUTS` (encoder angles and the dish's pointing angles in rad --
 elevation and cross-elevation, deformation included -- and the gust torques in N*m).
 
-Plants belong to their model: a :class:`PlantFactory` holds one calibrated model (and the wind
-loads calibrated on it) and builds and keeps its plants per (parameters, U, dt).  Factories
-are kept per model configuration file (its path and content) in :data:`PLANT_FACTORIES`, so the
-environments built on one file share one calibration.
+Plants belong to their model: a :class:`PlantFactory` holds one calibrated model and its wind
+loads and builds and keeps its plants per (parameters, U, dt).  The wind-load (moment)
+coefficients are the dish's aerodynamics, not a property of the drives: a user's model keeps
+the shipped ones (calibrated to [R] Table 4 on the shipped model), so a changed drive shows its
+effect on the servo errors; refitting them to Table 4 on the user's model is an opt-in
+(``recalibrate_wind=True``, or the model file's ``recalibrate_wind: true``).  Factories are
+kept per model configuration file (its path and content) and that choice in
+:data:`PLANT_FACTORIES`, so the environments built on one file share one calibration.
 """
 
 from __future__ import annotations
@@ -402,29 +406,45 @@ class PlantFactory:
         (:func:`dss14_env.wind.loads.calibrate_wind_loads`)
     :param source: the model configuration file (None: the shipped default)
     :param cache_size: plants kept
+    :param recalibrated: whether ``loads`` were refitted to Table 4 on ``model`` (True) or are
+        the shipped coefficients (False)
     """
 
     def __init__(self, model: DSS14Model, loads: WindLoads, source: str | None = None,
-                 cache_size: int = 64) -> None:
+                 cache_size: int = 64, recalibrated: bool = False) -> None:
         self.model = model
         self.loads = loads
         self.source = source
+        self.recalibrated = bool(recalibrated)
         self.cache_size = int(cache_size)
         #: cos(E) of the structure model's elevation angle (cross-elevation of an az rotation)
         self.xel_scale = math.cos(model.cfg.structure.elevation_angle)
         self._plants: OrderedDict = OrderedDict()
 
     @classmethod
-    def from_model_config(cls, path: str | Path) -> PlantFactory:
-        """Build the model of a configuration file and calibrate its wind loads (a few seconds;
-        :data:`PLANT_FACTORIES` keeps the result per file).
+    def from_model_config(cls, path: str | Path, recalibrate_wind: bool | None = None) -> PlantFactory:
+        """Build the model of a configuration file (a few seconds; :data:`PLANT_FACTORIES`
+        keeps the result per file) with the shipped wind-load coefficients, or with
+        coefficients refitted to [R] Table 4 on it.
 
         :param path: model YAML file or the name of a shipped one
+        :param recalibrate_wind: refit the wind loads to Table 4 on this model; None: the
+            file's ``recalibrate_wind`` key (default false)
         :raises ConfigError: a bad model configuration
+        :raises WindCalibrationError: a refit that cannot meet Table 4's accepted ranges
         """
         cfg = load_model_config(path)
         model = build_model(cfg)
-        return cls(model, calibrate_wind_loads(model), source=str(cfg.path))
+        refit = cfg.recalibrate_wind if recalibrate_wind is None else bool(recalibrate_wind)
+        loads = calibrate_wind_loads(model) if refit else default_wind_loads()
+        return cls(model, loads, source=str(cfg.path), recalibrated=refit)
+
+    @property
+    def wind_loads(self) -> str:
+        """Where the wind-load coefficients come from (the reset info's ``wind_loads``):
+        ``"shipped"`` or ``"refitted to Table 4"``.
+        """
+        return "refitted to Table 4" if self.recalibrated else "shipped"
 
     def plant(self, wind_speed: float, dt: float, params: Mapping[str, float] | None = None,
               encoders: str = "drive") -> Plant:
@@ -479,7 +499,8 @@ class PlantFactory:
         return len(self._plants)
 
     def __repr__(self) -> str:
-        return f"PlantFactory(source={self.source or 'default'!s}, plants={len(self._plants)})"
+        return (f"PlantFactory(source={self.source or 'default'!s}, wind_loads={self.wind_loads}, "
+                f"plants={len(self._plants)})")
 
     def __deepcopy__(self, memo: dict) -> PlantFactory:
         return self  # the model and loads never change; its plants are immutable
@@ -493,31 +514,37 @@ class PlantFactory:
         if self.source is None:
             raise TypeError("a PlantFactory built from model objects cannot be pickled; build it from a "
                             "model file (PlantFactory.from_model_config) to pickle environments on it")
-        return (_factory_of_file, (self.source,))
+        return (_factory_of_file, (self.source, self.recalibrated))
 
 
 class PlantFactories:
     """Plant factories per model configuration file: the models a process has built.
 
-    Keyed by the file's resolved path and content (an edited file is built anew).  One
-    instance, :data:`PLANT_FACTORIES`, serves the environments; :meth:`clear` frees its models.
+    Keyed by the file's resolved path and content (an edited file is built anew) and the
+    wind-load choice.  One instance, :data:`PLANT_FACTORIES`, serves the environments;
+    :meth:`clear` frees its models.
     """
 
     def __init__(self) -> None:
-        self._factories: dict[tuple[str, str], PlantFactory] = {}
+        self._factories: dict[tuple[str, str, bool], PlantFactory] = {}
 
-    def get(self, model_config: str | Path | None = None) -> PlantFactory:
-        """The factory of a model configuration file (None: the shipped default model).
+    def get(self, model_config: str | Path | None = None,
+            recalibrate_wind: bool | None = None) -> PlantFactory:
+        """The factory of a model configuration file (None: the shipped default model, whose
+        shipped coefficients are its Table 4 fit).
 
+        :param recalibrate_wind: see :meth:`PlantFactory.from_model_config`
         :raises ConfigError: the file is missing or its configuration is bad
         """
         if model_config is None:
             return default_plant_factory()
         path = config_path(model_config).resolve()
-        key = (str(path), hashlib.sha256(path.read_bytes()).hexdigest())
+        refit = (load_model_config(path).recalibrate_wind if recalibrate_wind is None
+                 else bool(recalibrate_wind))
+        key = (str(path), hashlib.sha256(path.read_bytes()).hexdigest(), refit)
         factory = self._factories.get(key)
         if factory is None:
-            factory = self._factories[key] = PlantFactory.from_model_config(path)
+            factory = self._factories[key] = PlantFactory.from_model_config(path, refit)
         return factory
 
     def clear(self) -> None:
@@ -550,21 +577,28 @@ def default_plant_factory() -> PlantFactory:
     return PlantFactory(default_model(), default_wind_loads())
 
 
-def _factory_of_file(path: str) -> PlantFactory:
-    return PLANT_FACTORIES.get(path)
+def _factory_of_file(path: str, recalibrated: bool = False) -> PlantFactory:
+    return PLANT_FACTORIES.get(path, recalibrated)
 
 
-def resolve_factory(model_config: Any) -> PlantFactory:
+def resolve_factory(model_config: Any, recalibrate_wind: bool | None = None) -> PlantFactory:
     """The plant factory an environment's ``model_config`` argument names.
 
     :param model_config: None (the shipped model), a model YAML path or shipped name, or a
         :class:`PlantFactory`
+    :param recalibrate_wind: None (the model file's choice, default: the shipped
+        coefficients) or a bool: refit the wind loads to Table 4 on a model file
     :raises ValueError: anything else (``ConfigError`` for a bad file)
     """
+    if recalibrate_wind is not None and not isinstance(recalibrate_wind, (bool, np.bool_)):
+        raise ValueError(f"recalibrate_wind must be None, True or False, got {recalibrate_wind!r}")
     if isinstance(model_config, PlantFactory):
+        if recalibrate_wind is not None and bool(recalibrate_wind) != model_config.recalibrated:
+            raise ValueError(f"recalibrate_wind={recalibrate_wind} contradicts the given PlantFactory "
+                             f"(wind loads {model_config.wind_loads})")
         return model_config
     if model_config is None or isinstance(model_config, (str, Path)):
-        return PLANT_FACTORIES.get(model_config)
+        return PLANT_FACTORIES.get(model_config, None if recalibrate_wind is None else bool(recalibrate_wind))
     raise ValueError(f"model_config must be None, a model YAML path or a PlantFactory, got "
                      f"{type(model_config).__name__}")
 

@@ -27,7 +27,7 @@ class Preset:
 
     :param env_id: the registered Gymnasium id
     :param kwargs: environment keys (``configs/env.yaml`` names) on top of the defaults
-    :param max_episode_steps: truncation of the registered id, control periods (50 per second)
+    :param max_episode_steps: truncation of the registered id, control periods (of the configured ``dt``)
     :param warmup_s: seconds at the start that error statistics leave out
     :param description: one line for tables and docs
     :param purpose: what the id is for (the manual's table of registered ids)
@@ -122,11 +122,14 @@ def registered_ids_table() -> str:
     >>> print(registered_ids_table().splitlines()[2])  # doctest: +ELLIPSIS
     | `DSS14-v0` | track | speed drawn from 30, 40, 50, 60, 70 km/h, 8 directions (drawn) | 3000 (60 s) | ...
     """
+    from dss14_env.envs.config import load_env_config
+
+    dt = load_env_config().dt
     lines = ["| id | scenario | wind | `max_episode_steps` | for |", "|---|---|---|---|---|"]
     for p in PRESETS.values():
         kw = p.kwargs
         lines.append(f"| `{p.env_id}` | {kw.get('scenario', 'track')} | {_wind(kw)} | "
-                     f"{p.max_episode_steps} ({p.max_episode_steps // 50} s) | {p.purpose} |")
+                     f"{p.max_episode_steps} ({p.max_episode_steps * dt:g} s) | {p.purpose} |")
     for env_id, what in WRAPPED_IDS.items():
         lines.append(f"| `{env_id}` | of its base (`DSS14-Hold-v0` by default) | of its base | of its base "
                      f"| {what} |")

@@ -78,6 +78,8 @@ class DSS14VectorEnv(VectorEnv):
     :param render_mode: must be None
     :param config: as for :class:`dss14_env.envs.env.DSS14Env`
     :param model_config: as for :class:`dss14_env.envs.env.DSS14Env` (one model for all)
+    :param recalibrate_wind: as for :class:`dss14_env.envs.env.DSS14Env` (the wind-load choice
+        is ``self.plants.wind_loads``)
     :param overrides: configuration keys
     """
 
@@ -85,7 +87,8 @@ class DSS14VectorEnv(VectorEnv):
 
     def __init__(self, num_envs: int = 1, max_episode_steps: int | None = None,
                  render_mode: str | None = None, config: str | EnvConfig | dict | None = None,
-                 model_config: Any = None, **overrides: Any) -> None:
+                 model_config: Any = None, recalibrate_wind: bool | None = None,
+                 **overrides: Any) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
         if max_episode_steps is not None and (isinstance(max_episode_steps, bool) or not isinstance(
@@ -97,7 +100,7 @@ class DSS14VectorEnv(VectorEnv):
                              f"environment), got {render_mode!r}")
         self.config = load_env_config(config, **overrides)
         #: the model's plants (:class:`~dss14_env.envs.plant.PlantFactory`), shared by all
-        self.plants: PlantFactory = resolve_factory(model_config)
+        self.plants: PlantFactory = resolve_factory(model_config, recalibrate_wind)
         if self.config.params is not None:
             self.plants.check_params(self.config.params, self.config.source_of("params"))
         self.num_envs = int(num_envs)

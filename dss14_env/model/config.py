@@ -146,6 +146,9 @@ class ModelConfig:
     calibration: CalibrationTargets
     params: dict  # "block.name" or "block.name.axis" -> Param
     path: str
+    #: the file's ``recalibrate_wind`` key: the environment refits the wind-load coefficients
+    #: to [R] Table 4 on this model instead of keeping the shipped ones (default False)
+    recalibrate_wind: bool = False
 
     def replace(self, **overrides: float) -> ModelConfig:
         """Return a copy with some scalar parameters replaced (SI values).
@@ -188,10 +191,13 @@ def load_model_config(path: str | Path | None = None) -> ModelConfig:
     """
     data, source = read_config("model" if path is None else path)
     registry: dict[str, Param] = {}
-    extra = set(data) - set(SECTIONS) - {"position_loop"}
+    extra = set(data) - set(SECTIONS) - {"position_loop", "recalibrate_wind"}
     if extra:
         raise ConfigError(f"{source}: unknown section(s) {sorted(extra)}; known: "
-                          f"{sorted(SECTIONS) + ['position_loop']}")
+                          f"{sorted(SECTIONS) + ['position_loop', 'recalibrate_wind']}")
+    recalibrate = data.get("recalibrate_wind", False)
+    if not isinstance(recalibrate, bool):
+        raise ConfigError(f"{source}: field 'recalibrate_wind': must be true or false, got {recalibrate!r}")
     kw = dict(documented=True, registry=registry, defaults=False)
     blocks = {name: load_section(cls, data.get(name), source, name, **kw)
               for name, cls in SECTIONS.items()}
@@ -214,4 +220,4 @@ def load_model_config(path: str | Path | None = None) -> ModelConfig:
         raise ConfigError(f"{source}: field 'calibration.structure_az_peaks': must have 2 entries, "
                           f"got {len(cal.structure_az_peaks)}")
     return ModelConfig(blocks["board"], blocks["hydraulics"], blocks["gearbox"], struct,
-                       blocks["reduction"], gains, cal, registry, source)
+                       blocks["reduction"], gains, cal, registry, source, recalibrate)

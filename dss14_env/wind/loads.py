@@ -45,13 +45,14 @@ from scipy import linalg, optimize, signal
 
 from dss14_env.core.schema import ConfigError, Param, load_section, read_config, spec
 from dss14_env.core.threads import single_threaded
-from dss14_env.core.units import rad_to_mdeg
+from dss14_env.core.units import WIND_DIRECTIONS, rad_to_mdeg
 from dss14_env.model.assembly import DSS14Model, default_model
 from dss14_env.model.linsys import balance, discretize, noise_factor
 from dss14_env.model.loops import WIND_INPUTS
 from dss14_env.wind.gusts import davenport_filter
 
-DIRECTIONS = {"front": 0.0, "side": 0.5 * math.pi}
+#: the named wind directions, rad (one definition: :data:`dss14_env.core.units.WIND_DIRECTIONS`)
+DIRECTIONS = WIND_DIRECTIONS
 ERROR_OUTPUTS = ("e_a", "e_e")  # servo errors at the encoders, az and el (position loop)
 
 
@@ -138,12 +139,15 @@ class WindLoads:
     :param c_side: the same for side wind
     :param cfg: physical constants (:class:`LoadConfig`)
     :param table4_fit: the calibration's achieved 3-sigma errors (mdeg), for the record
+    :param table4_missed: the Table 4 figures a non-strict calibration left outside their
+        accepted ranges (empty: all inside)
     """
 
     c_front: np.ndarray
     c_side: np.ndarray
     cfg: LoadConfig
     table4_fit: dict = field(default_factory=dict)
+    table4_missed: tuple = ()
 
     @property
     def dish_area(self) -> float:
@@ -290,9 +294,19 @@ class WindCalibrationError(RuntimeError):
     """The wind-load coefficients cannot reproduce Table 4 within its accepted ranges."""
 
 
+#: relative slack of the Table 4 acceptance check: a figure on a range end (2.2 mdeg from a
+#: range stored in rad and converted back) is inside it
+ACCEPT_RTOL = 1e-9
+
+
+def within_accepted(value: float, lo: float, hi: float, rtol: float = ACCEPT_RTOL) -> bool:
+    """``lo <= value <= hi`` up to the relative slack ``rtol`` of the range ends."""
+    return bool(lo - rtol * abs(lo) <= value <= hi + rtol * abs(hi))
+
+
 @single_threaded
 def calibrate_wind_loads(model: DSS14Model | None = None, wcfg: WindConfig | None = None,
-                         gain_set: str = "kp1") -> WindLoads:
+                         gain_set: str = "kp1", strict: bool = True) -> WindLoads:
     """Solve the four moment coefficients so the PI loop reproduces [R] Table 4.
 
     For each direction the two coefficients ``[C_az, C_el]`` (>= 0) are found by
@@ -304,13 +318,15 @@ def calibrate_wind_loads(model: DSS14Model | None = None, wcfg: WindConfig | Non
     :param model: calibrated servo model, default :func:`dss14_env.model.default_model`
     :param wcfg: wind configuration, default :func:`load_wind_config`
     :param gain_set: PI gain set of Table 4, default ``"kp1"`` (kp 1, ki 0.3)
-    :raises WindCalibrationError: if a calibrated figure leaves its accepted range
+    :param strict: raise when a calibrated figure misses its accepted range; False returns the
+        best fit (its ``table4_fit`` records the figures, ``table4_missed`` the misses)
+    :raises WindCalibrationError: (strict) if a calibrated figure leaves its accepted range
     """
     model = model if model is not None else default_model()
     wcfg = wcfg if wcfg is not None else load_wind_config()
     t4 = wcfg.table4
     pl = model.position_loop(gain_set)
-    coeffs, fit = {}, {}
+    coeffs, fit, missed = {}, {}, []
     for d in DIRECTIONS:
         target = rad_to_mdeg(np.array([getattr(t4, f"az_{d}"), getattr(t4, f"el_{d}")]))
         c0 = np.zeros(2)
@@ -329,10 +345,12 @@ def calibrate_wind_loads(model: DSS14Model | None = None, wcfg: WindConfig | Non
         for k, ax in enumerate(("az", "el")):
             lo, hi = (rad_to_mdeg(v) for v in wcfg.params[f"table4.{ax}_{d}"].range)
             fit[f"{ax}_{d}"] = float(achieved[k])
-            if not lo <= achieved[k] <= hi:
-                raise WindCalibrationError(
-                    f"Table 4 {ax} {d}: calibrated 3-sigma {achieved[k]:.3g} mdeg outside [{lo}, {hi}]")
-    return WindLoads(coeffs["front"], coeffs["side"], wcfg.loads, fit)
+            if not within_accepted(float(achieved[k]), lo, hi):
+                missed.append(f"Table 4 {ax} {d}: calibrated 3-sigma {achieved[k]:.3g} mdeg outside "
+                              f"[{lo:.3g}, {hi:.3g}]")
+    if missed and strict:
+        raise WindCalibrationError("; ".join(missed))
+    return WindLoads(coeffs["front"], coeffs["side"], wcfg.loads, fit, tuple(missed))
 
 
 @lru_cache(maxsize=1)
