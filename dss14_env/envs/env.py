@@ -207,9 +207,9 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
 
     ## Starting state
 
-    The absolute start position is drawn (az uniform in [-200, 200] deg about the wrap centre,
-    el in [20, 70] deg) or set (``start_az_deg``, ``start_el_deg``); it sets the travel margins
-    and the phase of the encoder quantisation.  The antenna is already servoing: the rate loop
+    The absolute start position is drawn (az uniform in [-200, 200] deg about the wrap centre;
+    el at the model's elevation, see below) or set (``start_az_deg``, ``start_el_deg``); it
+    sets the travel margins and the phase of the encoder quantisation.  The antenna is already servoing: the rate loop
     is in the steady motion that follows the command's initial rate under the wind torque at
     t = 0 (mean plus the initial gust, held), the gust filter is in its stationary
     distribution, and the previous applied rate command (observation 10, 11) is the one that
@@ -217,6 +217,20 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
     (:class:`dss14_env.baselines.pi.PIController`) has no start transient from the mean load.
     (The dynamic part of the wind response is not in the start state: the error is stationary
     after about 1 s; skip the first 2 s for stationary statistics.)
+
+    ## Elevation
+
+    The model is linear about one elevation: the structure model's ``elevation_angle`` (45 deg
+    in the shipped model).  Its modes, its wind loads and its pointing outputs hold there --
+    in particular the cross-elevation pointing angle, whose rigid part is ``cos(E)`` times the
+    azimuth rotation.  Episodes therefore start at the model's elevation: ``start_el_deg:
+    model`` (the default) draws the start elevation uniformly within +-0.01 deg of it (29
+    encoder counts either side: the elevation encoder's quantisation phase is drawn, ``cos(E)``
+    stays within 2e-4 of the model's), so the pointing errors of the info and of
+    ``reward="pointing"`` are those of the episode's own elevation.  ``start_el_deg: random``
+    (uniform over ``start_el_range_deg``) or an angle move the start elsewhere, e.g. next to a
+    travel limit; the dynamics and the pointing outputs stay those of the model's elevation,
+    and only the travel margins and the quantisation phase follow the start.
 
     ## Episode end
 
@@ -230,7 +244,8 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
     Every step: ``servo_error_az_mdeg``, ``servo_error_el_mdeg`` (true: command minus encoder
     angle), ``measured_error_az_mdeg``, ``measured_error_el_mdeg`` (from the encoder readings),
     ``pointing_error_el_mdeg``, ``pointing_error_xel_mdeg`` (the dish's true pointing error:
-    the command less the structure model's pointing angle, deformation included --
+    the command less the structure model's pointing angle, deformation included, from the
+    project's lumped structure, not [R]'s finite-element model: docs/model.md --
     ``c_el - point_el`` in elevation and ``c_az cos(E) - point_xel`` in cross-elevation, ``E``
     the structure model's ``elevation_angle``, 45 deg), ``wind_speed_mps``,
     ``wind_direction_rad`` (the episode's mean wind), ``action_unclipped`` (the action as
