@@ -61,12 +61,23 @@ from dss14_env.core.schema import (
 ALGOS = ("ppo", "recurrent_ppo", "sac")
 ACTIVATIONS = ("tanh", "relu", "elu", "leaky_relu")
 #: what picks ``eval/best``: the highest mean validation return, or (DSS14) the lowest
-#: geometric mean over the hold tasks of their mean validation 3σ
-SELECT_BY = ("return", "three_sigma")
+#: geometric mean over the hold tasks of their mean validation 3σ servo error
+#: (``three_sigma``) or 3σ pointing error (``pointing``)
+SELECT_BY = ("return", "three_sigma", "pointing")
 #: ``auto``: ``batched`` for DSS14 ids (:mod:`dss14_env.agents.vec_env`), ``dummy`` otherwise
 VEC_ENVS = ("auto", "batched", "dummy", "subproc")
 
-_INT = Spec("1", "integer", lo=0)
+#: largest seed: numpy's legacy seeding (which stable-baselines3 calls) takes seeds below
+#: 2^32, and a campaign adds 1000 k and each sub-environment its index to the seed
+MAX_SEED = 2**31 - 1
+#: largest layer of a network (and LSTM hidden size) and most layers: a 4096-wide layer of
+#: 4096 inputs is 64 MiB of weights; beyond, torch fails to allocate or runs for hours
+MAX_LAYER, MAX_LAYERS = 4096, 16
+#: most sub-environments, steps of a rollout, threads and timesteps a configuration may ask for
+MAX_ENVS, MAX_ROLLOUT, MAX_THREADS, MAX_TIMESTEPS = 1024, 10_000_000, 256, 10**10
+_INT = Spec("1", "integer", lo=0, hi=MAX_SEED)
+#: the package whose modules (and only those) a configuration file may name in ``env_module``
+OWN_PACKAGE = "dss14_env"
 #: keys a sweep cannot vary: the seeds come from ``--seeds``, the algorithm fixes the key set
 NOT_SWEPT = ("algo", "seed", "sweep")
 #: most points of a sweep's grid
@@ -96,11 +107,11 @@ class CommonSettings:
     env_id: str = spec(None, kind="str", default="DSS14-v0")
     env_kwargs: dict = spec(None, kind="mapping", default_factory=dict)
     env_module: str | None = spec(None, kind="str", optional=True, default=None)
-    frame_stack: int = _int(0, 0)
-    n_envs: int = _int(1, 8)
+    frame_stack: int = _int(0, 0, hi=1000)
+    n_envs: int = _int(1, 8, hi=MAX_ENVS)
     vec_env: str = spec(None, kind="str", choices=VEC_ENVS, default="auto")
-    total_timesteps: int = _int(1, 2_000_000)
-    seed: int = _int(0, 10_000)
+    total_timesteps: int = _int(1, 2_000_000, hi=MAX_TIMESTEPS)
+    seed: int = _int(0, 10_000, hi=MAX_SEED)
     normalize_obs: bool = _flag(True)
     normalize_reward: bool = _flag(True)
     learning_rate: float = _num(3e-4, lo=0.0, lo_open=True)
@@ -108,15 +119,15 @@ class CommonSettings:
     net_arch: Any = spec(None, kind="any", default_factory=lambda: [64, 64])
     activation_fn: str = spec(None, kind="str", choices=ACTIVATIONS, default="tanh")
     log_std_init: float = _num(-0.5, lo=-20.0, hi=5.0)
-    eval_freq: int = _int(0, 50_000)
-    n_eval_episodes: int = _int(1, 1)
+    eval_freq: int = _int(0, 50_000, hi=MAX_TIMESTEPS)
+    n_eval_episodes: int = _int(1, 1, hi=1000)
     eval_seeds: tuple = spec("1", kind="list", items=_INT,
                              default=(1000, 1001, 1002, 1003, 1004))
     eval_env_kwargs: dict = spec(None, kind="mapping", default_factory=dict)
-    eval_episode_steps: int = _int(1, 1000)
+    eval_episode_steps: int = _int(1, 1000, hi=1_000_000)
     select_by: str = spec(None, kind="str", choices=SELECT_BY, default="return")
-    checkpoint_freq: int = _int(0, 200_000)
-    torch_threads: int = _int(1, 1)
+    checkpoint_freq: int = _int(0, 200_000, hi=MAX_TIMESTEPS)
+    torch_threads: int = _int(1, 1, hi=MAX_THREADS)
     progress_bar: bool = _flag(True)
     verbose: int = _int(0, 1, hi=2)
 
@@ -125,9 +136,9 @@ class CommonSettings:
 class PPOSettings(CommonSettings):
     """PPO's keys (stable-baselines3 names and defaults of this package)."""
 
-    n_steps: int = _int(1, 256)
-    batch_size: int = _int(2, 256)
-    n_epochs: int = _int(1, 10)
+    n_steps: int = _int(1, 256, hi=MAX_ROLLOUT)
+    batch_size: int = _int(2, 256, hi=MAX_ROLLOUT)
+    n_epochs: int = _int(1, 10, hi=1000)
     gae_lambda: float = _num(0.95, lo=0.0, hi=1.0)
     clip_range: float = _num(0.2, lo=0.0, lo_open=True)
     ent_coef: float = _num(0.0, lo=0.0)
@@ -140,8 +151,8 @@ class PPOSettings(CommonSettings):
 class RecurrentPPOSettings(PPOSettings):
     """RecurrentPPO's keys: PPO's and the LSTM's."""
 
-    lstm_hidden_size: int = _int(1, 64)
-    n_lstm_layers: int = _int(1, 1)
+    lstm_hidden_size: int = _int(1, 64, hi=MAX_LAYER)
+    n_lstm_layers: int = _int(1, 1, hi=MAX_LAYERS)
     shared_lstm: bool = _flag(False)
     enable_critic_lstm: bool = _flag(True)
 
@@ -154,12 +165,12 @@ class SACSettings(CommonSettings):
     net_arch: Any = spec(None, kind="any", default_factory=lambda: [256, 256])
     activation_fn: str = spec(None, kind="str", choices=ACTIVATIONS, default="relu")
     log_std_init: float = _num(-3.0, lo=-20.0, hi=5.0)
-    buffer_size: int = _int(1, 1_000_000)
-    learning_starts: int = _int(0, 10_000)
-    batch_size: int = _int(1, 256)
+    buffer_size: int = _int(1, 1_000_000, hi=MAX_ROLLOUT)
+    learning_starts: int = _int(0, 10_000, hi=MAX_TIMESTEPS)
+    batch_size: int = _int(1, 256, hi=MAX_ROLLOUT)
     tau: float = _num(0.005, lo=0.0, hi=1.0, lo_open=True)
-    train_freq: int = _int(1, 1)
-    gradient_steps: int = _int(-1, 1)
+    train_freq: int = _int(1, 1, hi=MAX_TIMESTEPS)
+    gradient_steps: int = _int(-1, 1, hi=100_000)
     ent_coef: float | str = _num("auto", lo=0.0, lo_open=True, choices=("auto",))
     target_entropy: float | str = _num("auto", choices=("auto",))
     save_replay_buffer: bool = _flag(True)
@@ -176,9 +187,11 @@ def keys_of(algo: str) -> list[str]:
 
 
 def _layers(v: Any, where: str) -> list[int]:
-    if not isinstance(v, (list, tuple)) or not v or not all(
-            isinstance(n, (int, np.integer)) and not isinstance(n, bool) and n >= 1 for n in v):
-        raise ConfigError(f"{where}: must be a list of layer sizes (integers >= 1), got {v!r}")
+    if not isinstance(v, (list, tuple)) or not v or len(v) > MAX_LAYERS or not all(
+            isinstance(n, (int, np.integer)) and not isinstance(n, bool) and 1 <= n <= MAX_LAYER
+            for n in v):
+        raise ConfigError(f"{where}: must be a list of 1 to {MAX_LAYERS} layer sizes (integers "
+                          f">= 1 and <= {MAX_LAYER}), got {v!r}")
     return [int(n) for n in v]
 
 
@@ -380,6 +393,9 @@ class TrainConfig:
         out = json.loads(json.dumps(out, default=_plain))  # plain YAML types
         if algo in ("ppo", "recurrent_ppo"):
             rollout = out["n_steps"] * out["n_envs"]
+            if rollout > MAX_ROLLOUT:
+                raise ConfigError(f"{source}: field 'n_steps': n_steps * n_envs must be <= "
+                                  f"{MAX_ROLLOUT} (the rollout buffer), got {rollout}")
             if out["batch_size"] > rollout or rollout % out["batch_size"]:
                 raise ConfigError(f"{source}: field 'batch_size': must divide n_steps * n_envs = "
                                   f"{rollout}, got {out['batch_size']}")
@@ -486,16 +502,69 @@ def shipped_training_configs() -> list[str]:
     return [n for n in shipped_configs() if n.split("_")[0] in ("ppo", "sac", "recurrent")]
 
 
-def load_config(path: str | Path | None = None) -> TrainConfig:
+def is_own_module(name: str) -> bool:
+    """Whether ``name`` is a module of this package (:data:`OWN_PACKAGE`), the only modules a
+    configuration file may name.
+    """
+    return name == OWN_PACKAGE or name.startswith(OWN_PACKAGE + ".")
+
+
+def _import_fields(values: Mapping[str, Any]) -> list[tuple[str, Any]]:
+    """The fields of a configuration that could make gymnasium import a module."""
+    out = [("env_id", values.get("env_id"))]
+    for key in ("env_kwargs", "eval_env_kwargs"):
+        inner = values.get(key)
+        if isinstance(inner, Mapping) and "base_id" in inner:
+            out.append((f"{key}.base_id", inner["base_id"]))
+    return out
+
+
+def check_file_imports(cfg: TrainConfig, env_module: str | None = None) -> TrainConfig:
+    """Refuse a configuration read from a file that would make the tools import a module.
+
+    A file names environments only by registered ids: ``env_module`` may be null or one of
+    this package's own modules, and no id may take gymnasium's ``module:id`` form (which
+    imports ``module``).  Importing a module of the user's, which runs its code, is the user's
+    explicit opt-in (``env_module`` here; ``dss14 train --env-module``), never a field of a file.
+    Every point of a sweep is checked too.
+
+    :param cfg: the configuration as read from its file
+    :param env_module: the module the user allows the file to name (the opt-in), or None
+    :return: ``cfg``
+    :raises ConfigError: naming the file and the field
+    """
+    for c in [cfg, *(p.config for p in cfg.points())]:
+        values = c.to_dict()
+        mod = values.get("env_module")
+        if mod is not None and not is_own_module(mod) and mod != env_module:
+            raise ConfigError(
+                f"{c.source}: field 'env_module': {mod!r} names a module to import, and importing "
+                f"runs its code: a file may name only null or this package's own modules "
+                f"({OWN_PACKAGE}...); if you trust it, pass --env-module {mod} (dss14 train) or "
+                f"env_module={mod!r} (load_config, load_policy)")
+        for key, v in _import_fields(values):
+            if isinstance(v, str) and ":" in v:
+                raise ConfigError(
+                    f"{c.source}: field '{key}': {v!r} is gymnasium's 'module:id' form, which "
+                    f"imports the module: a file may name only registered environment ids; "
+                    f"register yours by importing its module (dss14 train --env-module MODULE)")
+    return cfg
+
+
+def load_config(path: str | Path | None = None, env_module: str | None = None) -> TrainConfig:
     """Read and validate a training YAML file.
+
+    Nothing in the file can make the tools import a module (:func:`check_file_imports`).
 
     :param path: the file or a shipped config's name, default None: the shipped
         ``configs/ppo.yaml``
-    :raises ConfigError: missing/unreadable file, YAML error, unknown key or bad value (one line
-        naming the file and the field)
+    :param env_module: a module of the user's that the file may name in ``env_module`` (the
+        explicit opt-in: importing it runs its code), default None: only this package's own
+    :raises ConfigError: missing/unreadable file, YAML error, unknown key or bad value, a module
+        to import (one line naming the file and the field)
     """
     data, source = read_config(path if path is not None else "ppo")
-    return TrainConfig.from_dict(data, source=source)
+    return check_file_imports(TrainConfig.from_dict(data, source=source), env_module)
 
 
 def as_config(config: TrainConfig | Mapping[str, Any] | str | Path) -> TrainConfig:
@@ -511,7 +580,10 @@ def as_config(config: TrainConfig | Mapping[str, Any] | str | Path) -> TrainConf
 
 
 __all__ = ["ACTIVATIONS", "ALGOS", "MAX_LABEL_CHARS", "MAX_SWEEP_POINTS", "NOT_SWEPT", "SELECT_BY",
-           "CommonSettings", "PPOConfig", "PPOSettings", "RecurrentPPOSettings", "SACSettings",
-           "SETTINGS", "SweepPoint", "TrainConfig", "VEC_ENVS", "as_config", "check_sweep",
+           "CommonSettings", "MAX_ENVS", "MAX_LAYER", "MAX_LAYERS", "MAX_ROLLOUT", "MAX_SEED",
+           "MAX_THREADS", "MAX_TIMESTEPS", "OWN_PACKAGE", "PPOConfig", "PPOSettings",
+           "RecurrentPPOSettings", "SACSettings",
+           "SETTINGS", "SweepPoint", "TrainConfig", "VEC_ENVS", "as_config", "check_file_imports",
+           "check_sweep", "is_own_module",
            "default_config_path", "keys_of", "load_config", "point_labels", "shipped_config_path",
            "shipped_training_configs", "sweep_grid"]

@@ -116,6 +116,21 @@ def import_env_module(env_id: str, env_module: str | None = None) -> None:
             return
 
 
+def check_registered(env_id: Any, source: str, field: str) -> None:
+    """Refuse an environment id that is not registered with gymnasium (after the registering
+    modules were imported): ``gymnasium.make`` then only builds registered environments and
+    imports nothing a configuration names.
+
+    :raises ValueError: ``<source>: field '<field>': ...`` with the way to register one
+    """
+    if not isinstance(env_id, str) or ":" in env_id or env_id not in gym.registry:
+        ours = ", ".join(sorted(i for i in gym.registry if i.startswith("DSS14")))
+        raise ValueError(f"{source}: field '{field}': {env_id!r} is not a registered environment "
+                         f"id (DSS14 ids: {ours}); "
+                         f"an environment of your own: import the module that registers it "
+                         f"(dss14 train --env-module MODULE)")
+
+
 def resolve_env(cfg: TrainConfig) -> EnvPlan:
     """The base environment and interface of a configuration.
 
@@ -123,8 +138,10 @@ def resolve_env(cfg: TrainConfig) -> EnvPlan:
         non-DSS14 environment
     """
     import_env_module(cfg.env_id, cfg.env_module)
+    check_registered(cfg.env_id, cfg.source, "env_id")
     kw = dict(cfg.env_kwargs)
     if cfg.env_id in WRAPPER_IDS:
+        check_registered(kw.get("base_id", DEFAULT_BASE_ID), cfg.source, "env_kwargs.base_id")
         if cfg.frame_stack:
             raise ValueError(f"{cfg.source}: key 'frame_stack': {cfg.env_id} has its own history; "
                              f"set env_kwargs.history instead")
@@ -235,6 +252,7 @@ def make_train_vec_env(cfg: TrainConfig, plan: EnvPlan, env_config: Any,
 
 
 __all__ = ["DEFAULT_BASE_ID", "DEFAULT_ENV_MODULES", "EnvPlan", "WRAPPER_IDS", "check_env",
+           "check_registered",
            "import_env_module", "make_env", "make_plan_env", "make_train_vec_env",
            "make_kalman_obs_env", "make_plain_env", "make_residual_lqg_env", "make_wrapped_env",
            "resolve_env", "vec_env_kind"]

@@ -24,7 +24,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from dss14_env.agents.config import TrainConfig
+from dss14_env.agents.config import TrainConfig, check_file_imports
 from dss14_env.core.schema import read_config
 
 _ACT = {"nn.Tanh": "tanh", "nn.ReLU": "relu", "nn.ELU": "elu", "nn.LeakyReLU": "leaky_relu",
@@ -133,7 +133,7 @@ def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> 
     entry = data[env_id]
     if not isinstance(entry, Mapping):
         raise ValueError(f"{p}: entry {env_id!r} must be a mapping")
-    return zoo_to_config(algo, env_id, entry, str(p))
+    return check_file_imports(zoo_to_config(algo, env_id, entry, str(p)))
 
 
 __all__ = ["hyperparams_path", "load_hyperparams", "parse_zoo_value", "zoo_to_config"]

@@ -47,6 +47,8 @@ from dss14_env.agents.storage import (
     policy_problem,
 )
 from dss14_env.baselines.base import Controller
+from dss14_env.core.schema import read_config
+from dss14_env.envs.core import OBS_HIGH
 
 #: the folder of the policies shipped with the package (docs/rl.md: how each was trained and
 #: selected, its results, how to reproduce it)
@@ -232,8 +234,28 @@ def _label(files: PolicyFiles, algo: str) -> str:
     return f"{ALGO_LABELS.get(algo, algo)} ({name})"
 
 
+#: what a policy's ``config.yaml`` must state (the rest may take its defaults: a policy of the
+#: PPO-only version states no ``algo``): the network is rebuilt from them
+POLICY_KEYS = ("env_id", "net_arch")
+
+
+def check_resolved(path: Path) -> None:
+    """Refuse a policy's ``config.yaml`` that leaves out what rebuilds the network (an empty
+    file would load as the defaults and fail at the first action).
+
+    :raises PolicyFileError: naming the file and the missing fields
+    """
+    data, _ = read_config(path)
+    missing = [k for k in POLICY_KEYS if k not in data]
+    if missing:
+        raise PolicyFileError(f"{path}: field '{missing[0]}': is missing (a policy's config.yaml "
+                              f"is its run's resolved configuration, stating "
+                              f"{', '.join(POLICY_KEYS)})")
+
+
 def load_policy(path: str | Path | None = None, env: Any = None, name: str | None = None,
-                trust_pickle: bool = False, torch_threads: int | None = 1) -> PolicyController:
+                trust_pickle: bool = False, torch_threads: int | None = 1,
+                env_module: str | None = None) -> PolicyController:
     """Load a trained policy as a :class:`dss14_env.baselines.base.Controller`.
 
     :param path: a policy folder (run folder, ``eval/best``, ``checkpoints/<N>_steps``);
@@ -243,6 +265,9 @@ def load_policy(path: str | Path | None = None, env: Any = None, name: str | Non
     :param trust_pickle: allow a foreign stable-baselines3 ``.zip`` / ``vecnormalize.pkl``
         (unpickled: can run code), default False
     :param torch_threads: see :class:`PolicyController`
+    :param env_module: a module of yours that the policy's ``config.yaml`` may name to register
+        its environment (the explicit opt-in: importing runs its code), default None: the file
+        may name only this package's own modules (:func:`~dss14_env.agents.config.load_config`)
     :raises PolicyFileError: (a ValueError) one line naming the file: missing, unreadable,
         refused pickle, weights and statistics of different runs, weights that do not fit the
         configured architecture
@@ -250,7 +275,8 @@ def load_policy(path: str | Path | None = None, env: Any = None, name: str | Non
     files = find_policy_files(DEFAULT_POLICY if path is None else path)
     cfg = None
     if files.config is not None:
-        cfg = load_config(files.config)
+        cfg = load_config(files.config, env_module)
+        check_resolved(files.config)
     if files.foreign:
         model, vn = load_sb3_model(files, algo_class(cfg.algo if cfg else "ppo"), trust_pickle)
         stats = NormStats.from_vec_normalize(vn) if vn is not None and vn.norm_obs else None
@@ -282,6 +308,35 @@ def load_policy(path: str | Path | None = None, env: Any = None, name: str | Non
                               f"{files.config} ({first})") from None
     return PolicyController(policy, cfg, stats, name or _label(files, cfg.algo), env,
                             torch_threads)
+
+
+#: observation and action sizes of a DSS14 environment (what the runner gives a controller)
+DSS14_OBS_DIM, DSS14_ACT_DIM = int(OBS_HIGH.size), 2
+
+
+def dss14_policy_problem(path: str | Path, trust_pickle: bool = False) -> str | None:
+    """Why the policy at ``path`` cannot act on a DSS14 environment (one line), or None.
+
+    Loads it (:func:`load_policy`: layout, configuration, weights, statistics) and checks that
+    it takes the DSS14 environment's 12 observations and gives its 2 actions -- so that a
+    policy of another environment is refused before a benchmark or campaign starts, not
+    scored as empty cells.
+    """
+    problem = policy_problem(path, trust_pickle)
+    if problem is not None:
+        return problem
+    try:
+        ctrl = load_policy(path, trust_pickle=trust_pickle)
+    except (ValueError, OSError, RuntimeError) as exc:
+        return " ".join(str(exc).split())
+    act_dim = int(np.prod(ctrl.policy.action_space.shape))
+    if ctrl.spec is not None:  # an interface turns the policy's output into the env's action
+        act_dim = DSS14_ACT_DIM
+    if ctrl.input_dim != DSS14_OBS_DIM or act_dim != DSS14_ACT_DIM:
+        env = f" (trained on {ctrl.config.env_id})" if ctrl.config is not None else ""
+        return (f"policy {path}{env} takes {ctrl.input_dim} observations and gives {act_dim} "
+                f"actions; a DSS14 environment has {DSS14_OBS_DIM} and {DSS14_ACT_DIM}")
+    return None
 
 
 def _model_paths(path: str | Path) -> PolicyFiles:
@@ -358,6 +413,8 @@ def evaluate(path: str | Path, env_id: str | None = None, seeds: Iterable[int] =
             "mean_inference_time_s": float(np.mean(times))}
 
 
-__all__ = ["ALGO_LABELS", "DEFAULT_POLICY", "POLICIES_DIR", "PPOController", "PolicyController",
+__all__ = ["ALGO_LABELS", "DEFAULT_POLICY", "DSS14_ACT_DIM", "DSS14_OBS_DIM", "POLICIES_DIR",
+           "PPOController", "PolicyController",
            "PolicyFiles", "shipped_policies", "shipped_policy",
-           "evaluate", "find_policy_files", "load_policy", "policy_problem"]
+           "dss14_policy_problem", "evaluate", "find_policy_files", "load_policy",
+           "policy_problem"]

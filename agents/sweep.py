@@ -26,6 +26,7 @@ the order of such points is not a result.  An interrupted sweep continues with
 
 from __future__ import annotations
 
+import glob
 import json
 import math
 from collections.abc import Mapping, Sequence
@@ -38,6 +39,7 @@ from dss14_env.agents.campaign import (
     SEED_STRIDE,
     campaign_tasks,
     check_saved_config,
+    check_training_seeds,
     open_campaign,
     owned_files,
     seed_items,
@@ -48,7 +50,13 @@ from dss14_env.agents.campaign import (
 from dss14_env.agents.config import SweepPoint, TrainConfig, as_config
 from dss14_env.agents.envs import check_env
 from dss14_env.agents.evaluation import TEST_SEEDS, TEST_STEPS
-from dss14_env.core.outdir import atomic_write_text, prepare_output_dir
+from dss14_env.core.outdir import (
+    atomic_write_text,
+    manifest_kept,
+    prepare_output_dir,
+    remove_run_files,
+    reopen_output_dir,
+)
 from dss14_env.core.parallel import Executor, SerialExecutor, pinned_threads
 
 #: keys whose change makes another environment (a point with other values is made once before
@@ -82,9 +90,11 @@ def _open(cfg: TrainConfig, points: Sequence[SweepPoint], out: str | Path, seeds
     if resume:
         folder = Path(out)
         check_saved_config(cfg, folder)
-        prepare_output_dir(folder, ("sweep.json", "sweep.md"), True, "--out")
+        reopen_output_dir(folder, owned_files(folder), "--out")
+        remove_run_files(folder, ("sweep.json", "sweep.md"))
     else:
-        folder = prepare_output_dir(out, owned_files(out), overwrite, "--out")
+        mine = tuple(glob.escape(p.label) for p in points)  # this sweep's points, and any before
+        folder = prepare_output_dir(out, owned_files(out) + mine, overwrite, "--out")
         atomic_write_text(folder / "config.yaml", f"# sweep (from {cfg.source}): one campaign per "
                           f"point of the grid in <label>/; run k of every point trains with seed "
                           f"{cfg.seed} + {SEED_STRIDE} k\n"
@@ -191,8 +201,19 @@ def train_sweep(config: TrainConfig | Mapping[str, Any] | str | Path, seeds: Seq
                          f"sweep trains with dss14_env.agents.campaign.train_seeds)")
     seeds = [int(k) for k in seeds]
     points = cfg.points()
+    for p in points:
+        check_training_seeds(p.config, seeds)
     _check_envs(points, cfg.sweep)
     folder, campaigns = _open(cfg, points, out, seeds, overwrite, resume)
+    with manifest_kept(folder):
+        return _run_sweep(cfg, points, folder, campaigns, seeds, test_seeds, test_steps, figures,
+                          executor)
+
+
+def _run_sweep(cfg: TrainConfig, points: Sequence[SweepPoint], folder: Path,
+               campaigns: list[tuple[Path, set[int]]], seeds: list[int], test_seeds: Sequence[int],
+               test_steps: int, figures: bool, executor: Executor | None) -> Path:
+    """Train and score every point's seeds in the opened sweep folder (:func:`train_sweep`)."""
     items, labels = [], []
     for p, (sub, finished) in zip(points, campaigns, strict=True):
         items += seed_items(p.config, sub, seeds, finished, test_seeds, test_steps)

@@ -36,7 +36,7 @@ import numpy as np
 import yaml
 
 from dss14_env.agents.algos import algo_class, algo_kwargs, is_recurrent, policy_kwargs
-from dss14_env.agents.config import TrainConfig, as_config, load_config
+from dss14_env.agents.config import TrainConfig, as_config, is_own_module, load_config
 from dss14_env.agents.envs import EnvPlan, check_env, make_train_vec_env, vec_env_kind
 from dss14_env.agents.evaluation import DSS14_TASKS, EvalTask, check_seed_protocol, dss14_tasks, run_task
 from dss14_env.agents.policy import PolicyController
@@ -49,6 +49,7 @@ from dss14_env.agents.storage import (
     WEIGHTS,
     NormStats,
     PolicyFileError,
+    check_fingerprints,
     find_policy_files,
     load_optimizers,
     load_replay_buffer,
@@ -60,7 +61,15 @@ from dss14_env.agents.storage import (
     save_replay_buffer,
     write_policy_folder,
 )
-from dss14_env.core.outdir import atomic_write_bytes, atomic_write_text, prepare_output_dir
+from dss14_env.core.outdir import (
+    atomic_folder,
+    atomic_write_bytes,
+    atomic_write_text,
+    manifest_kept,
+    prepare_output_dir,
+    reopen_output_dir,
+    update_manifest,
+)
 
 #: what a training run owns in its folder (removed by ``overwrite``)
 RUN_FILES = (CONFIG, WEIGHTS, STATS, OPTIMIZER, COUNTERS, REPLAY, "return_normalization.npz",
@@ -85,7 +94,7 @@ class TrainingInterrupted(KeyboardInterrupt):
                             f"resume with: {command}")
         else:
             self.message = (f"training interrupted at {steps} steps; no checkpoint was written yet "
-                            f"(checkpoint_freq); start again with --overwrite")
+                            f"(checkpoint_freq); start again with: {command}")
         super().__init__(self.message)
 
 
@@ -116,6 +125,38 @@ class _Resume:
             except (ValueError, KeyError, TypeError) as exc:
                 raise PolicyFileError(f"{folder / COUNTERS}: not a readable counters file "
                                       f"({type(exc).__name__}: {exc})") from None
+            self.fingerprint, self.state = load_weights(folder / WEIGHTS)
+            self.optim, self.tensors = load_optimizers(folder / OPTIMIZER)
+            self.stats = self._checked_stats(folder)
+            if self.fingerprint.get("run_id") != self.run_id:
+                raise PolicyFileError(f"{folder / WEIGHTS}: weights of run "
+                                      f"{self.fingerprint.get('run_id')!r}, {COUNTERS} says "
+                                      f"{self.run_id!r}; a checkpoint holds the files of one run")
+
+    def _checked_stats(self, folder: Path) -> NormStats | None:
+        """The checkpoint's normalisation statistics, checked against its weights' fingerprint
+        (another run's file, or one of another observation size, is refused).
+        """
+        stats_file = folder / (STATS if (folder / STATS).is_file() else "return_normalization.npz")
+        if not stats_file.is_file():
+            return None
+        sfp, stats = load_stats(stats_file)
+        check_fingerprints(folder / WEIGHTS, self.fingerprint, stats_file, sfp)
+        if stats.obs_mean.size != int(self.fingerprint["obs_dim"]):
+            raise PolicyFileError(f"{stats_file}: statistics of {stats.obs_mean.size} "
+                                  f"observations, the weights expect {self.fingerprint['obs_dim']}")
+        return stats
+
+    def check_spaces(self, obs_space: Any, act_space: Any) -> None:
+        """Refuse a checkpoint of other observation or action sizes than the configuration's
+        environment (before any folder is touched).
+        """
+        want = (int(np.prod(obs_space.shape)), int(np.prod(act_space.shape)))
+        got = (int(self.fingerprint["obs_dim"]), int(self.fingerprint["act_dim"]))
+        if want != got:
+            raise PolicyFileError(f"{self.files.folder / WEIGHTS}: a policy of {got[0]} "
+                                  f"observations and {got[1]} actions; the configuration's "
+                                  f"environment has {want[0]} and {want[1]}")
 
     @property
     def run_folder(self) -> Path:
@@ -200,8 +241,7 @@ def _restore(model: Any, venv: Any, src: _Resume, cfg: TrainConfig) -> int:
             NormStats.from_vec_normalize(vn).apply_to(venv)
         return int(old.num_timesteps)
     folder = src.files.folder
-    _, state = load_weights(folder / WEIGHTS)
-    optim, tensors = load_optimizers(folder / OPTIMIZER)
+    state, optim, tensors = src.state, src.optim, src.tensors
     try:
         model.set_parameters({"policy": state, **optim}, exact_match=True)
     except (ValueError, RuntimeError, KeyError) as exc:
@@ -212,9 +252,8 @@ def _restore(model: Any, venv: Any, src: _Resume, cfg: TrainConfig) -> int:
 
         with torch.no_grad():
             model.log_ent_coef.copy_(tensors["log_ent_coef"])
-    stats_file = folder / (STATS if (folder / STATS).is_file() else "return_normalization.npz")
-    if stats_file.is_file():
-        load_stats(stats_file)[1].apply_to(venv)
+    if src.stats is not None:
+        src.stats.apply_to(venv)
     if (folder / REPLAY).is_file() and getattr(model, "replay_buffer", None) is not None:
         load_replay_buffer(folder / REPLAY, model.replay_buffer)
     return src.steps
@@ -241,8 +280,10 @@ def _checkpoint_callback(cfg: TrainConfig, run: Path, run_id: str, config_text: 
         def _on_step(self) -> bool:
             if self.num_timesteps >= self.next:
                 folder = run / "checkpoints" / f"{self.num_timesteps}_steps"
-                save_checkpoint(folder, cfg, run_id, self.model, venv, config_text)
+                with atomic_folder(folder) as tmp:  # the whole folder, or none of it
+                    save_checkpoint(tmp, cfg, run_id, self.model, venv, config_text)
                 ckpts.append(folder)
+                update_manifest(run)
                 self.next = (self.num_timesteps // cfg.checkpoint_freq + 1) * cfg.checkpoint_freq
             return True
 
@@ -258,9 +299,11 @@ def selection_score(cfg: TrainConfig, returns: np.ndarray,
     geometric mean over the hold tasks of each task's mean 3σ over the validation seeds (the
     test metric; the geometric mean weighs the front and side holds alike though their 3σ
     differ in size); ``-inf`` when a validation episode terminated or a 3σ is not finite.
+    ``select_by: pointing``: the same of the 3σ pointing errors (the caller passes those).
 
     :param returns: every validation episode's return
-    :param three_sigma: task name -> the validation episodes' 3σ (mdeg)
+    :param three_sigma: task name -> the validation episodes' 3σ (mdeg) of the selection's
+        error (:func:`selection_key`)
     :param terminated: a validation episode terminated
     """
     if cfg.select_by == "return":
@@ -269,6 +312,13 @@ def selection_score(cfg: TrainConfig, returns: np.ndarray,
     if terminated or not means or not all(np.isfinite(m) and m > 0 for m in means):
         return -np.inf
     return -float(np.exp(np.mean(np.log(means))))
+
+
+def selection_key(cfg: TrainConfig) -> str:
+    """The run-task result (and, with ``_<task>``, the history entry) a 3σ selection scores:
+    ``three_sigma_mdeg`` (servo error) or ``pointing_three_sigma_mdeg`` (``select_by: pointing``).
+    """
+    return "pointing_three_sigma_mdeg" if cfg.select_by == "pointing" else "three_sigma_mdeg"
 
 
 class _Evaluator:
@@ -281,15 +331,15 @@ class _Evaluator:
         self.cfg, self.plan, self.run, self.run_id = cfg, plan, run, run_id
         self.config_text, self.venv = config_text, venv
         self.tasks = _eval_tasks(cfg, plan)
-        if cfg.select_by == "three_sigma" and not any(t.axis for t in self.tasks):
-            raise ValueError(f"{cfg.source}: key 'select_by': three_sigma needs DSS14 hold "
+        if cfg.select_by != "return" and not any(t.axis for t in self.tasks):
+            raise ValueError(f"{cfg.source}: key 'select_by': {cfg.select_by} needs DSS14 hold "
                              f"tasks, {cfg.env_id!r} has none (use return)")
+        key = selection_key(cfg)
         h = self.history = _load_history(run / "eval" / "evaluations.npz", start)
         if "selection_score" not in h:  # a history written before the score was recorded
             h["selection_score"] = [
-                selection_score(cfg, r, {t.name: h[f"three_sigma_mdeg_{t.name}"][i]
-                                         for t in self.tasks
-                                         if f"three_sigma_mdeg_{t.name}" in h})
+                selection_score(cfg, r, {t.name: h[f"{key}_{t.name}"][i] for t in self.tasks
+                                         if f"{key}_{t.name}" in h})
                 for i, r in enumerate(h["results"])]
         self.best = max((float(v) for v in h["selection_score"]), default=-np.inf)
         self.ctrl: PolicyController | None = None
@@ -310,10 +360,13 @@ class _Evaluator:
             h.setdefault(f"returns_{t.name}", []).append(res[t.name]["returns"])
             if t.axis is not None:
                 h.setdefault(f"three_sigma_mdeg_{t.name}", []).append(res[t.name]["three_sigma_mdeg"])
+            if t.pointing_axis is not None:
+                h.setdefault(f"pointing_three_sigma_mdeg_{t.name}", []).append(
+                    res[t.name]["pointing_three_sigma_mdeg"])
         mean = float(np.mean(h["results"][-1]))
+        key = selection_key(cfg)
         score = selection_score(cfg, h["results"][-1],
-                                {t.name: res[t.name]["three_sigma_mdeg"] for t in self.tasks
-                                 if t.axis is not None},
+                                {t.name: res[t.name][key] for t in self.tasks if t.axis is not None},
                                 any(bool(r["terminated"].any()) for r in res.values()))
         h["selection_score"].append(score)
         _save_history(self.run / "eval" / "evaluations.npz", h)
@@ -322,10 +375,16 @@ class _Evaluator:
                if np.isfinite(r["three_sigma_mdeg"]).any()}
         for n, v in sig.items():
             logger.record(f"eval/three_sigma_mdeg_{n}", v)
+        for n, r in res.items():
+            if np.isfinite(r["pointing_three_sigma_mdeg"]).any():
+                logger.record(f"eval/pointing_three_sigma_mdeg_{n}",
+                              float(np.nanmean(r["pointing_three_sigma_mdeg"])))
         if score > self.best:
             self.best = score
-            write_policy_folder(self.run / "eval" / "best", model.policy, _stats(cfg, self.venv),
-                                _fingerprint(cfg, self.run_id, model), self.config_text)
+            with atomic_folder(self.run / "eval" / "best") as tmp:
+                write_policy_folder(tmp, model.policy, _stats(cfg, self.venv),
+                                    _fingerprint(cfg, self.run_id, model), self.config_text)
+        update_manifest(self.run)
         if cfg.verbose:
             print(f"eval at {model.num_timesteps} steps: mean return {mean:.4g}"
                   + "".join(f", {n} 3-sigma {v:.3g} mdeg" for n, v in sig.items()))
@@ -383,25 +442,29 @@ def _save_history(path: Path, h: dict[str, list]) -> None:
     atomic_write_bytes(path, buf.getvalue())
 
 
-def _resume_command(cfg: TrainConfig, run: Path, ckpt: Path) -> str:
-    return shlex.join(["dss14", "train", cfg.algo, "--config", str(run / CONFIG), "--resume",
-                       str(ckpt), "--out", str(run)])
+def _resume_command(cfg: TrainConfig, run: Path, ckpt: Path | None) -> str:
+    """The command that continues an interrupted run: from its last checkpoint, or (none
+    written yet) from the start, replacing the run's files.
+    """
+    cmd = ["dss14", "train", cfg.algo, "--config", str(run / CONFIG)]
+    cmd += ["--resume", str(ckpt)] if ckpt is not None else ["--overwrite"]
+    if cfg.env_module is not None and not is_own_module(cfg.env_module):
+        cmd += ["--env-module", cfg.env_module]
+    return shlex.join([*cmd, "--out", str(run)])
 
 
 # ------------------------------------------------------------------------------ training
-def prepare_run(cfg: TrainConfig, run_dir: str | Path | None, resume: str | Path | None,
+def prepare_run(cfg: TrainConfig, run_dir: str | Path | None, resume: str | Path | _Resume | None,
                 overwrite: bool = False, trust_pickle: bool = False) -> tuple[Path, Any]:
     """The run folder (checked, created) and the resume source, before any work.
+
+    A resume in the checkpoint's own run folder continues there (its files are kept; the
+    checkpoints past the resume point are removed only once the model is restored).
 
     :raises ValueError: an unusable folder (one line, naming it), a folder holding another run
         without ``overwrite``, a missing or refused resume source
     """
-    src = None
-    if resume is not None:
-        p = Path(resume)
-        if not p.exists():
-            raise ValueError(f"resume checkpoint not found: {p}")
-        src = _Resume(p, trust_pickle)
+    src = resume if isinstance(resume, _Resume) else resume_source(resume, trust_pickle)
     if run_dir is not None:
         run = Path(run_dir)
     elif src is not None:
@@ -409,16 +472,43 @@ def prepare_run(cfg: TrainConfig, run_dir: str | Path | None, resume: str | Path
     else:
         run = _new_run_dir(cfg.algo)
     if src is not None and run.resolve() == src.run_folder.resolve():
-        prepare_output_dir(run, owned=(), option="--out")  # continue the run in place
-        later = [d for d in (run / "checkpoints").glob("*_steps")
-                 if _CKPT_RE.match(d.name) and src.steps >= 0 and int(d.name[:-6]) > src.steps]
-        import shutil
-
-        for d in later:  # checkpoints past the resume point belong to the abandoned branch
-            shutil.rmtree(d)
+        reopen_output_dir(run, RUN_FILES, option="--out")  # continue the run in place
     else:
         prepare_output_dir(run, owned=RUN_FILES, overwrite=overwrite, option="--out")
     return run, src
+
+
+def resume_source(resume: str | Path | None, trust_pickle: bool = False) -> _Resume | None:
+    """The checked resume source (None without ``resume``): its files are read and checked
+    here (weights, optimiser state, counters, statistics and their fingerprints), before any
+    folder is touched.
+
+    :raises ValueError: missing, refused or unreadable checkpoint (one line naming the file)
+    """
+    if resume is None:
+        return None
+    p = Path(resume)
+    if not p.exists():
+        raise ValueError(f"resume checkpoint not found: {p}")
+    return _Resume(p, trust_pickle)
+
+
+def later_checkpoints(run: Path, steps: int) -> list[Path]:
+    """The checkpoint folders of ``run`` past ``steps`` (on resume: the abandoned branch)."""
+    return sorted(d for d in (run / "checkpoints").glob("*_steps")
+                  if _CKPT_RE.match(d.name) and steps >= 0 and int(d.name[:-6]) > steps)
+
+
+def _drop_abandoned(run: Path, src: _Resume | None) -> None:
+    """Remove the checkpoints past the resume point -- only once the resumed model is built
+    from the checkpoint (a failed resume never deletes a checkpoint).
+    """
+    import shutil
+
+    if src is None or src.foreign or src.run_folder.resolve() != run.resolve():
+        return
+    for d in later_checkpoints(run, src.steps):
+        shutil.rmtree(d)
 
 
 def train(config: TrainConfig | Mapping[str, Any] | str | Path, run_dir: str | Path | None = None,
@@ -439,16 +529,12 @@ def train(config: TrainConfig | Mapping[str, Any] | str | Path, run_dir: str | P
         architecture that differs from the checkpoint's
     :raises TrainingInterrupted: on Ctrl-C (a KeyboardInterrupt with the resume command)
     """
-    import stable_baselines3
-    import torch
-    from stable_baselines3.common.vec_env import VecNormalize
-    from threadpoolctl import threadpool_limits
-
     cfg = as_config(config)
     if cfg.sweep:
         raise ValueError(f"{cfg.source}: field 'sweep': a sweep trains one campaign per point "
                          f"(dss14 train --seeds ... --out DIR, or dss14_env.agents.sweep.train_sweep)")
-    run, src = prepare_run(cfg, run_dir, resume, overwrite, trust_pickle)
+    # everything checked before the folder is claimed (nothing removed before that)
+    src = resume_source(resume, trust_pickle)
     plan, obs_space, act_space, env_config = check_env(cfg)
     if plan.dss14:
         check_seed_protocol(cfg.seed, cfg.n_envs, cfg.eval_seeds, cfg.source)
@@ -457,13 +543,27 @@ def train(config: TrainConfig | Mapping[str, Any] | str | Path, run_dir: str | P
             raise ValueError(f"{cfg.source}: key 'eval_episode_steps': the validation episodes "
                              f"must be longer than the {warm}-step warm-up the 3-sigma leaves "
                              f"out, got {cfg.eval_episode_steps}")
-    if src is not None and not src.foreign and src.steps >= cfg.total_timesteps:
-        raise ValueError(f"checkpoint {src.path} is at {src.steps} steps, total_timesteps is "
-                         f"{cfg.total_timesteps}: raise total_timesteps (--timesteps)")
+    if src is not None and not src.foreign:
+        if src.steps >= cfg.total_timesteps:
+            raise ValueError(f"checkpoint {src.path} is at {src.steps} steps, total_timesteps is "
+                             f"{cfg.total_timesteps}: raise total_timesteps (--timesteps)")
+        src.check_spaces(obs_space, act_space)
+    run, src = prepare_run(cfg, run_dir, src, overwrite, trust_pickle)
+    with manifest_kept(run):
+        return _train_in(cfg, run, src, plan, obs_space, act_space, env_config)
+
+
+def _train_in(cfg: TrainConfig, run: Path, src: _Resume | None, plan: EnvPlan, obs_space: Any,
+              act_space: Any, env_config: Any) -> Path:
+    """The training itself, in the claimed run folder (see :func:`train`)."""
+    import stable_baselines3
+    import torch
+    from stable_baselines3.common.vec_env import VecNormalize
+    from threadpoolctl import threadpool_limits
+
     say = print if cfg.verbose else (lambda *a, **k: None)
     run_id = src.run_id if src is not None else new_run_id()
     config_text = _config_text(cfg, run_id)
-    atomic_write_text(run / CONFIG, config_text)
     tb = None
     if _installed("tensorboard"):
         tb = str(run / "tb")
@@ -494,7 +594,10 @@ def train(config: TrainConfig | Mapping[str, Any] | str | Path, run_dir: str | P
                 raise ValueError(f"checkpoint {src.path} is at {start} steps, total_timesteps is "
                                  f"{cfg.total_timesteps}: raise total_timesteps (--timesteps)")
             model.num_timesteps = start
+            _drop_abandoned(run, src)
             say(f"resuming {src.path} at {start} steps")
+        atomic_write_text(run / CONFIG, config_text)
+        update_manifest(run)
         callbacks = _callbacks(cfg, plan, run, run_id, config_text, venv, start, ckpts)
         say(f"{cfg.algo} on {cfg.env_id}: {cfg.n_envs} envs ({vec_env_kind(cfg, plan)}), "
             f"obs {obs_space.shape}, action {act_space.shape}, {cfg.total_timesteps - start} "
@@ -506,8 +609,8 @@ def train(config: TrainConfig | Mapping[str, Any] | str | Path, run_dir: str | P
                             tb_log_name=cfg.algo, reset_num_timesteps=src is None,
                             progress_bar=progress)
         except KeyboardInterrupt:
-            last = ckpts[-1] if ckpts else _last_checkpoint(run)
-            cmd = _resume_command(cfg, run, last) if last is not None else None
+            last = ckpts[-1] if ckpts else last_checkpoint(run)
+            cmd = _resume_command(cfg, run, last)
             raise TrainingInterrupted(run, int(model.num_timesteps), last, cmd) from None
         wall = time.perf_counter() - t0
         save_checkpoint(run, cfg, run_id, model, venv, config_text)
@@ -529,7 +632,8 @@ def train(config: TrainConfig | Mapping[str, Any] | str | Path, run_dir: str | P
     return run
 
 
-def _last_checkpoint(run: Path) -> Path | None:
+def last_checkpoint(run: Path) -> Path | None:
+    """The latest complete checkpoint folder of a run (None: none written yet)."""
     found = [(int(d.name[:-6]), d) for d in (run / "checkpoints").glob("*_steps")
              if _CKPT_RE.match(d.name) and (d / COUNTERS).is_file()]
     return max(found)[1] if found else None
@@ -537,13 +641,14 @@ def _last_checkpoint(run: Path) -> Path | None:
 
 def config_for_command(algo: str, config: str | Path | None = None, env_id: str | None = None,
                        resume: str | Path | None = None, timesteps: int | None = None,
-                       seed: int | None = None) -> TrainConfig:
+                       seed: int | None = None, env_module: str | None = None) -> TrainConfig:
     """The configuration ``dss14 train <algo>`` runs with.
 
     ``--config`` (a path or a shipped name) wins; else ``--env`` takes the entry of the
     shipped hyperparameter file of ``algo``; else, with ``--resume``, the checkpoint's
     ``config.yaml``; else the shipped ``configs/<algo>.yaml``.  ``--timesteps`` and ``--seed``
-    override.
+    override.  ``--env-module`` (``env_module``) is the user's opt-in to import a module of
+    theirs that registers ``env_id``: it is imported here, and the file may name it.
 
     :raises ValueError: both ``--config`` and ``--env``, or a config of another algorithm
     """
@@ -553,21 +658,39 @@ def config_for_command(algo: str, config: str | Path | None = None, env_id: str 
     if config is not None and env_id is not None:
         raise ValueError("give --config or --env, not both (--env picks the shipped "
                          "hyperparameters of that environment id)")
+    if env_module is not None:
+        import_user_module(env_module)
     if config is not None:
-        cfg = load_config(config)
+        cfg = load_config(config, env_module)
     elif env_id is not None:
         cfg = load_hyperparams(algo, env_id)
     elif resume is not None and resume_config_path(resume) is not None:
-        cfg = load_config(resume_config_path(resume))
+        cfg = load_config(resume_config_path(resume), env_module)
     else:
         cfg = load_config(shipped_config_path(f"{algo}.yaml"))
     if cfg.algo != algo:
         raise ValueError(f"{cfg.source}: key 'algo': the config is for {cfg.algo!r}, the command "
                          f"trains {algo!r}")
-    changes = {k: v for k, v in (("total_timesteps", timesteps), ("seed", seed)) if v is not None}
+    changes = {k: v for k, v in (("total_timesteps", timesteps), ("seed", seed),
+                                 ("env_module", env_module)) if v is not None}
     if changes:
         cfg = cfg.replace(source=f"{cfg.source} (command line)", **changes)
     return cfg
+
+
+def import_user_module(name: str) -> None:
+    """Import the module the user named with ``--env-module`` (their explicit opt-in).
+
+    :raises ValueError: not a module name, or the module cannot be imported (one line)
+    """
+    import importlib
+
+    if not isinstance(name, str) or not re.fullmatch(r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)*", name):
+        raise ValueError(f"--env-module: must be a module name (package.module), got {name!r}")
+    try:
+        importlib.import_module(name)
+    except ImportError as exc:
+        raise ValueError(f"--env-module {name}: cannot be imported ({exc})") from None
 
 
 def load_run_config(run: str | Path) -> TrainConfig:
@@ -575,5 +698,6 @@ def load_run_config(run: str | Path) -> TrainConfig:
     return load_config(Path(run) / CONFIG)
 
 
-__all__ = ["RUN_FILES", "TrainingInterrupted", "config_for_command", "load_run_config", "prepare_run",
-           "resume_config_path", "save_checkpoint", "selection_score", "train"]
+__all__ = ["RUN_FILES", "TrainingInterrupted", "config_for_command", "import_user_module",
+           "last_checkpoint", "later_checkpoints", "load_run_config", "prepare_run", "resume_source",
+           "resume_config_path", "save_checkpoint", "selection_key", "selection_score", "train"]

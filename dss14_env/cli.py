@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from pathlib import Path
 from typing import Any
 
 from dss14_env.bench import catalog
@@ -12,7 +13,7 @@ from dss14_env.bench import catalog
 
 def _reproduce(args: argparse.Namespace) -> int:
     """Write everything, then exit 1 when a row with an accepted range is outside it."""
-    from dss14_env.core.outdir import prepare_output_dir
+    from dss14_env.core.outdir import manifest_kept, prepare_output_dir
     from dss14_env.model.assembly import build_model, default_model
     from dss14_env.model.config import load_model_config
     from dss14_env.reproduce import OWNED_FILES, reproduce
@@ -20,8 +21,9 @@ def _reproduce(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     cfg = load_model_config(args.config) if args.config else None  # bad config: before any work
     prepare_output_dir(args.out, OWNED_FILES, overwrite=args.overwrite)
-    model = build_model(cfg) if cfg is not None else default_model()
-    res = reproduce(args.out, model, figures=not args.no_figures)
+    with manifest_kept(args.out):
+        model = build_model(cfg) if cfg is not None else default_model()
+        res = reproduce(args.out, model, figures=not args.no_figures)
     print(res["markdown"])
     print(f"{len(res['figures'])} figures, metrics.json and metrics.md written to {args.out} "
           f"in {time.perf_counter() - t0:.1f} s")
@@ -39,16 +41,62 @@ def _reproduce(args: argparse.Namespace) -> int:
     return 0
 
 
+#: ``--resume`` given without a checkpoint: continue the run or campaign in ``--out``
+LATEST = "<latest>"
+
+
+def _train_resume(args: argparse.Namespace) -> tuple[str | None, bool]:
+    """``(checkpoint to resume a single run from, or None; whether a --seeds campaign is
+    continued)`` from ``--resume [CHECKPOINT]`` and its alias ``--continue``.
+    """
+    from dss14_env.agents.train import last_checkpoint
+
+    resume = LATEST if args.continue_ and args.resume is None else args.resume
+    if args.seeds is not None:
+        if resume not in (None, LATEST):
+            raise ValueError("--resume: with --seeds it continues the campaign in --out and takes "
+                             "no checkpoint (--seeds ... --out DIR --resume)")
+        return None, resume == LATEST
+    if resume != LATEST:
+        return resume, False
+    if args.out is None:
+        raise ValueError("--resume without a checkpoint continues the run in --out: give --out, "
+                         "or --resume <run>/checkpoints/<N>_steps")
+    last = last_checkpoint(Path(args.out))
+    if last is None:
+        raise ValueError(f"--resume: {args.out} holds no checkpoint to continue from (a run "
+                         f"stopped before its first checkpoint starts again with --overwrite)")
+    return str(last), False
+
+
+def campaign_resume_command(args: argparse.Namespace) -> str:
+    """The one command that continues an interrupted ``dss14 train --seeds`` campaign."""
+    import shlex
+
+    cmd = ["dss14", "train", args.algo, "--config", str(Path(args.out) / "config.yaml"),
+           "--seeds", *args.seeds, "--out", str(args.out), "--resume"]
+    if args.env_module:
+        cmd += ["--env-module", args.env_module]
+    if args.address is not None:
+        cmd += ["--address", args.address]
+    elif args.num_cpus is not None:
+        cmd += ["--num-cpus", str(args.num_cpus)]
+    elif args.ray:
+        cmd += ["--ray"]
+    return shlex.join(cmd)
+
+
 def _train(args: argparse.Namespace) -> int:
     from dss14_env.agents.campaign import owned_files, parse_seeds, train_seeds
     from dss14_env.agents.sweep import train_sweep
     from dss14_env.agents.train import TrainingInterrupted, config_for_command, train
     from dss14_env.core.outdir import prepare_output_dir
-    from dss14_env.core.parallel import check_ray_options, make_executor, require_ray
+    from dss14_env.core.parallel import check_ray_options, make_executor, probe_address, require_ray
 
     use_ray = args.ray or args.address is not None or args.num_cpus is not None
-    cfg = config_for_command(args.algo, args.config, args.env, args.resume, args.timesteps,
-                             args.seed)
+    resume, resume_campaign = _train_resume(args)
+    cfg = config_for_command(args.algo, args.config, args.env, resume, args.timesteps,
+                             args.seed, args.env_module)
     if cfg.sweep and (args.seeds is None or args.out is None):
         raise ValueError(f"{cfg.source}: field 'sweep': a sweep trains one campaign per point: "
                          f"give --seeds (e.g. 0-4) and --out")
@@ -58,37 +106,47 @@ def _train(args: argparse.Namespace) -> int:
         parse_seeds(args.seeds)
         check_ray_options(args.address, args.num_cpus)
         require_ray()
-        if not args.continue_:
-            prepare_output_dir(args.out, owned_files(args.out), args.overwrite)
-    try:
-        if args.seeds is not None:
-            if args.resume is not None or args.seed is not None:
-                raise ValueError("--seeds trains fresh runs: without --resume and --seed")
-            if args.out is None:
-                raise ValueError("--seeds needs --out (the campaign folder)")
-            if args.continue_ and args.overwrite:
-                raise ValueError("--continue keeps the finished runs in --out: without --overwrite")
-            seeds = parse_seeds(args.seeds)
-            run_all = train_sweep if cfg.sweep else train_seeds
-            with make_executor(use_ray, address=args.address, num_cpus=args.num_cpus) as ex:
-                out = run_all(cfg, seeds, args.out, overwrite=args.overwrite, executor=ex,
-                              resume=args.continue_)
-            if cfg.sweep:
-                n = len(cfg.points())
-                print(f"{n} points x {len(seeds)} seeds: per point a campaign folder (summary.json, "
-                      f"learning curves), sweep.json and sweep.md written to {out}")
-            else:
-                print(f"{len(seeds)} runs, summary.json and learning curves written to {out}")
-            return 0
+        probe_address(args.address)
+        if not resume_campaign:  # checked only: nothing removed before the runs are checked
+            prepare_output_dir(args.out, owned_files(args.out), args.overwrite, dry_run=True)
+    if args.seeds is None:
         if args.continue_:
             raise ValueError("--continue continues a campaign: give --seeds and --out")
-        run = train(cfg, run_dir=args.out, resume=args.resume, overwrite=args.overwrite,
-                    trust_pickle=args.trust_pickle)
-    except TrainingInterrupted as exc:
-        print(f"dss14 train: {exc.message}", file=sys.stderr)
+        try:
+            run = train(cfg, run_dir=args.out, resume=resume, overwrite=args.overwrite,
+                        trust_pickle=args.trust_pickle)
+        except TrainingInterrupted as exc:
+            print(f"dss14 train: {exc.message}", file=sys.stderr)
+            return 130
+        print(f"{cfg.algo} run written to {run} (policy folder: policy.pt, normalization.npz, "
+              f"config.yaml)")
+        return 0
+    if args.seed is not None:
+        raise ValueError("--seeds trains one run per seed index: without --seed (the config's "
+                         "seed is the base seed)")
+    if args.out is None:
+        raise ValueError("--seeds needs --out (the campaign folder)")
+    if resume_campaign and args.overwrite:
+        raise ValueError("--resume keeps the finished runs in --out: without --overwrite")
+    seeds = parse_seeds(args.seeds)
+    run_all = train_sweep if cfg.sweep else train_seeds
+    try:
+        with make_executor(use_ray, address=args.address, num_cpus=args.num_cpus) as ex:
+            out = run_all(cfg, seeds, args.out, overwrite=args.overwrite, executor=ex,
+                          resume=resume_campaign)
+    except KeyboardInterrupt:
+        if not (Path(args.out) / "config.yaml").is_file():
+            raise
+        print(f"dss14 train: campaign interrupted; the finished runs in {args.out} are kept, "
+              f"the others train anew; continue with: {campaign_resume_command(args)}",
+              file=sys.stderr)
         return 130
-    print(f"{cfg.algo} run written to {run} (policy folder: policy.pt, normalization.npz, "
-          f"config.yaml)")
+    if cfg.sweep:
+        n = len(cfg.points())
+        print(f"{n} points x {len(seeds)} seeds: per point a campaign folder (summary.json, "
+              f"learning curves), sweep.json and sweep.md written to {out}")
+    else:
+        print(f"{len(seeds)} runs, summary.json and learning curves written to {out}")
     return 0
 
 
@@ -109,6 +167,9 @@ def _bench(args: argparse.Namespace) -> int:
         print(f"dss14 bench: warning: {note}", file=sys.stderr)
     print(plan.describe(), flush=True)
     res = bench(plan, progress=not args.no_progress)
+    print("The dish's true pointing error, 3σ (mdeg), el / xel:")
+    print(res["pointing_table"])
+    print("The servo error at the drive encoders (the report's Table 4 quantity), 3σ (mdeg), az / el:")
     print(res["main_table"])
     print(f"results.json, results.md and {len(res['figures'])} figures written to {plan.out} "
           f"in {res['wall_time_s']:.1f} s")
@@ -120,19 +181,21 @@ def _campaign(args: argparse.Namespace) -> int:
 
     from dss14_env.bench import campaign as C
     from dss14_env.bench.campaign_report import parse_requirements
-    from dss14_env.core.parallel import check_ray_options, make_executor, require_ray
+    from dss14_env.core.parallel import check_ray_options, make_executor, probe_address, require_ray
 
     given = {k: v for k, v in (("controllers", args.controllers), ("plants", args.plants),
                                ("first_plant", args.first_plant), ("steps", args.steps),
                                ("chunk_size", args.chunk_size), ("ppo_model", args.ppo_model),
                                ("wind_speeds_kmh", C.parse_wind_speeds(args.wind_speeds)),
                                ("directions", C.parse_directions(args.directions))) if v is not None}
-    spec = C.CampaignSpec(**given)
+    spec = C.CampaignSpec(**given, condition_on_pi=not args.unconditioned)
     reqs = parse_requirements(args.requirements)
+    C.check_policy(spec)  # before any work: a policy that cannot act on the environment
     use_ray = args.ray or args.address is not None or args.num_cpus is not None
     if use_ray:  # before any work: bad Ray options, or no Ray (then how to install it)
         check_ray_options(args.address, args.num_cpus)
         require_ray()
+        probe_address(args.address)
 
     def executor():
         return make_executor(use_ray, address=args.address, num_cpus=args.num_cpus)
@@ -140,18 +203,23 @@ def _campaign(args: argparse.Namespace) -> int:
     where = "Ray " + (f"at {args.address}" if args.address else "(local)") if use_ray else "in-process"
     print(f"campaign: {spec.plants} plants x {len(spec.conditions)} wind conditions x "
           f"{len(spec.names)} controllers = {spec.n_episodes} episodes of {spec.steps} steps, "
-          f"{len(spec.chunks())} chunks, {where}", flush=True)
+          f"{len(spec.chunks())} chunk{'s' if len(spec.chunks()) != 1 else ''}, {where}", flush=True)
     try:
         res = C.run_campaign(spec, args.out, executor=executor, requirements=reqs, resume=args.resume,
                              overwrite=args.overwrite, figures=not args.no_figures,
                              progress=not args.no_progress, command="dss14 " + shlex.join(args.argv))
     except KeyboardInterrupt:
-        print(f"dss14 campaign: interrupted; the finished chunks are in {args.out}/chunks: rerun "
-              f"with --resume to continue", file=sys.stderr)
+        if not (Path(args.out) / "campaign.json").is_file():
+            raise
+        again = [a for a in args.argv if a not in ("--overwrite", "--resume", "--continue")]
+        again.append("--resume")
+        print(f"dss14 campaign: interrupted; the finished chunks are in {args.out}/chunks; "
+              f"continue with: dss14 {shlex.join(again)}", file=sys.stderr)
         return 130
     print(res["table"])
     print(f"results.json, results.md and {len(res['figures'])} figures written to {res['out']} "
-          f"({len(res['computed'])} chunks computed, {len(res['resumed'])} read back) in "
+          f"({len(res['computed'])} chunk{'s' if len(res['computed']) != 1 else ''} computed, "
+          f"{len(res['resumed'])} read back) in "
           f"{res['results']['campaign']['wall_time_s']['total']:.1f} s")
     return 0
 
@@ -172,6 +240,9 @@ def _add_campaign_parser(sub: Any) -> None:
     p.add_argument("--ppo-model", default=None, metavar="PATH",
                    help=f"a trained policy instead of the {catalog.POLICY_OPTION_ROW} row's "
                    "shipped one, scored under its own name (its folder's)")
+    p.add_argument("--unconditioned", action="store_true",
+                   help="draw the plants without conditioning on the report's PI being stable (only "
+                   "the drive must be): results.md gives each controller's unstable share")
     p.add_argument("--wind-speeds", nargs="+", metavar="KMH", default=None,
                    help="mean wind speeds, km/h (default 50)")
     p.add_argument("--directions", nargs="+", metavar="DIR", default=None,
@@ -189,8 +260,9 @@ def _add_campaign_parser(sub: Any) -> None:
     p.add_argument("--num-cpus", type=int, default=None, metavar="N",
                    help="CPUs of the local Ray (implies --ray; default: all of the machine's)")
     p.add_argument("--out", default="campaign_out", help="output folder (default: campaign_out)")
-    p.add_argument("--resume", action="store_true",
-                   help="continue the campaign in --out: finished chunks are read back")
+    p.add_argument("--resume", "--continue", dest="resume", action="store_true",
+                   help="continue the campaign in --out: finished chunks are read back "
+                   "(--continue: the same)")
     p.add_argument("--overwrite", action="store_true", help="replace a campaign in --out")
     p.add_argument("--no-figures", action="store_true", help="results.json and results.md only")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -224,11 +296,16 @@ def main(argv: list[str] | None = None) -> int:
                    "campaign folder")
     p.add_argument("--overwrite", action="store_true",
                    help="replace the run files already in --out (a finished or interrupted run)")
-    p.add_argument("--resume", default=None, metavar="CHECKPOINT",
-                   help="checkpoint folder (<run>/checkpoints/<N>_steps) to continue from")
+    p.add_argument("--resume", nargs="?", const=LATEST, default=None, metavar="CHECKPOINT",
+                   help="continue: a run from a checkpoint folder (<run>/checkpoints/<N>_steps), "
+                   "or without one from the last checkpoint of the run in --out; with --seeds the "
+                   "interrupted campaign in --out (finished runs are scored, not retrained)")
     p.add_argument("--trust-pickle", action="store_true",
                    help="allow --resume from a stable-baselines3 .zip (unpickled: it can run "
                    "code; only for files you trust)")
+    p.add_argument("--env-module", default=None, metavar="MODULE",
+                   help="import this module of yours first, to register the env_id it trains on "
+                   "(importing runs its code: a configuration file can never ask for it)")
     p.add_argument("--timesteps", type=int, default=None, help="override total_timesteps")
     p.add_argument("--seed", type=int, default=None, help="override seed")
     p.add_argument("--seeds", nargs="+", default=None, metavar="K",
@@ -236,8 +313,7 @@ def main(argv: list[str] | None = None) -> int:
                    "summary.json and learning curves; with a sweep in the config, one such "
                    "campaign per point into --out/<point>/, then sweep.json and sweep.md")
     p.add_argument("--continue", dest="continue_", action="store_true",
-                   help="with --seeds: continue the interrupted campaign in --out (same config): "
-                   "finished runs are scored, not retrained; the others train anew")
+                   help="with --seeds: the same as --resume (the name of earlier versions)")
     p.add_argument("--ray", action="store_true",
                    help="with --seeds: the runs as Ray tasks, on a local Ray by default (docs/scale.md)")
     p.add_argument("--address", default=None,

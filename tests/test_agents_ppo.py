@@ -23,8 +23,10 @@ from dss14_env.agents.config import (
 )
 from dss14_env.agents.policy import DEFAULT_POLICY, PolicyController, evaluate, load_policy
 from dss14_env.agents.storage import load_stats, load_weights
-from dss14_env.agents.train import train
+from dss14_env.agents.train import RUN_FILES, train
 from dss14_env.cli import main
+from dss14_env.core.outdir import prepare_output_dir, update_manifest
+from dss14_env.core.schema import ConfigError
 
 UNIT_PENDULUM = "PendulumUnitAction-v0"  # Pendulum with actions rescaled to [-1, 1], like DSS14-v0
 
@@ -68,7 +70,8 @@ def test_shipped_configs_load_and_round_trip() -> None:
     assert load_config("ppo_smoke").env_id == "Pendulum-v1"
     assert load_config("sac").algo == "sac" and load_config("recurrent_ppo").algo == "recurrent_ppo"
     assert TrainConfig.from_dict(yaml.safe_load(yaml.safe_dump(cfg.to_dict()))) == cfg
-    assert PPOConfig.from_dict({"learning_rate": "3e-4"}).learning_rate == 3e-4  # YAML 1.1 string
+    with pytest.raises(ConfigError, match="field 'learning_rate'"):  # a string is no number
+        PPOConfig.from_dict({"learning_rate": "3e-4"})
     assert PPOConfig.from_dict({"total_timesteps": 1e6}).total_timesteps == 1_000_000
     # the shipped policy's run config still loads (written by the PPO-only version)
     assert load_config(DEFAULT_POLICY / "config.yaml").env_kwargs["history"] == 8
@@ -111,7 +114,7 @@ def test_config_file_errors(tmp_path: Path) -> None:
     (tmp_path / "broken.yaml").write_text("env_id: [Pendulum\n")
     with pytest.raises(ValueError, match=r"broken.yaml: not valid YAML \(line 2"):
         load_config(tmp_path / "broken.yaml")
-    with pytest.raises(ValueError, match="'env_id': cannot make 'NoSuchEnv-v0'"):
+    with pytest.raises(ValueError, match="field 'env_id': 'NoSuchEnv-v0' is not a registered"):
         train(tiny(env_id="NoSuchEnv-v0"), run_dir=tmp_path / "run")
 
 
@@ -145,8 +148,10 @@ def test_new_run_refuses_a_run_folder_unless_overwrite(pendulum_run: Path, tmp_p
         train(tiny(), run_dir=pendulum_run)
     # an interrupted run (config and a checkpoint, no final policy) is refused as well
     partial = tmp_path / "partial"
+    prepare_output_dir(partial, RUN_FILES)  # the run claimed the folder (its manifest) ...
     (partial / "checkpoints" / "256_steps").mkdir(parents=True)
     (partial / "config.yaml").write_text("env_id: Pendulum-v1\n")
+    update_manifest(partial)  # ... and was killed after its first checkpoint
     (partial / "notes.txt").write_text("mine")
     assert main(["train", "ppo", "--config", "ppo_smoke", "--out", str(partial)]) == 2
     err = capsys.readouterr().err.strip()

@@ -29,6 +29,7 @@ from dss14_env.agents.envs import check_env
 from dss14_env.agents.sweep import train_sweep
 from dss14_env.agents.train import train
 from dss14_env.cli import main
+from dss14_env.core.outdir import MANIFEST
 from dss14_env.core.schema import ConfigError
 
 #: a training run of about a second (Pendulum: no DSS14 model to build)
@@ -59,7 +60,7 @@ def _numbers(summary: dict) -> dict:
 
 # ------------------------------------------------------------------ grid and labels
 def test_grid_is_the_cartesian_product_in_key_order() -> None:
-    cfg = TrainConfig.from_dict({**TINY, "sweep": {"learning_rate": ["1e-4", 3e-4],
+    cfg = TrainConfig.from_dict({**TINY, "sweep": {"learning_rate": [1e-4, 3e-4],
                                                    "log_std_init": [-2.5, -1.5, 0]}})
     assert cfg.sweep == {"learning_rate": [1e-4, 3e-4], "log_std_init": [-2.5, -1.5, 0.0]}
     points = cfg.points()
@@ -128,14 +129,14 @@ BASE_VALID = {**TINY, "n_steps": 64, "n_envs": 2, "batch_size": 64}
     ({"learning_rate": 3e-4}, "sweep.learning_rate", "must be a non-empty list of values, got 0.0003"),
     ({"learning_rate": [3e-4, -1.0]}, "sweep.learning_rate", "must be a number > 0, got -1.0"),
     ({"learning_rate": [".nan"]}, "sweep.learning_rate", "must be a number > 0"),
-    ({"n_epochs": [2, 1.5]}, "sweep.n_epochs", "must be an integer >= 1, got 1.5"),
+    ({"n_epochs": [2, 1.5]}, "sweep.n_epochs", "must be an integer >= 1 and <= 1000, got 1.5"),
     ({"activation_fn": ["relu", "swish"]}, "sweep.activation_fn", "must be one of"),
     ({"learning_rate": [1e-4, "1e-4"]}, "sweep.learning_rate", "values must be distinct"),
     ({"env_kwargs": [{}], "env_kwargs.g": [9.0]}, "sweep.env_kwargs.g", "overlaps 'sweep.env_kwargs'"),
     ({"n_steps.x": [1]}, "sweep.n_steps.x", "a dotted key must name an entry of a mapping key"),
     ({"env_kwargs.": [1]}, "sweep", "keys must be configuration keys"),
     ({"batch_size": [64, 48]}, "batch_size", "must divide n_steps * n_envs = 128, got 48"),
-    ({"net_arch": [[8], [0]]}, "net_arch", "must be a list of layer sizes"),
+    ({"net_arch": [[8], [0]]}, "net_arch", "must be a list of 1 to 16 layer sizes"),
     ({"n_epochs": list(range(1, 40)), "gamma": [0.9 + 0.001 * i for i in range(30)]}, "sweep",
      "must have at most 1000 points, got a grid of 1170"),
     ({}, "sweep", "must be a mapping of configuration keys to lists of values, got {}"),
@@ -260,7 +261,7 @@ def test_sweep_writes_a_campaign_per_point_and_a_consistent_sweep_json(swept: Pa
     report = _json(swept / "sweep.json")
     labels = ["learning_rate=0.0003", "learning_rate=0.01"]
     assert sorted(p.name for p in swept.iterdir()) == sorted(["config.yaml", "sweep.json", "sweep.md",
-                                                              *labels])
+                                                              MANIFEST, *labels])
     assert TrainConfig.from_dict(yaml.safe_load((swept / "config.yaml").read_text())) == \
         TrainConfig.from_dict({**TINY, "sweep": SWEEP})
     assert report["sweep"] == SWEEP and report["seed_indices"] == SEEDS
@@ -269,7 +270,7 @@ def test_sweep_writes_a_campaign_per_point_and_a_consistent_sweep_json(swept: Pa
         sub = swept / p["folder"]
         assert p["values"] == {"learning_rate": lr}
         assert {q.name for q in sub.iterdir()} == {"config.yaml", "summary.json", "curves_eval.png",
-                                                   "seed_0", "seed_1"}
+                                                   "seed_0", "seed_1", MANIFEST}
         assert yaml.safe_load((sub / "config.yaml").read_text())["learning_rate"] == lr
         summary = _json(sub / "summary.json")
         assert summary["training_seeds"] == report["training_seeds"] == [0, 1000]
@@ -340,7 +341,7 @@ def test_a_sweep_and_a_campaign_do_not_mix_in_one_folder(swept: Path, tmp_path: 
         train_seeds(TINY, [0], out, figures=False, **TEST)
     train_seeds({**TINY, "total_timesteps": 64, "eval_freq": 0}, [0], out, overwrite=True, figures=False,
                 test_seeds=(0,))
-    assert sorted(p.name for p in out.iterdir()) == ["config.yaml", "seed_0", "summary.json"]
+    assert sorted(p.name for p in out.iterdir()) == ["config.yaml", MANIFEST, "seed_0", "summary.json"]
 
 
 def test_overwrite_takes_only_the_sweeps_own_point_folders(swept: Path, tmp_path: Path) -> None:
@@ -350,5 +351,5 @@ def test_overwrite_takes_only_the_sweeps_own_point_folders(swept: Path, tmp_path
     (out / "point_07").mkdir()
     train_seeds({**TINY, "total_timesteps": 64, "eval_freq": 0}, [0], out, overwrite=True, figures=False,
                 test_seeds=(0,))
-    assert sorted(p.name for p in out.iterdir()) == ["config.yaml", "notes=keep", "point_07", "seed_0",
-                                                      "summary.json"]
+    assert sorted(p.name for p in out.iterdir()) == ["config.yaml", MANIFEST, "notes=keep", "point_07",
+                                                      "seed_0", "summary.json"]

@@ -22,6 +22,7 @@ from dss14_env.bench import plan as P
 from dss14_env.bench import report as R
 from dss14_env.bench.run import sweep_points
 from dss14_env.bench.threads import blas_threads
+from dss14_env.core.outdir import MANIFEST, prepare_output_dir, update_manifest
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_RESULTS = ROOT / "docs" / "results" / "bench_default.json"
@@ -107,10 +108,10 @@ def test_default_and_quick_plans(monkeypatch) -> None:
         q, d = quick.runs[s], plan.runs[s]
         assert q.steps <= d.steps and len(q.seeds) < len(d.seeds)
     # explicit options win over --quick; --randomize; the sweep follows the hold scenarios
-    p = P.build_plan(quick=True, seeds=["2"], steps=100, randomize=True, scenarios=["hold_side", "step"],
+    p = P.build_plan(quick=True, seeds=["2"], steps=300, randomize=True, scenarios=["hold_side", "step"],
                      sequential_episodes=1, sweep_seeds=3)
-    assert all(r.seeds == (0, 1) and r.steps == 100 and r.sequential == 1 for r in p.runs.values())
-    assert p.sweep.steps == 100 and p.sweep.seeds == (0, 1, 2) and p.sweep.sequential == 1
+    assert all(r.seeds == (0, 1) and r.steps == 300 and r.sequential == 1 for r in p.runs.values())
+    assert p.sweep.steps == 300 and p.sweep.seeds == (0, 1, 2) and p.sweep.sequential == 1
     assert p.env_kwargs == {"randomize_params": True} and p.sweep_directions == ["side"]
     assert P.build_plan(scenarios=["step"]).sweep_directions == []
     assert P.build_plan(sweep=False).sweep_directions == []
@@ -119,7 +120,7 @@ def test_default_and_quick_plans(monkeypatch) -> None:
     assert P.build_plan(seeds=[4]).runs["step"].seeds == (4,)
     assert P.build_plan(seeds=["4"]).runs["step"].seeds == (0, 1, 2, 3)
     # a sweep point equal to a main scenario (same keys, length, warm-up) is taken from it
-    same = P.build_plan(steps=100, wind_speeds=[40, 50])
+    same = P.build_plan(steps=300, wind_speeds=[40, 50])
     assert [pt[-1] for pt in sweep_points(same)] == [None, "hold_front", None, "hold_side"]
     json.dumps(p.as_dict())
 
@@ -185,8 +186,11 @@ def test_unwritable_out_fails_before_any_work(tmp_path, capsys, no_work, monkeyp
 
 def test_a_used_folder_is_refused_unless_overwrite(tmp_path, capsys, monkeypatch) -> None:
     out = tmp_path / "out"
-    out.mkdir()
-    for name in ("results.json", "results.md", F.FIGURES[1], "mine.png", "notes.txt"):
+    prepare_output_dir(out, B.OWNED_FILES)  # an earlier bench: its files in its manifest
+    for name in ("results.json", "results.md", F.FIGURES[1]):
+        (out / name).write_text("old")
+    update_manifest(out)
+    for name in ("mine.png", "notes.txt"):  # the user's, written after
         (out / name).write_text("old")
     started: list = []
     monkeypatch.setattr(B, "run_plan", lambda *a, **k: started.append(1) or (_ for _ in ()).throw(
@@ -197,7 +201,7 @@ def test_a_used_folder_is_refused_unless_overwrite(tmp_path, capsys, monkeypatch
     # --overwrite clears exactly what the bench owns, then the run starts
     assert cli.main(["bench", "--quick", "--out", str(out), "--overwrite"]) == 2
     assert started and "stop here" in capsys.readouterr().err
-    assert sorted(p.name for p in out.iterdir()) == ["mine.png", "notes.txt"]
+    assert sorted(p.name for p in out.iterdir()) == [MANIFEST, "mine.png", "notes.txt"]
 
 
 # ------------------------------------------------------------------ a tiny run
@@ -326,7 +330,7 @@ def test_figures_are_pngs_drawn_without_pyplot(tiny) -> None:
     import shutil
     shutil.rmtree(tiny["out"] / "again")
     # no temporary files of the atomic writes are left behind
-    assert sorted(p.name for p in tiny["out"].iterdir()) == sorted(R.RESULT_FILES + F.FIGURES)
+    assert sorted(p.name for p in tiny["out"].iterdir()) == sorted(R.RESULT_FILES + F.FIGURES + (MANIFEST,))
 
 
 def test_traces_of_the_first_seed(tiny) -> None:
@@ -345,8 +349,16 @@ def test_traces_of_the_first_seed(tiny) -> None:
     assert np.max(np.abs(pos - tr["encoder_deg"])) < 1e-3
 
 
-def test_an_episode_that_ends_before_the_step(tmp_path) -> None:
-    plan = P.build_plan(controllers=["pi_kp1"], scenarios=["step"], seeds=2, steps=20, out=tmp_path / "o")
+def test_an_episode_that_ends_before_the_step(tmp_path, capsys) -> None:
+    # too short to score anything: refused before any work (every cell would be empty)
+    with pytest.raises(P.BenchOptionError, match="--steps: 20 control periods .* give --steps 50"):
+        P.build_plan(controllers=["pi_kp1"], scenarios=["step"], seeds=2, steps=20)
+    assert cli.main(["bench", "--steps", "10", "--out", str(tmp_path / "x")]) == 2
+    _one_line_error(capsys, "--steps")
+    assert not (tmp_path / "x").exists()
+    # a plan made from Python past the check still gives empty cells, not a crash
+    plan = P.build_plan(controllers=["pi_kp1"], scenarios=["step"], seeds=2, steps=50, out=tmp_path / "o")
+    plan = dataclasses.replace(plan, runs={"step": dataclasses.replace(plan.runs["step"], steps=20)})
     res = B.bench(plan, progress=False)
     st = res["results"]["summary"]["pi_kp1"]["step"]
     assert "step" not in st or np.isnan(st["step"]["az"]["overshoot_pct"]["value"])
@@ -438,8 +450,39 @@ def test_committed_results_are_a_default_run() -> None:
     assert results["meta"]["controllers"] == list(P.DEFAULT_CONTROLLERS)
     assert cfg["sweep"]["seeds"] == list(range(P.DEFAULT_SWEEP.episodes))
     assert cfg["wind_speeds_kmh"] == list(P.DEFAULT_WIND_SPEEDS_KMH)
-    # every controller but the MPC acted on batches
-    assert results["meta"]["batched"] == {c: c != "mpc" for c in P.DEFAULT_CONTROLLERS}
+    # every batchable row acted on batches
+    assert results["meta"]["batched"] == {c: catalog.CONTROLLERS[c].batchable for c in P.DEFAULT_CONTROLLERS}
+
+
+def test_the_repositorys_generated_tables_are_current() -> None:
+    """README.md and docs/bench.md: every generated region equals its rendering from the
+    committed default results and the catalog."""
+    done = _script("readme_tables.py", "--check")
+    assert done.returncode == 0, done.stderr
+
+
+def test_pointing_is_the_headline(tiny) -> None:
+    """The dish's pointing error leads results.md, and its paired ratios to the PI are the
+    pooled 3σ (root mean square over episodes) of the same seeds, recomputed here from the
+    stored episodes."""
+    md, js = tiny["res"]["markdown"], tiny["json"]
+    assert md.index(tiny["res"]["pointing_table"]) < md.index(tiny["res"]["main_table"])
+    assert md.index("true pointing error") < md.index("servo error at the drive encoders")
+    eps = {(e["controller"], e["scenario"], e["seed"]): e for e in R.episode_rows(js["episodes"])}
+    for c in CTRLS:
+        for s in SCENS:
+            cell = js["summary"][c][s]
+            assert R.fmt_ci(cell["pointing_error_mdeg"]["xel"]["three_sigma"]) in md
+            r = cell["vs_reference_pointing_error_mdeg"]
+            seeds = [k[2] for k in eps if k[:2] == (c, s)]
+            for ax in ("el", "xel"):
+                num = [eps[(c, s, k)]["pointing_error_mdeg"][ax]["three_sigma"] for k in seeds]
+                den = [eps[("pi_kp1", s, k)]["pointing_error_mdeg"][ax]["three_sigma"] for k in seeds]
+                expect = np.sqrt(np.mean(np.square(num))) / np.sqrt(np.mean(np.square(den)))
+                assert r[ax]["value"] == pytest.approx(expect, rel=1e-5)  # 6-digit stored episodes
+                assert r[ax]["n_episodes"] == len(seeds)
+                lo, hi = r[ax]["ci95"]
+                assert c == "pi_kp1" or lo <= r[ax]["value"] <= hi
 
 
 def test_readme_script_checks_and_writes(tmp_path) -> None:

@@ -31,9 +31,15 @@ class Demo:
     extra: dict = spec(None, kind="mapping", default_factory=dict)
 
 
-def test_defaults_and_scientific_notation() -> None:
-    d = load_section(Demo, {"dt": "1e-3", "grid": ["3e1", 70]}, "demo.yaml")
+def test_defaults_and_scientific_notation(tmp_path) -> None:
+    d = load_section(Demo, {"dt": 1e-3, "grid": [3e1, 70]}, "demo.yaml")
     assert d.dt == 0.001 and d.grid == (30.0, 70.0) and d.bits == 20
+    path = tmp_path / "demo.yaml"  # scientific notation in a file is a number (YAML 1.2) ...
+    path.write_text("dt: 1e-3\ngrid: [3e1, 7.0e1]\n")
+    d = load_section(Demo, read_config(path)[0], str(path))
+    assert d.dt == 0.001 and d.grid == (30.0, 70.0)
+    with pytest.raises(ConfigError, match="field 'dt': .* got '1e-3'"):  # ... a string is not
+        load_section(Demo, {"dt": "1e-3"}, "demo.yaml")
 
 
 GOOD = [("bits", None), ("speed", "random"), ("speed", 0), ("limits", [0, 90]), ("flag", True),

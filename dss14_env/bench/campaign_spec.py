@@ -91,6 +91,10 @@ class CampaignSpec:
     :param warmup_s: seconds at the start left out of the statistics
     :param chunk_size: plants per chunk (one work item)
     :param ppo_model: the ``ppo`` policy (None: the shipped one)
+    :param condition_on_pi: draw the plants conditioned on the report's PI (kp 1) being stable
+        with margin, as the environment's ``randomize_params`` does (default); False: every
+        plant with a stable drive (rate loop), so a controller unstable on one is a finding
+        (:func:`dss14_env.model.uncertainty.draw_params`)
     """
 
     controllers: tuple[str, ...] = DEFAULT_CONTROLLERS
@@ -103,6 +107,7 @@ class CampaignSpec:
     chunk_size: int = DEFAULT_CHUNK_SIZE
     ppo_model: str | None = None
     format: int = field(default=FORMAT)
+    condition_on_pi: bool = True
 
     def __post_init__(self) -> None:
         for name in ("controllers", "wind_speeds_kmh", "directions"):
@@ -150,6 +155,8 @@ class CampaignSpec:
         d = asdict(self)
         for name in ("controllers", "wind_speeds_kmh", "directions"):
             d[name] = list(d[name])
+        if self.condition_on_pi:  # the default keeps the fingerprint of campaigns before the option
+            del d["condition_on_pi"]
         return d
 
     @classmethod
@@ -187,8 +194,24 @@ def _check_controllers(names: Sequence[str]) -> None:
         raise CampaignOptionError(f"--controllers: controller named twice: {', '.join(dup)}")
 
 
+def check_policy(spec: CampaignSpec) -> None:
+    """Refuse a learned controller's policy that cannot act on a DSS14 environment (missing
+    path, unreadable files, another environment's sizes) before any work.
+
+    :raises CampaignOptionError: one line naming the option and the problem
+    """
+    for name, row in zip(spec.controllers, spec.rows(), strict=True):
+        problem = row.policy_problem()
+        if problem is not None:
+            opt = ("--ppo-model" if name == catalog.POLICY_OPTION_ROW and spec.ppo_model is not None
+                   else f"--controllers {name}")
+            raise CampaignOptionError(f"{opt}: {problem}")
+
+
 def check_spec(spec: CampaignSpec) -> None:
     """Raise :class:`CampaignOptionError` naming the first bad option."""
+    from dss14_env.envs.config import WIND_SPEED_MAX_KMH  # (the environment, loaded when used)
+
     _check_controllers(spec.controllers)
     _positive_int(spec.plants, "--plants")
     _positive_int(spec.first_plant, "--first-plant", 0)
@@ -197,8 +220,11 @@ def check_spec(spec: CampaignSpec) -> None:
     if not spec.wind_speeds_kmh:
         raise CampaignOptionError("--wind-speeds: give at least one speed in km/h")
     for s in spec.wind_speeds_kmh:
-        if isinstance(s, bool) or not isinstance(s, (int, float)) or not (math.isfinite(s) and 0 < s <= 150):
-            raise CampaignOptionError(f"--wind-speeds: speeds are in km/h, > 0 and <= 150, got {s!r}")
+        if isinstance(s, bool) or not isinstance(s, (int, float)) or not (
+                math.isfinite(s) and 0 < s <= WIND_SPEED_MAX_KMH):
+            raise CampaignOptionError(f"--wind-speeds: {s!r} km/h is outside (0, "
+                                      f"{WIND_SPEED_MAX_KMH:g}] km/h, the environment's "
+                                      f"wind_speed_kmh range (WIND_SPEED_MAX_KMH)")
     if len(set(spec.wind_speeds_kmh)) != len(spec.wind_speeds_kmh):
         raise CampaignOptionError(f"--wind-speeds: a speed is repeated: {list(spec.wind_speeds_kmh)}")
     if not spec.directions:
@@ -210,6 +236,8 @@ def check_spec(spec: CampaignSpec) -> None:
             raise CampaignOptionError(f"--directions: 'front', 'side' or degrees in [0, 360), got {d!r}")
     if len(set(spec.directions)) != len(spec.directions):
         raise CampaignOptionError(f"--directions: a direction is repeated: {list(spec.directions)}")
+    if not isinstance(spec.condition_on_pi, bool):
+        raise CampaignOptionError(f"condition_on_pi: must be true or false, got {spec.condition_on_pi!r}")
     w = spec.warmup_s
     if isinstance(w, bool) or not isinstance(w, (int, float)) or not (math.isfinite(w) and w >= 0):
         raise CampaignOptionError(f"warmup_s: must be a finite number >= 0, got {w!r}")
@@ -260,5 +288,6 @@ def parse_wind_speeds(values: Iterable[str | float] | None) -> tuple[float, ...]
 
 __all__ = ["CampaignOptionError", "CampaignSpec", "Condition", "DEFAULT_CHUNK_SIZE",
            "DEFAULT_CONTROLLERS", "DEFAULT_DIRECTIONS", "DEFAULT_PLANTS", "DEFAULT_STEPS",
-           "DEFAULT_WIND_SPEEDS_KMH", "FORMAT", "WARMUP_S", "check_spec", "known_controllers",
+           "DEFAULT_WIND_SPEEDS_KMH", "FORMAT", "WARMUP_S", "check_policy", "check_spec",
+           "known_controllers",
            "parse_directions", "parse_wind_speeds"]

@@ -79,11 +79,13 @@ class ControllerRow:
         return shipped if "/" not in self.policy and shipped.is_dir() else Path(self.policy)
 
     def policy_problem(self) -> str | None:
-        """Why the row's policy cannot be loaded (nothing is loaded), or None."""
+        """Why the row's policy cannot act on a DSS14 environment (its files loaded and its
+        observation and action sizes checked), or None.
+        """
         if self.policy is None:
             return None
-        from dss14_env.agents.policy import policy_problem
-        return policy_problem(self.policy_path())
+        from dss14_env.agents.policy import dss14_policy_problem
+        return dss14_policy_problem(self.policy_path())
 
 
 _POLICY_CLASS = ("dss14_env.agents.policy", "PolicyController")

@@ -16,6 +16,7 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import math
+import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -230,10 +231,13 @@ def _seed_option(seeds: int | Sequence[str | int] | None) -> list[int] | None:
 
 
 def parse_wind_speeds(values: Sequence[str | float] | None) -> list[float] | None:
-    """``--wind-speeds``: mean wind speeds of the sweep, km/h, each in (0, 150], sorted.
+    """``--wind-speeds``: mean wind speeds of the sweep, km/h, each in (0, 90] (the
+    environment's own bound, :data:`dss14_env.envs.config.WIND_SPEED_MAX_KMH`), sorted.
 
     :raises BenchOptionError: not numbers, out of range or repeated
     """
+    from dss14_env.envs.config import WIND_SPEED_MAX_KMH  # (the environment, loaded when used)
+
     if values is None:
         return None
     if len(values) == 0:
@@ -244,8 +248,10 @@ def parse_wind_speeds(values: Sequence[str | float] | None) -> list[float] | Non
             x = float(v)
         except (TypeError, ValueError):
             raise BenchOptionError(f"--wind-speeds: {v!r} is not a number (km/h)") from None
-        if not (math.isfinite(x) and 0.0 < x <= 150.0):
-            raise BenchOptionError(f"--wind-speeds: speeds are in km/h, > 0 and <= 150, got {v}")
+        if not (math.isfinite(x) and 0.0 < x <= WIND_SPEED_MAX_KMH):
+            raise BenchOptionError(f"--wind-speeds: {v} km/h is outside (0, {WIND_SPEED_MAX_KMH:g}] "
+                                   f"km/h, the environment's wind_speed_kmh range "
+                                   f"(WIND_SPEED_MAX_KMH)")
         speeds.append(x)
     if len(set(speeds)) != len(speeds):
         raise BenchOptionError(f"--wind-speeds: a speed is repeated: {values}")
@@ -302,6 +308,27 @@ def controller_rows(names: Sequence[str] | None, ppo_model: str | Path | None = 
             notes.append(f"no shipped policy for {name!r} ({problem}); running without it "
                          f"(give --ppo-model PATH to bench a trained policy)")
     return rows, notes
+
+
+#: least scored time of an episode after its warm-up, s: a 3-sigma needs data
+MIN_SCORED_S = 1.0
+
+
+def _check_steps(steps: int | None, scenarios: Sequence[str], sweep: bool, dt: float) -> None:
+    """Refuse ``--steps`` that leaves less than :data:`MIN_SCORED_S` after a scenario's warm-up
+    (every cell of the tables would be empty).
+    """
+    if steps is None:
+        return
+    warm = [(catalog.SCENARIOS[s].scenario().warmup_s, s) for s in scenarios]
+    if sweep and any(s in scenarios for s, _ in SWEEP_DIRECTIONS.values()):
+        warm.append((SWEEP_WARMUP_S, "the wind sweep"))
+    w, name = max(warm)
+    need = int(math.ceil((w + MIN_SCORED_S) / dt - 1e-9))
+    if steps < need:
+        raise BenchOptionError(f"--steps: {steps} control periods ({steps * dt:g} s) leave less "
+                               f"than {MIN_SCORED_S:g} s after the {w:g}-s warm-up of {name}; "
+                               f"give --steps {need} or more")
 
 
 def _run_for(budget: Budget, seeds: list[int] | None, steps: int | None, sequential: int | None,
@@ -364,10 +391,14 @@ def build_plan(controllers: Sequence[str] | None = None, scenarios: Sequence[str
     sweep_n = _count(sweep_seeds, "--sweep-seeds", 1, "the number of episodes per sweep point")
     seq = _count(sequential_episodes, "--sequential-episodes", 0, "the number of episodes")
     threads = _count(threads, "--threads", 1, "the number of BLAS threads")
-    rows, notes = controller_rows(ctrl, ppo_model)
+    if threads is not None and threads > (os.cpu_count() or 1):
+        raise BenchOptionError(f"--threads: {threads} BLAS threads, this machine has "
+                               f"{os.cpu_count() or 1} CPUs")
     scen = list(catalog.scenario_names("bench")) if scen is None else scen
     env_kwargs = {"randomize_params": True} if randomize else {}
     dt = control_period(env_kwargs)
+    _check_steps(steps, scen, sweep, dt)
+    rows, notes = controller_rows(ctrl, ppo_model)
     runs = {s: _run_for(_budget(s, quick), seed_list, steps, seq, s, dt) for s in scen}
     sb = QUICK_SWEEP if quick else DEFAULT_SWEEP
     sweep_run = _run_for(sb, list(range(sweep_n)) if sweep_n is not None else None, steps, seq,

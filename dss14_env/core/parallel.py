@@ -187,6 +187,8 @@ def check_ray_options(address: str | None = None, num_cpus: int | None = None,
     """
     if address is not None and (not isinstance(address, str) or not address.strip()):
         raise ValueError(f"--address: must be 'auto' or a Ray cluster address, got {address!r}")
+    if address is not None:
+        split_address(address)
     if num_cpus is not None:
         if isinstance(num_cpus, bool) or not isinstance(num_cpus, int) or num_cpus < 1:
             raise ValueError(f"--num-cpus: must be an integer >= 1, got {num_cpus!r}")
@@ -194,6 +196,54 @@ def check_ray_options(address: str | None = None, num_cpus: int | None = None,
             raise ValueError("--num-cpus: sizes a local Ray; a cluster (--address) has its own CPUs")
     if isinstance(cpus_per_task, bool) or not isinstance(cpus_per_task, int) or cpus_per_task < 1:
         raise ValueError(f"cpus_per_task: must be an integer >= 1, got {cpus_per_task!r}")
+
+
+#: seconds a cluster address has to answer before it is called unreachable
+PROBE_TIMEOUT_S = 10.0
+#: Ray's default ports: the cluster's GCS (``host:port``) and the client server (``ray://``)
+RAY_PORT, RAY_CLIENT_PORT = 6379, 10001
+
+
+def split_address(address: str) -> tuple[str, int] | None:
+    """``(host, port)`` of a cluster address (``host``, ``host:port``, ``ray://host[:port]``),
+    or None for ``"auto"`` (Ray finds the cluster itself).
+
+    :raises ValueError: a port that is not a number in 1-65535
+    """
+    a = address.strip()
+    if a == "auto":
+        return None
+    client = a.startswith("ray://")
+    a = a.removeprefix("ray://").rstrip("/")
+    host, sep, port = a.rpartition(":") if a.count(":") == 1 or a.startswith("[") else ("", "", "")
+    if not sep:
+        host, port = a, str(RAY_CLIENT_PORT if client else RAY_PORT)
+    host = host.strip("[]")
+    if not port.isdigit() or not 1 <= int(port) <= 65535 or not host:
+        raise ValueError(f"--address: must be 'auto', host:port or ray://host:port, got {address!r}")
+    return host, int(port)
+
+
+def probe_address(address: str | None, timeout: float = PROBE_TIMEOUT_S) -> None:
+    """Check that something answers at a cluster address before Ray is asked to join it (Ray
+    itself retries for many minutes and then may name another address).
+
+    :raises RuntimeError: one line naming the address given and why it cannot be reached
+    """
+    import socket
+
+    hp = None if address is None else split_address(address)
+    if hp is None:
+        return
+    try:
+        with socket.create_connection(hp, timeout=timeout):
+            pass
+    except OSError as exc:
+        why = (f"no answer within {timeout:g} s" if isinstance(exc, TimeoutError)
+               else (exc.strerror or str(exc)))
+        raise RuntimeError(f"--address {address}: no Ray cluster can be reached at "
+                           f"{hp[0]}:{hp[1]} ({why}); start one there (ray start --head) or "
+                           f"give its address") from None
 
 
 class RayExecutor:
@@ -230,6 +280,7 @@ class RayExecutor:
         ray = self._ray = require_ray()
         self._owned = not ray.is_initialized()
         if self._owned:
+            probe_address(address)
             env = {"env_vars": {v: str(self.threads) for v in THREAD_ENV_VARS}}
             kwargs: dict[str, Any] = {"address": address} if address is not None else {"num_cpus": num_cpus}
             ray.init(include_dashboard=False, runtime_env=env, logging_level="WARNING", **kwargs)
@@ -302,6 +353,7 @@ def make_executor(ray: bool = False, address: str | None = None, num_cpus: int |
     return SerialExecutor(threads=threads, torch=torch)
 
 
-__all__ = ["RAY_INSTALL", "Executor", "RayExecutor", "RayNotInstalledError", "SerialExecutor",
+__all__ = ["PROBE_TIMEOUT_S", "RAY_CLIENT_PORT", "RAY_INSTALL", "RAY_PORT", "Executor",
+           "RayExecutor", "RayNotInstalledError", "SerialExecutor",
            "TaskFailedError", "call_pinned", "check_ray_options", "make_executor", "pinned_threads",
-           "require_ray"]
+           "probe_address", "require_ray", "split_address"]

@@ -11,8 +11,12 @@ learning agents (``ppo*.yaml``) -- is a frozen dataclass whose fields carry a :c
     <file>: field '<name>': must be <what>, got <value>
 
 YAML syntax errors are reported the same way (``<file>: not valid YAML (line L, column C):
-...``); numbers may be written in scientific notation (``1e-3``, which YAML 1.1 reads as a
-string, is accepted wherever a number is expected).
+...``); numbers may be written in scientific notation (``1e-3`` and ``1.29e6``, which plain
+YAML 1.1 reads as strings, are read as numbers, as YAML 1.2 does).  A number in quotes
+(``'256'``) is a string, and a string is never taken for a number: a field that wants a
+number refuses it like any other wrong type.  A file is at most :data:`MAX_CONFIG_BYTES`
+long and expands to at most :data:`MAX_YAML_NODES` values (aliases that repeat aliases, a
+"billion laughs", are refused at once, naming the file).
 
 Two kinds of leaves:
 
@@ -29,8 +33,12 @@ Two kinds of leaves:
 ... class Demo:
 ...     dt: float = spec("s", lo=0.0, lo_open=True, hi=0.1, default=0.02)
 ...     speed: float | str = spec("km/h", lo=0.0, choices=("random",), default=50.0)
->>> load_section(Demo, {"dt": "1e-3", "speed": "random"}, "demo.yaml")
+>>> load_section(Demo, {"dt": 1e-3, "speed": "random"}, "demo.yaml")
 Demo(dt=0.001, speed='random')
+>>> load_section(Demo, {"dt": "1e-3"}, "demo.yaml")
+Traceback (most recent call last):
+...
+dss14_env.core.schema.ConfigError: demo.yaml: field 'dt': must be a number > 0 and <= 0.1 (s), got '1e-3'
 >>> load_section(Demo, {"dt": 0.5}, "demo.yaml")
 Traceback (most recent call last):
 ...
@@ -42,6 +50,7 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import math
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from importlib import resources
@@ -55,6 +64,12 @@ from dss14_env.core.units import AXES, UNITS, si_unit, to_si
 
 #: the kinds of value a field can hold
 KINDS = ("number", "integer", "bool", "str", "list", "pair", "mapping", "any")
+#: longest configuration file read, bytes
+MAX_CONFIG_BYTES = 1 << 20
+#: most values (scalars, lists, mappings) a configuration file may expand to, aliases expanded
+MAX_YAML_NODES = 100_000
+#: largest integer an integer field without an upper bound of its own takes (numpy's int64)
+MAX_INTEGER = 2**63 - 1
 
 
 class ConfigError(ValueError):
@@ -132,10 +147,11 @@ class Spec:
         else:
             what = "an integer" if self.kind == "integer" else "a number"
             bounds = []
+            fmt = (lambda x: f"{int(x)}") if self.kind == "integer" else (lambda x: f"{x:g}")
             if self.lo is not None:
-                bounds.append(f"{'>' if self.lo_open else '>='} {self.lo:g}")
+                bounds.append(f"{'>' if self.lo_open else '>='} {fmt(self.lo)}")
             if self.hi is not None:
-                bounds.append(f"{'<' if self.hi_open else '<='} {self.hi:g}")
+                bounds.append(f"{'<' if self.hi_open else '<='} {fmt(self.hi)}")
             if bounds:
                 what += " " + " and ".join(bounds)
             if self.unit not in (None, "1"):
@@ -179,12 +195,7 @@ def _is_number(v: Any) -> bool:
 
 
 def _as_number(v: Any) -> Any:
-    """Numbers as float/int; numeric strings (``"1e-3"``) as float; anything else unchanged."""
-    if isinstance(v, str):
-        try:
-            return float(v)
-        except ValueError:
-            return v
+    """A numpy number as a Python float/int; anything else (a string too) unchanged."""
     if isinstance(v, (np.integer,)):
         return int(v)
     if isinstance(v, np.floating):
@@ -253,6 +264,8 @@ def _check_number(s: Spec, value: Any, where: str) -> float | int | str:
         if not float(v).is_integer():
             raise _bad(s, value, where)
         v = int(v)
+        if s.hi is None and abs(v) > MAX_INTEGER:  # an integer without its own bound
+            raise _bad(dataclasses.replace(s, hi=MAX_INTEGER), value, where)
     else:
         v = float(v)
     if s.lo is not None and (v <= s.lo if s.lo_open else v < s.lo):
@@ -446,6 +459,56 @@ class UniqueKeySafeLoader(yaml.SafeLoader):
         return super().construct_mapping(node, deep=deep)
 
 
+#: scientific notation without a dot or without an exponent sign (``1e-3``, ``1.29e6``): a
+#: float in YAML 1.2, a string in the YAML 1.1 of PyYAML
+_SCIENTIFIC = re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$")
+UniqueKeySafeLoader.add_implicit_resolver("tag:yaml.org,2002:float", _SCIENTIFIC,
+                                          list("-+0123456789"))
+
+
+def _expanded_size(node: yaml.Node, source: str, limit: int = MAX_YAML_NODES) -> int:
+    """Number of values ``node`` stands for with every alias expanded (counted once per node
+    object, so a bomb is measured in linear time).
+
+    :raises ConfigError: more than ``limit``
+    """
+    sizes: dict[int, int] = {}
+    stack: list[tuple[yaml.Node, bool]] = [(node, False)]
+    while stack:
+        n, done = stack.pop()
+        if id(n) in sizes:
+            continue
+        if isinstance(n, yaml.ScalarNode):
+            sizes[id(n)] = 1
+            continue
+        kids = ([x for pair in n.value for x in pair] if isinstance(n, yaml.MappingNode)
+                else list(n.value))
+        if done:
+            sizes[id(n)] = 1 + sum(sizes.get(id(k), 0) for k in kids)
+            if sizes[id(n)] > limit:
+                raise ConfigError(f"{source}: the YAML expands to more than {limit} values "
+                                  f"(aliases that repeat aliases); refused")
+            continue
+        stack.append((n, True))
+        stack.extend((k, False) for k in kids if id(k) not in sizes)
+    return sizes[id(node)]
+
+
+def _load_yaml(text: str, source: str) -> Any:
+    """The YAML document of ``text`` (:class:`UniqueKeySafeLoader`), its alias expansion
+    bounded before any Python object is built.
+    """
+    loader = UniqueKeySafeLoader(text)
+    try:
+        node = loader.get_single_node()
+        if node is None:
+            return None
+        _expanded_size(node, source)
+        return loader.construct_document(node)
+    finally:
+        loader.dispose()
+
+
 def read_config(name_or_path: str | Path) -> tuple[dict[str, Any], str]:
     """Read a YAML configuration (a path or a shipped name, :func:`config_path`).
 
@@ -460,16 +523,23 @@ def read_config(name_or_path: str | Path) -> tuple[dict[str, Any], str]:
     path = config_path(name_or_path)
     source = str(path)
     try:
-        text = path.read_text()
+        with path.open("rb") as fh:
+            raw = fh.read(MAX_CONFIG_BYTES + 1)
+        if len(raw) > MAX_CONFIG_BYTES:
+            raise ConfigError(f"{source}: longer than {MAX_CONFIG_BYTES} bytes; not a "
+                              f"configuration file")
+        text = raw.decode("utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{source}: cannot be read ({exc})") from None
     try:
-        data = yaml.load(text, Loader=UniqueKeySafeLoader)  # noqa: S506 - a SafeLoader
+        data = _load_yaml(text, source)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         at = f" (line {mark.line + 1}, column {mark.column + 1})" if mark is not None else ""
         problem = getattr(exc, "problem", None) or str(exc)
         raise ConfigError(f"{source}: not valid YAML{at}: {problem}") from None
+    except RecursionError:
+        raise ConfigError(f"{source}: the YAML is nested too deeply") from None
     if data is None:
         data = {}
     if not isinstance(data, Mapping):

@@ -297,7 +297,10 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
       ``wind_loads`` says which (``"shipped"`` or ``"refitted to Table 4"``).  Default: the
       shipped model.
     * ``randomize_params=True`` draws the hydraulic parameters over the model's ranges (stable
-      part) at every reset; ``params={name: SI value}`` fixes them (within the model's ranges).
+      part) at every reset; the reset info's ``params_rejected`` counts the draws rejected
+      before the episode's one, by reason (rate loop unstable, the report's kp 1 PI unstable or
+      within 0.01 1/s of it; about 2 % of the draws: docs/model.md section 9).
+      ``params={name: SI value}`` fixes them (within the model's ranges).
     * ``reset(seed=...)``: None or a non-negative integer (Python or numpy), else
       ``ValueError("seed must ...")``; ``self.np_random`` is the only source of randomness.
 
@@ -408,7 +411,8 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         self._bufs = self._views(False)
         self._st = StepState(*(tuple(v[0].tolist()) for v in st[:4]), 0)
         info = {"scenario": cfg.scenario, "start_az_deg": s_az * R2D, "start_el_deg": s_el * R2D,
-                "params": dict(ep.params), "wind_loads": self.plants.wind_loads,
+                "params": dict(ep.params), "params_rejected": dict(ep.params_rejected),
+                "wind_loads": self.plants.wind_loads,
                 **{key: float(v[0]) for key, v in rinfo.items()}}
         rp0, rp1 = self._st.r_prev
         obs = obs[0]

@@ -65,7 +65,7 @@ from dss14_env.core.threads import single_threaded
 from dss14_env.model.assembly import build_model, default_model
 from dss14_env.model.config import load_model_config
 from dss14_env.model.linsys import balance, discretize, noise_factor
-from dss14_env.model.uncertainty import SWEEP_PARAMS, draw_stable_params, perturbed_rate_loop
+from dss14_env.model.uncertainty import SWEEP_PARAMS, ParamDraw, draw_params, perturbed_rate_loop
 from dss14_env.wind.loads import calibrate_wind_loads, default_wind_loads
 
 if TYPE_CHECKING:  # annotations only
@@ -489,11 +489,11 @@ class PlantFactory:
             out[name] = v
         return out
 
-    def draw_params(self, rng: np.random.Generator) -> dict[str, float]:
-        """A stable draw of the uncertain parameters of this model
-        (:func:`dss14_env.model.uncertainty.draw_stable_params`).
+    def draw_params(self, rng: np.random.Generator) -> ParamDraw:
+        """A stable draw of the uncertain parameters of this model and the draws rejected
+        before it (:func:`dss14_env.model.uncertainty.draw_params`).
         """
-        return draw_stable_params(rng, model=self.model)
+        return draw_params(rng, model=self.model)
 
     def __len__(self) -> int:
         return len(self._plants)

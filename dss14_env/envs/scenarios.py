@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -143,6 +143,8 @@ class Episode:
     :param x0: initial joint plant state (balanced)
     :param r0: rate command holding the initial steady motion, rad/s
     :param params: hydraulic parameters of the plant (empty = nominal)
+    :param params_rejected: parameter draws rejected before ``params`` (``randomize_params``),
+        by reason (:data:`dss14_env.model.uncertainty.REJECT_REASONS`); empty otherwise
     """
 
     cfg: EnvConfig
@@ -156,6 +158,7 @@ class Episode:
     x0: np.ndarray
     r0: np.ndarray
     params: dict
+    params_rejected: dict = field(default_factory=dict)
 
 
 def draw_episode(cfg: EnvConfig, rng: np.random.Generator, plants: PlantFactory) -> Episode:
@@ -172,10 +175,12 @@ def draw_episode(cfg: EnvConfig, rng: np.random.Generator, plants: PlantFactory)
     :param plants: the factory of the environment's model (plants, parameter draws)
     :raises ValueError: fixed ``params`` outside the model's ranges
     """
+    rejected: dict[str, int] = {}
     if cfg.params is not None:
         params = plants.check_params(cfg.params, cfg.source_of("params"))
     elif cfg.randomize_params:
-        params = plants.draw_params(rng)
+        draw = plants.draw_params(rng)
+        params, rejected = draw.values, draw.rejected
     else:
         params = {}
     if cfg.wind_speed_kmh == "random":
@@ -201,7 +206,7 @@ def draw_episode(cfg: EnvConfig, rng: np.random.Generator, plants: PlantFactory)
     x_wind = plant.filter_state(kappa, xi)
     _, cd0 = command(tr, np.zeros(1))
     x0, r0 = plant.steady_start(x_wind, t_mean, cd0[0])
-    return Episode(cfg, plant, speed, float(direction), kappa, t_mean, start, tr, x0, r0, params)
+    return Episode(cfg, plant, speed, float(direction), kappa, t_mean, start, tr, x0, r0, params, rejected)
 
 
 def start_elevation(cfg: EnvConfig, rng: np.random.Generator, plants: PlantFactory) -> float:

@@ -109,6 +109,12 @@ def build_model(cfg: ModelConfig | None = None) -> DSS14Model:
         model.rate_loop  # noqa: B018  (builds the structures and the rate loop now)
     except (StructureError, CalibrationError) as exc:  # name the file the problem comes from
         raise ConfigError(f"{cfg.path}: {exc}") from None
+    except ConfigError:
+        raise
+    except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:  # values out of numbers' reach
+        first = (str(exc).strip().splitlines() or [type(exc).__name__])[0][:160]
+        raise ConfigError(f"{cfg.path}: the model cannot be built from these values "
+                          f"({type(exc).__name__}: {first})") from None
     return model
 
 

@@ -52,7 +52,7 @@ class HydraulicsConfig:
     k_v: float = spec("1", lo=0.0, lo_open=True)
     mu: float = spec("Pa*s", lo=0.0, lo_open=True)
     k_a2: float = spec("m^3", lo=0.0, lo_open=True)
-    beta: float = spec("Pa", lo=0.0, lo_open=True)
+    beta: float = spec("Pa", lo=0.0, lo_open=True, hi=1.0e12)  # oil: ~1.3e9 Pa; steel 1.6e11
     v_o: dict = spec("m^3", lo=0.0, lo_open=True, axis=True)
 
 
@@ -91,8 +91,10 @@ class StructureConfig:
     k_wheel_el: float = spec("N*m/rad", lo=0.0, lo_open=True)
     k_counterweight: float = spec("N*m/rad", lo=0.0, lo_open=True)
     el_drive_lever: float = spec("m")
-    n_ribs: int = spec("1", kind="integer", lo=1)
-    n_rib_nodes: int = spec("1", kind="integer", lo=1)
+    # at most 32 x 16 nodes (4 x the shipped 16 x 8): the model's eigenproblems and balanced
+    # reduction grow with the cube of their number
+    n_ribs: int = spec("1", kind="integer", lo=1, hi=32)
+    n_rib_nodes: int = spec("1", kind="integer", lo=1, hi=16)
     rib_r_inner: float = spec("m", lo=0.0, lo_open=True)
     rib_r_outer: float = spec("m", lo=0.0, lo_open=True)
     rib_node_mass: float = spec("kg", lo=0.0, lo_open=True)
