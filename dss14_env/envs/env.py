@@ -209,11 +209,11 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
 
     The absolute start position is drawn (az uniform in [-200, 200] deg about the wrap centre;
     el at the model's elevation, see below) or set (``start_az_deg``, ``start_el_deg``); it
-    sets the travel margins and the phase of the encoder quantisation.  The antenna is already servoing: the rate loop
-    is in the steady motion that follows the command's initial rate under the wind torque at
-    t = 0 (mean plus the initial gust, held), the gust filter is in its stationary
-    distribution, and the previous applied rate command (observation 10, 11) is the one that
-    holds that motion.  A PI that starts bumplessly from it
+    sets the travel margins and the phase of the encoder quantisation.  The antenna is already
+    servoing: the rate loop is in the steady motion that follows the command's initial rate
+    under the wind torque at t = 0 (mean plus the initial gust, held), the gust filter is in
+    its stationary distribution, and the previous applied rate command (observation 10, 11) is
+    the one that holds that motion.  A PI that starts bumplessly from it
     (:class:`dss14_env.baselines.pi.PIController`) has no start transient from the mean load.
     (The dynamic part of the wind response is not in the start state: the error is stationary
     after about 1 s; skip the first 2 s for stationary statistics.)
