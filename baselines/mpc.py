@@ -47,7 +47,7 @@ import cvxpy as cp
 import numpy as np
 from scipy import linalg
 
-from dss14_env.baselines.design import LQGConfig, MPCConfig, default_controllers_config
+from dss14_env.baselines.design import LQGConfig, MPCConfig, PointingConfig, default_controllers_config
 from dss14_env.baselines.lqg import LQGController, LQGDesign
 from dss14_env.baselines.qp import ParametricQP
 
@@ -183,9 +183,10 @@ class CondensedMPC:
         for j in range(N):
             Sbar[j * nz:(j + 1) * nz, j * m:(j + 1) * m] = S
         H = Gam.T @ Qbar @ Gam + Rbar + Gam.T @ Sbar + Sbar.T @ Gam
-        # servo errors e_j = -theta_j (deviation coordinates), j = 1..N
+        # errors e_j = -Cz x_j (deviation coordinates), j = 1..N: the servo error (-theta) of an
+        # encoder design, the pointing error of a pointing design
         Ce = np.zeros((2, nz))
-        Ce[:, :n] = -design.dm.C
+        Ce[:, :n] = -design.dm.Cz
         E = np.kron(np.eye(N + 1), Ce)[2:]
         self.design = design
         self.Phi, self.Gam = Phi, Gam
@@ -269,20 +270,26 @@ class MPCController(LQGController):
     :param lqg_config: settings of the shared estimator/fallback, default section ``lqg``
     :param fast: use the OSQP fast path of :class:`~dss14_env.baselines.qp.ParametricQP`
         (default True)
+    :param pointing: None (the encoder design) or the pointing design's settings (section
+        ``pointing``: :class:`PointingMPCController`); its ``mpc_action_change_weight`` is the
+        MPC's action-change multiplier
     """
 
     batchable = False
 
     def __init__(self, env: Any = None, name: str = "MPC", config: MPCConfig | None = None,
-                 lqg_config: LQGConfig | None = None, fast: bool = True) -> None:
+                 lqg_config: LQGConfig | None = None, fast: bool = True,
+                 pointing: PointingConfig | None = None) -> None:
         cc = default_controllers_config()
         self.mpc_config = mcfg = config or cc.mpc
         lcfg = lqg_config or cc.lqg
         lcfg = dataclasses.replace(lcfg, shaper=mcfg.shaper,
                                    action_change_weight=mcfg.action_change_weight)
+        if pointing is not None:
+            pointing = dataclasses.replace(pointing, action_change_weight=pointing.mpc_action_change_weight)
         self.fast = bool(fast)
         self._mpcs: dict[int, CondensedMPC] = {}
-        super().__init__(env, name, lcfg)
+        super().__init__(env, name, lcfg, pointing)
         ci = self.interface
         # 0.1 % margin: the observed previous command is float32, the limiter checks in float64
         self.settings = MPCSettings(int(mcfg.horizon), ci.rate_limit * (1 - 1e-3),
@@ -339,3 +346,25 @@ class MPCController(LQGController):
                 "status": self._last.status, "qp_path": self._last.path, "n_solves": self.n_solves,
                 "n_fallbacks": len(self.fallbacks), "fallbacks": [dict(f) for f in self.fallbacks],
                 "fallback_statuses": statuses, "resolves": [dict(r) for r in self.resolves]}
+
+
+class PointingMPCController(MPCController):
+    """The MPC on the dish's pointing outputs (``mpc_pointing``): the pointing LQG's design model,
+    estimator, reference shift and cost (:class:`dss14_env.baselines.lqg.PointingLQGController`)
+    with the constrained problem as the law; its soft error bound is on the predicted POINTING
+    error, its action-change multiplier ``pointing.mpc_action_change_weight``.
+
+    :param env: the environment (or its config / a
+        :class:`~dss14_env.baselines.interface.ControlInterface`)
+    :param name: label, default ``"MPC-pointing"``
+    :param config: MPC settings, default section ``mpc``
+    :param lqg_config: the shared estimator settings, default section ``lqg``
+    :param fast: use the OSQP fast path (default True)
+    :param pointing: the pointing settings, default section ``pointing``
+    """
+
+    def __init__(self, env: Any = None, name: str = "MPC-pointing", config: MPCConfig | None = None,
+                 lqg_config: LQGConfig | None = None, fast: bool = True,
+                 pointing: PointingConfig | None = None) -> None:
+        super().__init__(env, name, config, lqg_config, fast,
+                         pointing or default_controllers_config().pointing)

@@ -3,6 +3,11 @@
 Run on two cores, as the target is stated::
 
     taskset -c 0,1 python scripts/bench_mpc.py --json docs/results/mpc_timing.json
+    taskset -c 0,1 python scripts/bench_mpc.py --controller mpc_pointing \
+        --json docs/results/mpc_pointing_timing.json
+
+``--controller`` picks the MPC: ``mpc`` (default, the encoder design) or ``mpc_pointing`` (the
+MPC on the dish's pointing outputs, :class:`dss14_env.baselines.mpc.PointingMPCController`).
 
 Each scenario runs ``--seeds`` episodes of ``--steps`` steps (one controller, reset per episode;
 its first step, which selects the design and canonicalises the problem, is left out).  The
@@ -30,7 +35,7 @@ from importlib import metadata
 
 import numpy as np
 
-from dss14_env.baselines.mpc import MPCController
+from dss14_env.baselines.mpc import MPCController, PointingMPCController
 from dss14_env.bench.runner import SCENARIOS
 from dss14_env.core.outdir import atomic_write_text
 from dss14_env.core.stats import bootstrap_ci, ratio_ci
@@ -38,6 +43,8 @@ from dss14_env.envs.env import DSS14Env
 
 #: median act() time per step the MPC must stay under, ms
 TARGET_MEDIAN_MS = 1.5
+#: the MPCs this script times, by catalog name
+MPC_CLASSES = {"mpc": MPCController, "mpc_pointing": PointingMPCController}
 
 
 def episode_times(ctrl: MPCController, env: DSS14Env, seed: int, steps: int) -> dict:
@@ -61,10 +68,14 @@ def episode_times(ctrl: MPCController, env: DSS14Env, seed: int, steps: int) -> 
             "fallbacks": ctrl.info["fallbacks"], "resolves": ctrl.info["resolves"]}
 
 
-def bench(scenario: str, steps: int, seeds: list[int], compare_steps: int) -> dict:
-    """Time the MPC on one runner scenario (see the module docstring)."""
+def bench(scenario: str, steps: int, seeds: list[int], compare_steps: int,
+          controller: str = "mpc") -> dict:
+    """Time the MPC ``controller`` (a key of :data:`MPC_CLASSES`) on one runner scenario (see the
+    module docstring).
+    """
+    cls = MPC_CLASSES[controller]
     env = DSS14Env(**SCENARIOS[scenario].env)
-    fast = MPCController(env)
+    fast = cls(env)
     eps = [episode_times(fast, env, s, steps) for s in seeds]
     med = np.array([e["median_ms"] for e in eps])
     out = {"scenario": scenario, "episodes": eps,
@@ -73,7 +84,7 @@ def bench(scenario: str, steps: int, seeds: list[int], compare_steps: int) -> di
            "n_fallbacks": int(sum(len(e["fallbacks"]) for e in eps)),
            "n_resolves": int(sum(len(e["resolves"]) for e in eps))}
     if compare_steps:
-        slow = MPCController(env, fast=False)
+        slow = cls(env, fast=False)
         slow_eps = [episode_times(slow, env, s, compare_steps) for s in seeds]
         fast_short = [episode_times(fast, env, s, compare_steps) for s in seeds]
         out["problem_solve_median_ms"] = bootstrap_ci([e["median_ms"] for e in slow_eps], np.median,
@@ -115,6 +126,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--compare", action="store_true", help="also time Problem.solve every step")
     p.add_argument("--compare-steps", type=int, default=300, help="steps per episode of --compare")
     p.add_argument("--json", metavar="FILE", help="write the results to this JSON file")
+    p.add_argument("--controller", default="mpc", choices=sorted(MPC_CLASSES),
+                   help="the MPC to time (default mpc)")
     args = p.parse_args(argv)
     if args.steps < 10 or args.compare_steps < 10:
         p.error("--steps and --compare-steps must be at least 10")
@@ -126,7 +139,8 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     results, ok = [], True
     for sc in args.scenarios:
-        r = bench(sc, args.steps, list(args.seeds), args.compare_steps if args.compare else 0)
+        r = bench(sc, args.steps, list(args.seeds), args.compare_steps if args.compare else 0,
+                  args.controller)
         m = r["median_ms"]
         good = m["ci95"][1] <= TARGET_MEDIAN_MS and r["n_fallbacks"] == 0
         ok &= good
@@ -143,7 +157,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"target median <= {TARGET_MEDIAN_MS} ms per step (upper end of the 95 % CI), "
           f"no fallbacks: {verdict}")
     if args.json:
-        doc = {"what": "MPCController.act() wall time per step (scripts/bench_mpc.py)",
+        doc = {"what": f"{MPC_CLASSES[args.controller].__name__}.act() wall time per step "
+                       "(scripts/bench_mpc.py)", "controller": args.controller,
                "target_median_ms": TARGET_MEDIAN_MS, "target_met": bool(ok),
                "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
                "machine": info, "options": vars(args), "wall_time_s": time.perf_counter() - t0,

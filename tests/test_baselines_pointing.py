@@ -19,6 +19,7 @@ from dss14_env.baselines.design import (
 )
 from dss14_env.baselines.interface import ControlInterface
 from dss14_env.baselines.lqg import PointingLQGController, lqg_design_from_config
+from dss14_env.baselines.mpc import PointingMPCController
 from dss14_env.baselines.yardstick import (
     ERROR_ONLY_WEIGHT,
     MATCH_BRACKET,
@@ -122,12 +123,23 @@ def _paired(res: dict, num: str, den: str, scenario: str, axis: str) -> stats.Ra
                                cell_rng(num, den, scenario))[axis]
 
 
+@pytest.fixture(scope="module")
+def mpc_holds() -> dict:
+    """The pointing MPC (one episode at a time) and the PI on 4 short holds per wind."""
+    ctrls = ["pi_kp1", ("mpc_pointing", lambda env: PointingMPCController(env))]
+    return run(ctrls, list(HOLDS), seeds=SEEDS[:4], steps=STEPS, reference=None)
+
+
+@pytest.mark.parametrize("ctrl", ["lqg_pointing", "mpc_pointing"])
 @pytest.mark.parametrize("scenario", HOLDS)
-def test_pointing_lqg_beats_the_pi_on_pointing(holds, scenario: str) -> None:
-    """The pointing LQG's 3σ pointing error on the loaded axis is below the PI's, the paired
-    95 % interval of the ratio excluding 1 (6 short holds)."""
-    r = _paired(holds, "lqg_pointing", "pi_kp1", scenario, DOMINANT[scenario])
+def test_pointing_controllers_beat_the_pi_on_pointing(holds, mpc_holds, ctrl: str, scenario: str) -> None:
+    """The pointing LQG's and MPC's 3σ pointing error on the loaded axis is below the PI's, the
+    paired 95 % interval of the ratio excluding 1 (6 / 4 short holds), and the MPC never fell
+    back to the LQG law."""
+    res = holds if ctrl == "lqg_pointing" else mpc_holds
+    r = _paired(res, ctrl, "pi_kp1", scenario, DOMINANT[scenario])
     assert r.high < 1.0, r
+    assert res["summary"][ctrl][scenario]["fallbacks"] == 0
 
 
 @pytest.mark.parametrize("scenario", HOLDS)

@@ -113,6 +113,10 @@ CONTROLLER_ROWS: tuple[ControllerRow, ...] = (
                   "encoders, the LQR scores the structure's pointing (deformation included) "
                   "(`baselines/lqg.py`, docs/controllers.md)", config="pointing", bench=False,
                   campaign=True),
+    ControllerRow("mpc_pointing", "dss14_env.baselines.mpc", "PointingMPCController",
+                  "MPC on the pointing LQG's design and estimator, its soft error bound on the "
+                  "predicted pointing error (`baselines/mpc.py`)", batchable=False,
+                  config="pointing", bench=False),
     _policy_row("ppo", "residual_pi", "PPO residual on the report's PI, the policy shipped with the "
                 "package (`agents/policies/residual_pi`); `--ppo-model PATH` replaces it by a "
                 "trained policy, scored under its own name"),
