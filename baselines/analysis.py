@@ -92,7 +92,7 @@ def lqg_as_linear(design: LQGDesign) -> LinearController:
     Kx, Ki, Ku = design.split_gain()
     ni = Ki.shape[1]
     Lg = design.L
-    Ce = np.hstack([dm.C, np.zeros((2, nd))])
+    Ce = dm.estimator_output(nd)
     Imlc = np.eye(ne) - Lg @ Ce  # [x; d]_k|k = (I - L C) [x; d]^- + L y
     # r = Fx [x; d]_k|k - Ki xi - Ku r_prev
     Fx = np.hstack([-Kx, -(np.eye(2) + Ku) if nd else np.zeros((2, 0))])

@@ -64,9 +64,12 @@ ENCODER_OUTPUTS = ("enc_az", "enc_el")
 RATE_OUTPUTS = ("enc_rate_az", "enc_rate_el")
 #: the structure's pointing outputs of the rate loop (rad): elevation, cross-elevation
 POINTING_OUTPUTS = ("point_el", "point_xel")
-#: what a design's quadratic error term scores: the drive-encoder servo error or the dish's
+#: what a design's quadratic error term scores: the servo error at its encoders or the dish's
 #: true pointing error
 ERROR_OUTPUTS = ("encoder", "pointing")
+#: what the encoders measure (the environment's ``encoders``): the drive angles or the
+#: structure's pointing angles at the axes (az ``point_xel / cos E``, el ``point_el``)
+ENCODER_KINDS = ("drive", "axis")
 COMMAND_INPUTS = ("r_a", "r_e")
 WIND_INPUTS = ("Tw_az", "Tw_el")
 #: floor of the measurement-noise standard deviation (rad): 1e-3 mdeg, for exact encoders
@@ -473,11 +476,25 @@ class DesignModel:
     Cp: np.ndarray | None = field(default=None, repr=False)
     xel_scale: float = 1.0
     error_output: str = "encoder"
+    encoders: str = "drive"
 
     @property
     def n(self) -> int:
         """Number of states."""
         return self.A.shape[0]
+
+    def disturbance_measurement(self) -> np.ndarray:
+        """``(2, 2)``: what a command-level disturbance ``d`` (the estimator's mean-torque state,
+        rad/s) adds to the measurement at rest: zero for drive encoders; for axis encoders the
+        static deflection they see, ``S^-1 F`` (:func:`static_deflection_map`).
+        """
+        if self.encoders == "drive":
+            return np.zeros((2, 2))
+        return np.linalg.solve(rigid_pointing(self.xel_scale), static_deflection_map())
+
+    def estimator_output(self, n_d: int) -> np.ndarray:
+        """The measurement matrix ``(2, n + n_d)`` of the estimator state ``[x; d]``."""
+        return np.hstack([self.C, self.disturbance_measurement()[:, :n_d]])
 
     @property
     def Cz(self) -> np.ndarray:
@@ -556,7 +573,8 @@ def _wind_model(loads: WindLoads, wind: Any) -> tuple[np.ndarray, np.ndarray, np
 def build_design_model(dt: float, order: int | None | str = "config", wind: Any = None,
                        encoder_noise: float = 0.0, bits: int | None | str = "config",
                        model: DSS14Model | None = None, loads: WindLoads | None = None,
-                       pointing: bool = False, error_output: str = "encoder") -> DesignModel:
+                       pointing: bool = False, error_output: str = "encoder",
+                       encoders: str = "drive") -> DesignModel:
     """Nominal design model, discretised exactly for the period ``dt``.
 
     :param dt: control period, s
@@ -574,13 +592,19 @@ def build_design_model(dt: float, order: int | None | str = "config", wind: Any 
         reduction balancing them too (:func:`reduce_rate_loop`)
     :param error_output: ``"encoder"`` or ``"pointing"`` (implies ``pointing``): the outputs
         whose error a design on this model scores (:attr:`DesignModel.Cz`)
-    :raises ValueError: for a non-positive ``dt``, an unknown wind specification or error output
+    :param encoders: ``"drive"`` (the measurement ``C`` reads the drive angles) or ``"axis"``
+        (implies ``pointing``: ``C = S^-1 Cp``, the structure's angles at the axes, as the
+        environment's ``encoders="axis"`` reads them)
+    :raises ValueError: for a non-positive ``dt``, an unknown wind specification, error output
+        or encoder kind
     """
     if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
         raise ValueError(f"dt must be a positive period in s, got {dt!r}")
     if error_output not in ERROR_OUTPUTS:
         raise ValueError(f"error_output must be one of {ERROR_OUTPUTS}, got {error_output!r}")
-    pointing = bool(pointing) or error_output == "pointing"
+    if encoders not in ENCODER_KINDS:
+        raise ValueError(f"encoders must be one of {ENCODER_KINDS}, got {encoders!r}")
+    pointing = bool(pointing) or error_output == "pointing" or encoders == "axis"
     cfg = default_controllers_config().design
     if order == "config":
         order = cfg.order
@@ -591,15 +615,15 @@ def build_design_model(dt: float, order: int | None | str = "config", wind: Any 
     model = model or default_model()
     loads = loads or default_wind_loads()
     wind = tuple(wind)
-    key = ("design", float(dt), order, wind, float(encoder_noise), bits, pointing, error_output)
+    key = ("design", float(dt), order, wind, float(encoder_noise), bits, pointing, error_output, encoders)
     return _cached(key, (model, loads),
                    lambda: _build(float(dt), order, wind, float(encoder_noise), bits, model, loads,
-                                  pointing, error_output))
+                                  pointing, error_output, encoders))
 
 
 @single_threaded
 def _build(dt, order, wind, encoder_noise, bits, model, loads, pointing=False,
-           error_output="encoder") -> DesignModel:
+           error_output="encoder", encoders="drive") -> DesignModel:
     red = reduce_rate_loop(order, model, loads, pointing=pointing)
     A_w, G_w, C_w = _wind_model(loads, wind)
     nv, nw = red.A.shape[0], A_w.shape[0]
@@ -627,8 +651,10 @@ def _build(dt, order, wind, encoder_noise, bits, model, loads, pointing=False,
         Cp[:, :2] = rigid_pointing(red.xel_scale)
         Cp[:, v] = red.Cd
         Cp[:, w] = red.Dd[:, 2:] @ C_w
+        if encoders == "axis":
+            C = np.linalg.solve(rigid_pointing(red.xel_scale), Cp)
     return DesignModel(dt, A, B, G, C, Ad, Bd, Qd, R, 2, nv, nw, nv, wind, red.hsv, Cp,
-                       red.xel_scale, error_output)
+                       red.xel_scale, error_output, encoders)
 
 
 def smallest_order(budget_rel: float) -> int:

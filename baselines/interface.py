@@ -59,13 +59,15 @@ class ControlInterface:
     action_change_weight: float
     encoder_bits: int | None
     encoder_noise: float
+    encoders: str = "drive"
 
     @classmethod
     def from_config(cls, cfg: Any) -> ControlInterface:
         """From a :class:`dss14_env.envs.config.EnvConfig` (or anything with its key names)."""
         return cls(float(cfg.dt), cfg.action_scale_deg_s * DEG, cfg.rate_limit_deg_s * DEG,
                    cfg.accel_limit_deg_s2 * DEG, cfg.error_scale_mdeg * MDEG,
-                   float(cfg.action_change_weight), cfg.encoder_bits, cfg.encoder_noise_mdeg * MDEG)
+                   float(cfg.action_change_weight), cfg.encoder_bits, cfg.encoder_noise_mdeg * MDEG,
+                   str(getattr(cfg, "encoders", "drive")))
 
     @classmethod
     def from_env(cls, env: Any) -> ControlInterface:

@@ -181,7 +181,7 @@ def design_lqg(dm: DesignModel, weights: Weights, w_e: float = 1.0, w_a: float =
     Ae = np.eye(ne)
     Ae[:n, :n] = dm.Ad
     Ae[:n, n:] = dm.Bd if nd else np.zeros((n, 0))
-    Ce = np.hstack([dm.C, np.zeros((2, nd))])
+    Ce = dm.estimator_output(nd)
     Qn = np.zeros((ne, ne))
     Qn[:n, :n] = dm.Qd
     if input_noise > 0:
@@ -213,9 +213,11 @@ class DesignMaps:
 
     ``Ae, Be, Ce``: estimator model on ``[x; d]``; reference maps ``x_ref = Xc c + Xv c_rate``,
     ``r_ref = Rv c_rate``; ``Kx`` the LQR gain's state block; ``reference`` the reference model
-    (None without a command shaper).  ``Hx, Hd``: for a pointing design, the shift of the
-    reference's encoder angles that puts the dish's pointing (not the encoders) on the command,
-    ``theta_ref += x_ref Hx + d Hd`` (:meth:`reference_shift`); None for an encoder design.
+    (None without a command shaper).  ``Hx, Hd``: for a pointing design or axis encoders, the
+    shift of the reference's drive angles that puts the dish's pointing (not the drives) on the
+    command, ``theta_ref += x_ref Hx + d Hd`` (:meth:`reference_shift`); None for an encoder
+    design on drive encoders.  ``Dm``: the measurement's static part per unit ``d``
+    (:meth:`dss14_env.baselines.design.DesignModel.disturbance_measurement`).
     """
 
     design: LQGDesign
@@ -229,6 +231,7 @@ class DesignMaps:
     reference: ReferenceGenerator | None
     Hx: np.ndarray | None = None
     Hd: np.ndarray | None = None
+    Dm: np.ndarray | None = None
 
     def reference_shift(self, x_ref: np.ndarray, dist: np.ndarray) -> np.ndarray | None:
         """The encoder-angle shift ``(k, 2)`` (rad) of the rows' reference states ``x_ref`` under
@@ -261,7 +264,7 @@ class DesignMaps:
         if nd:
             Ae[:n, n:] = dm.Bd
         Be = np.vstack([dm.Bd, np.zeros((nd, 2))])
-        Ce = np.hstack([dm.C, np.zeros((2, nd))])
+        Ce = dm.estimator_output(nd)
         Xc = np.zeros((n, 2))
         Xc[:2] = np.eye(2)
         Xv, Rv = np.zeros((n, 2)), np.zeros((2, 2))
@@ -274,11 +277,19 @@ class DesignMaps:
             reference = ReferenceGenerator(dm, K_ref, interface.rate_limit, interface.rate_step,
                                            accel_ff=1.0)
         Hx = Hd = None
-        if dm.error_output == "pointing":
+        if dm.error_output == "pointing" or dm.encoders == "axis":
             Sinv_T = np.linalg.inv(rigid_pointing(dm.xel_scale)).T
             Hx = -dm.deformation_map().T @ Sinv_T
             Hd = -static_deflection_map().T @ Sinv_T
-        return cls(design, Ae, Be, Ce, Xc, Xv, Rv, design.split_gain()[0], reference, Hx, Hd)
+        return cls(design, Ae, Be, Ce, Xc, Xv, Rv, design.split_gain()[0], reference, Hx, Hd,
+                   dm.disturbance_measurement())
+
+    def measured_reference(self, x_ref: np.ndarray, dist: np.ndarray) -> np.ndarray:
+        """What the encoders read ``(k, 2)`` at the rows' reference states ``x_ref`` under the
+        disturbances ``dist``: the integrator's target (the command, for axis encoders; the
+        shifted drive angles, for a pointing design on drive encoders).
+        """
+        return x_ref @ self.design.dm.C.T + dist @ self.Dm.T
 
 
 class EstimatorController(Controller):
@@ -413,6 +424,10 @@ class EstimatorController(Controller):
             self._xe[idx, :n] = c[idx] @ M.Xc.T + cd[idx] @ M.Xv.T
             self._xe[idx, n:n + nd] = r_ref - r_prev[idx]
             self._d_fixed[idx] = 0.0 if nd else r_ref - r_prev[idx]
+            if M.design.dm.encoders == "axis":
+                # the start holds the AXIS encoders on the command: the drives sit off it by the
+                # deflection of the reference motion and of the mean torque
+                self._xe[idx, :2] += M.reference_shift(self._xe[idx, :n], r_ref - r_prev[idx])
         self._xi[rows] = 0.0
         self._k[rows] = 0
 
@@ -517,7 +532,8 @@ class EstimatorController(Controller):
             # d enters through Ae when estimated, as a known input otherwise
             u = r_prev[est] if D.n_d else r_prev[est] + self._d_fixed[idx][est]
             prior = xe[est] @ M.Ae.T + u @ M.Be.T
-            xe[est] = prior + (y[est] - prior @ M.Ce.T) @ D.L.T
+            y_est = y[est] if D.n_d else y[est] - self._d_fixed[idx][est] @ M.Dm.T
+            xe[est] = prior + (y_est - prior @ M.Ce.T) @ D.L.T
         dist = xe[:, n:] if D.n_d else self._d_fixed[idx]
         beta = np.zeros(len(idx))
         if M.reference is not None:
@@ -534,7 +550,7 @@ class EstimatorController(Controller):
             z, r_ss = self._deviation(D, xe, x_ref, r_ff, dist, xi, r_prev)
             beta = self._condition(M, z, r_ss, r_prev, xe, x_ref)
             z, r_ss = self._deviation(D, xe, x_ref, r_ff, dist, xi, r_prev)
-            c_int = x_ref[:, :2].copy()
+            c_int = M.measured_reference(x_ref, dist)
             if shift is not None:
                 x_ref[:, :2] -= shift  # the reference model runs on the command, unshifted
             self._xr[idx, :n], self._rr[idx] = x_ref, r_ff
@@ -544,7 +560,7 @@ class EstimatorController(Controller):
             if shift is not None:
                 x_ref[:, :2] += shift
             z, r_ss = self._deviation(D, xe, x_ref, cd @ M.Rv.T, dist, xi, r_prev)
-            c_int = x_ref[:, :2]
+            c_int = M.measured_reference(x_ref, dist)
         r = self.law_rows(D, idx, z, r_ss, r_prev)
         if D.integral:
             self._xi[idx] = xi + self.interface.dt * np.clip(c_int - y, -self.integral_clip,
@@ -620,11 +636,14 @@ def lqg_design_from_config(interface: ControlInterface, cfg: LQGConfig | None = 
     cfg = cfg or default_controllers_config().lqg
     noise = math.hypot(interface.encoder_noise, cfg.measurement_noise)
     w_a, w_enc, error_output = cfg.action_change_weight, 0.0, "encoder"
+    if order == "config" and (pointing is not None or interface.encoders == "axis"):
+        # the deformation is in the cost or in the measurement: the order that balances it
+        order = default_controllers_config().pointing.order
     if pointing is not None:
-        order = pointing.order if order == "config" else order
         w_a, w_enc, error_output = pointing.action_change_weight, pointing.encoder_error_weight, "pointing"
     dm = build_design_model(interface.dt, order=order, wind=wind, encoder_noise=noise,
-                            bits=interface.encoder_bits, error_output=error_output)
+                            bits=interface.encoder_bits, error_output=error_output,
+                            encoders=interface.encoders)
     return design_lqg(dm, interface.weights, w_e=cfg.error_weight, w_a=w_a,
                       w_i=cfg.integral_weight, input_noise=cfg.input_noise,
                       disturbance_drift=cfg.disturbance_drift, rate_limit=interface.rate_limit,

@@ -116,7 +116,7 @@ def _yardstick_design(spec: ControlInterface, wind_speed: float, direction: str 
     direction = direction if isinstance(direction, str) else float(direction_angle(direction))
     dm = build_design_model(spec.dt, order=None, wind=(float(wind_speed), direction),
                             encoder_noise=spec.encoder_noise, bits=spec.encoder_bits, pointing=True,
-                            error_output=error)
+                            error_output=error, encoders=spec.encoders)
     return design_lqg(dm, spec.weights, w_e=1.0, w_a=action_change, w_i=None,
                       input_noise=REGULARISING_INPUT_NOISE,
                       disturbance_drift=RUNNABLE_DRIFT if runnable else None,

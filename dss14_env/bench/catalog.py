@@ -111,12 +111,11 @@ CONTROLLER_ROWS: tuple[ControllerRow, ...] = (
     ControllerRow("lqg_pointing", "dss14_env.baselines.lqg", "PointingLQGController",
                   "LQG designed for the dish's true pointing error: Kalman filter on the drive "
                   "encoders, the LQR scores the structure's pointing (deformation included) "
-                  "(`baselines/lqg.py`, docs/controllers.md)", config="pointing", bench=False,
-                  campaign=True),
+                  "(`baselines/lqg.py`, docs/controllers.md)", config="pointing", campaign=True),
     ControllerRow("mpc_pointing", "dss14_env.baselines.mpc", "PointingMPCController",
                   "MPC on the pointing LQG's design and estimator, its soft error bound on the "
                   "predicted pointing error (`baselines/mpc.py`)", batchable=False,
-                  config="pointing", bench=False),
+                  config="pointing"),
     _policy_row("ppo", "residual_pi", "PPO residual on the report's PI, the policy shipped with the "
                 "package (`agents/policies/residual_pi`); `--ppo-model PATH` replaces it by a "
                 "trained policy, scored under its own name"),
@@ -213,6 +212,9 @@ class ScenarioRow:
     :param sweep: the error-vs-wind sweep's direction this scenario anchors (``"front"``,
         ``"side"``; None: no sweep)
     :param bench: in a bench run without ``--scenarios``
+    :param preset: the preset it runs, when not the one of its name (a variant of a preset)
+    :param env: environment keys on top of the preset's (e.g. ``{"encoders": "axis"}``)
+    :param note: what the variant changes, appended to the preset's description
     """
 
     name: str
@@ -223,16 +225,31 @@ class ScenarioRow:
     traced: bool = False
     sweep: str | None = None
     bench: bool = True
+    preset: str | None = None
+    env: Mapping[str, Any] = dataclasses.field(default_factory=dict)
+    note: str = ""
+
+    @property
+    def preset_name(self) -> str:
+        """The name of the preset it runs."""
+        return self.preset or self.name
+
+    @property
+    def description(self) -> str:
+        """The preset's description, with the variant's note."""
+        d = PRESETS[self.preset_name].description
+        return f"{d}; {self.note}" if self.note else d
 
     @property
     def loaded_axes(self) -> tuple[str, ...]:
         """The axes the scenario's wind loads (its preset's)."""
-        return PRESETS[self.name].loaded_axes
+        return PRESETS[self.preset_name].loaded_axes
 
     def scenario(self) -> Scenario:
-        """The runner's scenario: the preset's keys, warm-up and description."""
-        p = PRESETS[self.name]
-        return Scenario(dict(p.kwargs), self.steps or p.max_episode_steps, p.warmup_s, p.description)
+        """The runner's scenario: the preset's keys (and the variant's), warm-up and description."""
+        p = PRESETS[self.preset_name]
+        return Scenario({**p.kwargs, **self.env}, self.steps or p.max_episode_steps, p.warmup_s,
+                        self.description)
 
 
 #: the scenarios, in table order; hold budgets: a 95 % half-width <= 5 % of the loaded axis'
@@ -247,6 +264,12 @@ SCENARIO_ROWS: tuple[ScenarioRow, ...] = (
     ScenarioRow("track", Budget(40.0, 128, 6), Budget(10.0, 8, 1)),
     # the commanded move dominates
     ScenarioRow("slew", Budget(50.0, 32, 3), Budget(10.0, 4, 1), steps=2500, group="move"),
+    # the report's encoders close to the axes: the batched controllers only (the MPCs' budget is
+    # the drive-encoder holds')
+    ScenarioRow("hold_front_axis", Budget(60.0, 64, 0), Budget(15.0, 4, 0), preset="hold_front",
+                env={"encoders": "axis"}, note="axis encoders (the structure's angles at the axes)"),
+    ScenarioRow("hold_side_axis", Budget(60.0, 64, 0), Budget(15.0, 4, 0), preset="hold_side",
+                env={"encoders": "axis"}, note="axis encoders (the structure's angles at the axes)"),
 )
 
 #: scenario rows by name
@@ -300,9 +323,9 @@ def scenarios_table() -> str:
     lines = ["| name | what | episode | batched episodes | one-at-a-time episodes | `--quick` |",
              "|---|---|---|---|---|---|"]
     for r in SCENARIO_ROWS:
-        p, d, q = PRESETS[r.name], r.default, r.quick
+        p, d, q = PRESETS[r.preset_name], r.default, r.quick
         warm = f", {p.warmup_s:g} s warm-up" if p.warmup_s else ""
-        lines.append(f"| `{r.name}` | {p.description} | {d.seconds:g} s{warm} | {d.episodes} | "
+        lines.append(f"| `{r.name}` | {r.description} | {d.seconds:g} s{warm} | {d.episodes} | "
                      f"{d.sequential} | {q.seconds:g} s x {q.episodes} ({q.sequential}) |")
     return "\n".join(lines) + "\n"
 
