@@ -253,7 +253,7 @@ def _add_campaign_parser(sub: Any) -> None:
     p.add_argument("--chunk-size", type=int, default=None, metavar="N",
                    help="plants per chunk, the unit of work and of resuming (default 5)")
     p.add_argument("--requirements", nargs="+", metavar="NAME=MDEG", default=None,
-                   help="pointing requirements on the 3-sigma servo error (default: Ka=2 X=8)")
+                   help="pointing requirements on the 3-sigma pointing error (default: Ka=2 X=8)")
     p.add_argument("--ray", action="store_true", help="run the chunks as Ray tasks (a local Ray by default)")
     p.add_argument("--address", default=None,
                    help="join a running Ray cluster: 'auto' or its address (implies --ray)")
