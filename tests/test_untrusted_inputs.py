@@ -326,6 +326,20 @@ def test_an_interrupted_campaign_gives_its_command(tmp_path: Path, monkeypatch, 
     assert err.endswith("continue with: dss14 " + " ".join(argv) + " --resume")
 
 
+def test_an_interrupted_bench_gives_the_command_that_starts_it_again(tmp_path: Path, monkeypatch,
+                                                                     capsys) -> None:
+    from dss14_env.bench import bench as B
+
+    def stop(*a, **k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(B, "run_plan", stop)
+    argv = ["bench", "--controllers", "pi_kp1", "--scenarios", "step", "--out", str(tmp_path / "b")]
+    assert cli.main(argv) == 130
+    err = _one_line(capsys, "interrupted")
+    assert err.endswith("start again with: dss14 " + " ".join(argv) + " --overwrite")
+
+
 def test_continue_is_the_same_as_resume_for_a_campaign(tmp_path: Path, capsys) -> None:
     cfg = _write(tmp_path / "c.yaml", {**TINY, "checkpoint_freq": 0, "eval_freq": 64,
                                        "total_timesteps": 128})
