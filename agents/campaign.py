@@ -8,10 +8,11 @@ of different runs never share a seed), then scores every run's final and best
 :mod:`dss14_env.agents.evaluation`), and writes::
 
     summary.json        per training seed: training wall time and environment steps, the 3σ
-                        (DSS14) or return of every test episode and their mean per task; over
-                        the training seeds: the interquartile mean with its 95 % bootstrap
-                        interval (dss14_env.core.stats.iqm_ci), the mean, min and max
-    curves_<task>.png   validation 3σ and return vs environment steps: IQM over training
+                        servo and pointing errors (DSS14) or return of every test episode and
+                        their mean per task; over the training seeds: the interquartile mean
+                        with its 95 % bootstrap interval (dss14_env.core.stats.iqm_ci), the
+                        mean, min and max
+    curves_<task>.png   validation 3σ (servo and pointing) and return vs environment steps: IQM over training
                         seeds with its 95 % bootstrap band, and every seed's curve
     config.yaml         the configuration the runs share (seed: the base seed)
 
@@ -129,6 +130,10 @@ def _score(policy_dir: Path, tasks: list[EvalTask], seeds: Sequence[int],
             d["axis"] = t.axis
             d["three_sigma_mdeg"] = r["three_sigma_mdeg"].tolist()
             d["mean_three_sigma_mdeg"] = float(np.mean(r["three_sigma_mdeg"]))
+        if t.pointing_axis is not None:
+            d["pointing_axis"] = t.pointing_axis
+            d["pointing_three_sigma_mdeg"] = r["pointing_three_sigma_mdeg"].tolist()
+            d["mean_pointing_three_sigma_mdeg"] = float(np.mean(r["pointing_three_sigma_mdeg"]))
         out[t.name] = d
     return out
 
@@ -276,11 +281,16 @@ def write_summary(cfg: TrainConfig, folder: Path, seeds: Sequence[int], per_seed
             key = "mean_three_sigma_mdeg" if t.axis is not None else "mean_return"
             aggregate[which][t.name] = {"metric": key,
                                         **_aggregate([r[t.name][key] for r in rows])}
+            if t.pointing_axis is not None:
+                aggregate[which][t.name]["pointing"] = {
+                    "metric": "mean_pointing_three_sigma_mdeg",
+                    **_aggregate([r[t.name]["mean_pointing_three_sigma_mdeg"] for r in rows])}
     summary = {
         "algo": cfg.algo, "env_id": cfg.env_id, "config": cfg.source,
         "seed_indices": list(seeds), "training_seeds": [training_seed(cfg, k) for k in seeds],
         "protocol": {"test_seeds": [int(s) for s in test_seeds], "test_steps": int(test_steps),
                      "tasks": [{"name": t.name, "env_id": t.env_id, "axis": t.axis,
+                                "pointing_axis": t.pointing_axis,
                                 "warmup_steps": t.warmup_steps} for t in tasks],
                      "validation_seeds": cfg.eval_seeds,
                      "interval": "95 % percentile bootstrap over training seeds of the IQM "
@@ -339,24 +349,25 @@ def train_seeds(config: TrainConfig | Mapping[str, Any] | str | Path, seeds: Seq
 def learning_curves(runs: Sequence[Path], task: str) -> dict[str, Any]:
     """Validation curves of several runs on a common step grid (the steps all runs share).
 
-    :return: ``steps``, ``three_sigma`` and ``returns`` as ``(n_runs, n_steps)`` (mean over
-        the validation seeds; NaN where a run has no such value)
+    :return: ``steps``, ``three_sigma``, ``pointing`` (3σ pointing error) and ``returns`` as
+        ``(n_runs, n_steps)`` (mean over the validation seeds; NaN where a run has no such value)
     """
+    entries = {"three_sigma": "three_sigma_mdeg", "pointing": "pointing_three_sigma_mdeg"}
     data = []
     for r in runs:
         with np.load(r / "eval" / "evaluations.npz", allow_pickle=False) as d:
-            sig = d[f"three_sigma_mdeg_{task}"] if f"three_sigma_mdeg_{task}" in d.files else None
-            data.append((d["timesteps"].astype(int), np.asarray(d[f"returns_{task}"]), sig))
+            errs = {k: d[f"{v}_{task}"] for k, v in entries.items() if f"{v}_{task}" in d.files}
+            data.append((d["timesteps"].astype(int), np.asarray(d[f"returns_{task}"]), errs))
     common = sorted(set.intersection(*(set(t.tolist()) for t, _, _ in data))) if data else []
     steps = np.array(common, int)
-    ret = np.full((len(data), steps.size), np.nan)
-    sig = np.full_like(ret, np.nan)
-    for i, (t, r, s) in enumerate(data):
+    out = {"steps": steps, "returns": np.full((len(data), steps.size), np.nan)}
+    out.update({k: np.full((len(data), steps.size), np.nan) for k in entries})
+    for i, (t, r, errs) in enumerate(data):
         idx = [int(np.flatnonzero(t == x)[0]) for x in common]
-        ret[i] = r[idx].mean(axis=1)
-        if s is not None:
-            sig[i] = np.nanmean(s[idx], axis=1)
-    return {"steps": steps, "returns": ret, "three_sigma": sig}
+        out["returns"][i] = r[idx].mean(axis=1)
+        for k, v in errs.items():
+            out[k][i] = np.nanmean(v[idx], axis=1)
+    return out
 
 
 def _band(values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -371,8 +382,9 @@ def _band(values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def write_curves(folder: Path, runs: Sequence[Path], tasks: Sequence[EvalTask]) -> list[Path]:
-    """One PNG per task: validation 3σ (DSS14) and return vs environment steps (IQM over the
-    runs with its 95 % bootstrap band, each run thin).
+    """One PNG per task: validation 3σ servo error (DSS14), 3σ pointing error (where the runs
+    recorded it) and return vs environment steps (IQM over the runs with its 95 % bootstrap
+    band, each run thin).
     """
     import io
 
@@ -385,6 +397,8 @@ def write_curves(folder: Path, runs: Sequence[Path], tasks: Sequence[EvalTask]) 
         if c["steps"].size == 0:
             continue
         panels = [("returns", "validation return")]
+        if t.pointing_axis is not None and np.isfinite(c["pointing"]).any():
+            panels.insert(0, ("pointing", f"validation 3σ pointing error {t.pointing_axis} (mdeg)"))
         if t.axis is not None:
             panels.insert(0, ("three_sigma", f"validation 3σ servo error {t.axis} (mdeg)"))
         fig = Figure(figsize=(6.0 * len(panels), 4.0))

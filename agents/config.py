@@ -61,8 +61,9 @@ from dss14_env.core.schema import (
 ALGOS = ("ppo", "recurrent_ppo", "sac")
 ACTIVATIONS = ("tanh", "relu", "elu", "leaky_relu")
 #: what picks ``eval/best``: the highest mean validation return, or (DSS14) the lowest
-#: geometric mean over the hold tasks of their mean validation 3σ
-SELECT_BY = ("return", "three_sigma")
+#: geometric mean over the hold tasks of their mean validation 3σ servo error
+#: (``three_sigma``) or 3σ pointing error (``pointing``)
+SELECT_BY = ("return", "three_sigma", "pointing")
 #: ``auto``: ``batched`` for DSS14 ids (:mod:`dss14_env.agents.vec_env`), ``dummy`` otherwise
 VEC_ENVS = ("auto", "batched", "dummy", "subproc")
 

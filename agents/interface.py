@@ -10,7 +10,10 @@ a batched vector env) and for scoring (:class:`dss14_env.agents.policy.PolicyCon
 * ``base``: a controller run alongside -- ``"pi"``: the report's PI ([R] Eqs. 57-58,
   :class:`dss14_env.baselines.pi.PIController`); ``"lqg"``: the project's LQG
   (:class:`dss14_env.baselines.lqg.LQGController`, one per row: steady-state Kalman filter +
-  LQR); None: no base controller.
+  LQR); ``"lqg_pointing"``: the LQG designed for the dish's true pointing error
+  (:class:`dss14_env.baselines.lqg.PointingLQGController`: the same Kalman filter on the drive
+  encoders, the LQR scoring the structure's pointing; its features are the LQG's); None: no
+  base controller.
 * ``action``: ``"absolute"`` -- the policy's output is the rate command (action units);
   ``"residual"`` -- ``a = a_base + residual_scale * u`` (residual policy learning: Johannink et
   al., *Residual Reinforcement Learning for Robot Control*, ICRA 2019; Silver et al.,
@@ -45,7 +48,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from dss14_env.baselines.lqg import LQGController
+from dss14_env.baselines.design import default_controllers_config
+from dss14_env.baselines.lqg import LQGController, PointingLQGController
 from dss14_env.baselines.pi import PIController
 from dss14_env.core.units import DEG, MDEG
 from dss14_env.envs.core import OBS, OBS_HIGH, OBS_SIZE
@@ -59,6 +63,9 @@ HISTORY_ENTRIES = OBS.entries("error", "prev_rate")
 NO_ABSOLUTE_ANGLES = OBS.entries("error", "error_rate", "command_rate", "prev_rate")
 #: the LQG features and their widths, in the order they appear (module doc)
 LQG_FEATURE_WIDTHS = {"command": 2, "disturbance": 2, "output": 2, "law": 6}
+#: the base controllers: None, the PI, and the LQG designs (encoder or pointing error)
+BASES = (None, "pi", "lqg", "lqg_pointing")
+LQG_BASES = ("lqg", "lqg_pointing")
 
 
 def _entries(value: Any, name: str) -> tuple[int, ...]:
@@ -74,7 +81,7 @@ def _entries(value: Any, name: str) -> tuple[int, ...]:
 class InterfaceSpec:
     """What the policy sees and how its output becomes the environment action (module doc).
 
-    :param base: ``None``, ``"pi"`` or ``"lqg"``
+    :param base: ``None``, ``"pi"``, ``"lqg"`` or ``"lqg_pointing"``
     :param action: ``"absolute"`` or ``"residual"``
     :param gains: PI gain set of ``configs/model.yaml`` or ``(kp, ki)``, default ``"kp1"``
     :param residual_scale: action units per unit of policy output, default 0.05
@@ -97,12 +104,13 @@ class InterfaceSpec:
     obs_entries: tuple[int, ...] | None = None
 
     def __post_init__(self) -> None:
-        if self.base not in (None, "pi", "lqg"):
-            raise ValueError(f"base must be null, 'pi' or 'lqg', got {self.base!r}")
+        if self.base not in BASES:
+            raise ValueError(f"base must be null, 'pi', 'lqg' or 'lqg_pointing', got {self.base!r}")
         if self.action not in ("absolute", "residual"):
             raise ValueError(f"action must be 'absolute' or 'residual', got {self.action!r}")
         if self.action == "residual" and self.base is None:
-            raise ValueError("a residual action needs a base controller (base: pi or lqg)")
+            raise ValueError("a residual action needs a base controller (base: pi, lqg or "
+                             "lqg_pointing)")
         scale = self.residual_scale
         if isinstance(scale, bool) or not isinstance(scale, (int, float)) or \
                 not (math.isfinite(scale) and scale > 0.0):
@@ -169,13 +177,15 @@ class PolicyInterface:
         if spec.base == "pi":
             self.pi = PIController(env_config, spec.gains)
             n_feat = 2
-        elif spec.base == "lqg":
+        elif spec.base in LQG_BASES:
             n_feat = sum(LQG_FEATURE_WIDTHS[f] for f in spec.lqg_features) if spec.estimate else 0
+            pointing = default_controllers_config().pointing if spec.base == "lqg_pointing" else None
             if spec.estimate and {"output", "law"} & set(spec.lqg_features):
                 # the LQR state z of every row: one recording controller per row
-                self.lqg = [_RecordingLQG(env_config) for _ in range(self.n)]
+                self.lqg = [_RecordingLQG(env_config, pointing=pointing) for _ in range(self.n)]
             else:  # command and disturbance only: one batched LQG for all rows
-                self.lqg_batch = LQGController(env_config)
+                self.lqg_batch = (LQGController(env_config) if pointing is None
+                                  else PointingLQGController(env_config, pointing=pointing))
                 self.lqg_batch.reset_batch(self.n)
         self.n_features = n_feat
         self.entries = list(range(OBS_SIZE)) if spec.obs_entries is None else list(spec.obs_entries)
@@ -204,6 +214,20 @@ class PolicyInterface:
         for i in np.flatnonzero(mask).tolist():
             if self.lqg:
                 self.lqg[i].reset()
+
+    #: the attributes of the dynamic state (:meth:`get_state`)
+    _STATE = ("pi", "lqg", "lqg_batch", "base_action", "_past", "_fresh")
+
+    def get_state(self) -> dict[str, Any]:
+        """A copy of the dynamic state (base controllers, last base action, history) that
+        :meth:`set_state` restores (the environment's snapshots hold it,
+        :meth:`dss14_env.envs.env.DSS14Env.attach`).
+        """
+        return copy.deepcopy({name: getattr(self, name) for name in self._STATE})
+
+    def set_state(self, state: dict[str, Any]) -> None:
+        """Restore a :meth:`get_state` copy (any number of times)."""
+        self.__dict__.update(copy.deepcopy(state))
 
     # ------------------------------------------------------------------ observation
     def observe(self, obs: np.ndarray) -> np.ndarray:
@@ -353,6 +377,8 @@ class InterfaceWrapper(gym.Wrapper):
         super().__init__(env)
         cfg = env.unwrapped.config
         self.interface = PolicyInterface(spec, cfg, 1)
+        if hasattr(env.unwrapped, "attach"):  # its snapshots restore the interface too
+            env.unwrapped.attach(self.interface)
         self.observation_space = interface_observation_space(self.interface)
         self.action_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
 
@@ -432,7 +458,7 @@ def spec_from_kwargs(kwargs: dict[str, Any], defaults: InterfaceSpec) -> tuple[I
     return InterfaceSpec(**d), kw
 
 
-__all__ = ["FEATURE_BOUND", "HISTORY_ENTRIES", "InterfaceSpec", "InterfaceVecEnv",
+__all__ = ["BASES", "FEATURE_BOUND", "HISTORY_ENTRIES", "LQG_BASES", "InterfaceSpec", "InterfaceVecEnv",
            "InterfaceWrapper", "LQG_FEATURES", "LQG_FEATURE_WIDTHS", "NO_ABSOLUTE_ANGLES",
            "PolicyInterface", "interface_observation_space", "spec_from_kwargs"]
 

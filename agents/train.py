@@ -299,9 +299,11 @@ def selection_score(cfg: TrainConfig, returns: np.ndarray,
     geometric mean over the hold tasks of each task's mean 3σ over the validation seeds (the
     test metric; the geometric mean weighs the front and side holds alike though their 3σ
     differ in size); ``-inf`` when a validation episode terminated or a 3σ is not finite.
+    ``select_by: pointing``: the same of the 3σ pointing errors (the caller passes those).
 
     :param returns: every validation episode's return
-    :param three_sigma: task name -> the validation episodes' 3σ (mdeg)
+    :param three_sigma: task name -> the validation episodes' 3σ (mdeg) of the selection's
+        error (:func:`selection_key`)
     :param terminated: a validation episode terminated
     """
     if cfg.select_by == "return":
@@ -310,6 +312,13 @@ def selection_score(cfg: TrainConfig, returns: np.ndarray,
     if terminated or not means or not all(np.isfinite(m) and m > 0 for m in means):
         return -np.inf
     return -float(np.exp(np.mean(np.log(means))))
+
+
+def selection_key(cfg: TrainConfig) -> str:
+    """The run-task result (and, with ``_<task>``, the history entry) a 3σ selection scores:
+    ``three_sigma_mdeg`` (servo error) or ``pointing_three_sigma_mdeg`` (``select_by: pointing``).
+    """
+    return "pointing_three_sigma_mdeg" if cfg.select_by == "pointing" else "three_sigma_mdeg"
 
 
 class _Evaluator:
@@ -322,15 +331,15 @@ class _Evaluator:
         self.cfg, self.plan, self.run, self.run_id = cfg, plan, run, run_id
         self.config_text, self.venv = config_text, venv
         self.tasks = _eval_tasks(cfg, plan)
-        if cfg.select_by == "three_sigma" and not any(t.axis for t in self.tasks):
-            raise ValueError(f"{cfg.source}: key 'select_by': three_sigma needs DSS14 hold "
+        if cfg.select_by != "return" and not any(t.axis for t in self.tasks):
+            raise ValueError(f"{cfg.source}: key 'select_by': {cfg.select_by} needs DSS14 hold "
                              f"tasks, {cfg.env_id!r} has none (use return)")
+        key = selection_key(cfg)
         h = self.history = _load_history(run / "eval" / "evaluations.npz", start)
         if "selection_score" not in h:  # a history written before the score was recorded
             h["selection_score"] = [
-                selection_score(cfg, r, {t.name: h[f"three_sigma_mdeg_{t.name}"][i]
-                                         for t in self.tasks
-                                         if f"three_sigma_mdeg_{t.name}" in h})
+                selection_score(cfg, r, {t.name: h[f"{key}_{t.name}"][i] for t in self.tasks
+                                         if f"{key}_{t.name}" in h})
                 for i, r in enumerate(h["results"])]
         self.best = max((float(v) for v in h["selection_score"]), default=-np.inf)
         self.ctrl: PolicyController | None = None
@@ -351,10 +360,13 @@ class _Evaluator:
             h.setdefault(f"returns_{t.name}", []).append(res[t.name]["returns"])
             if t.axis is not None:
                 h.setdefault(f"three_sigma_mdeg_{t.name}", []).append(res[t.name]["three_sigma_mdeg"])
+            if t.pointing_axis is not None:
+                h.setdefault(f"pointing_three_sigma_mdeg_{t.name}", []).append(
+                    res[t.name]["pointing_three_sigma_mdeg"])
         mean = float(np.mean(h["results"][-1]))
+        key = selection_key(cfg)
         score = selection_score(cfg, h["results"][-1],
-                                {t.name: res[t.name]["three_sigma_mdeg"] for t in self.tasks
-                                 if t.axis is not None},
+                                {t.name: res[t.name][key] for t in self.tasks if t.axis is not None},
                                 any(bool(r["terminated"].any()) for r in res.values()))
         h["selection_score"].append(score)
         _save_history(self.run / "eval" / "evaluations.npz", h)
@@ -363,6 +375,10 @@ class _Evaluator:
                if np.isfinite(r["three_sigma_mdeg"]).any()}
         for n, v in sig.items():
             logger.record(f"eval/three_sigma_mdeg_{n}", v)
+        for n, r in res.items():
+            if np.isfinite(r["pointing_three_sigma_mdeg"]).any():
+                logger.record(f"eval/pointing_three_sigma_mdeg_{n}",
+                              float(np.nanmean(r["pointing_three_sigma_mdeg"])))
         if score > self.best:
             self.best = score
             with atomic_folder(self.run / "eval" / "best") as tmp:
@@ -684,4 +700,4 @@ def load_run_config(run: str | Path) -> TrainConfig:
 
 __all__ = ["RUN_FILES", "TrainingInterrupted", "config_for_command", "import_user_module",
            "last_checkpoint", "later_checkpoints", "load_run_config", "prepare_run", "resume_source",
-           "resume_config_path", "save_checkpoint", "selection_score", "train"]
+           "resume_config_path", "save_checkpoint", "selection_key", "selection_score", "train"]

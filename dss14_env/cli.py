@@ -168,6 +168,9 @@ def _bench(args: argparse.Namespace) -> int:
         print(f"dss14 bench: warning: {note}", file=sys.stderr)
     print(plan.describe(), flush=True)
     res = bench(plan, progress=not args.no_progress)
+    print("The dish's true pointing error, 3σ (mdeg), el / xel:")
+    print(res["pointing_table"])
+    print("The servo error at the drive encoders (the report's Table 4 quantity), 3σ (mdeg), az / el:")
     print(res["main_table"])
     print(f"results.json, results.md and {len(res['figures'])} figures written to {plan.out} "
           f"in {res['wall_time_s']:.1f} s")
@@ -186,7 +189,7 @@ def _campaign(args: argparse.Namespace) -> int:
                                ("chunk_size", args.chunk_size), ("ppo_model", args.ppo_model),
                                ("wind_speeds_kmh", C.parse_wind_speeds(args.wind_speeds)),
                                ("directions", C.parse_directions(args.directions))) if v is not None}
-    spec = C.CampaignSpec(**given)
+    spec = C.CampaignSpec(**given, condition_on_pi=not args.unconditioned)
     reqs = parse_requirements(args.requirements)
     C.check_policy(spec)  # before any work: a policy that cannot act on the environment
     use_ray = args.ray or args.address is not None or args.num_cpus is not None
@@ -201,7 +204,7 @@ def _campaign(args: argparse.Namespace) -> int:
     where = "Ray " + (f"at {args.address}" if args.address else "(local)") if use_ray else "in-process"
     print(f"campaign: {spec.plants} plants x {len(spec.conditions)} wind conditions x "
           f"{len(spec.names)} controllers = {spec.n_episodes} episodes of {spec.steps} steps, "
-          f"{len(spec.chunks())} chunks, {where}", flush=True)
+          f"{len(spec.chunks())} chunk{'s' if len(spec.chunks()) != 1 else ''}, {where}", flush=True)
     try:
         res = C.run_campaign(spec, args.out, executor=executor, requirements=reqs, resume=args.resume,
                              overwrite=args.overwrite, figures=not args.no_figures,
@@ -216,7 +219,8 @@ def _campaign(args: argparse.Namespace) -> int:
         return 130
     print(res["table"])
     print(f"results.json, results.md and {len(res['figures'])} figures written to {res['out']} "
-          f"({len(res['computed'])} chunks computed, {len(res['resumed'])} read back) in "
+          f"({len(res['computed'])} chunk{'s' if len(res['computed']) != 1 else ''} computed, "
+          f"{len(res['resumed'])} read back) in "
           f"{res['results']['campaign']['wall_time_s']['total']:.1f} s")
     return 0
 
@@ -237,6 +241,9 @@ def _add_campaign_parser(sub: Any) -> None:
     p.add_argument("--ppo-model", default=None, metavar="PATH",
                    help=f"a trained policy instead of the {catalog.POLICY_OPTION_ROW} row's "
                    "shipped one, scored under its own name (its folder's)")
+    p.add_argument("--unconditioned", action="store_true",
+                   help="draw the plants without conditioning on the report's PI being stable (only "
+                   "the drive must be): results.md gives each controller's unstable share")
     p.add_argument("--wind-speeds", nargs="+", metavar="KMH", default=None,
                    help="mean wind speeds, km/h (default 50)")
     p.add_argument("--directions", nargs="+", metavar="DIR", default=None,

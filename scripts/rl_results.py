@@ -2,11 +2,14 @@
 
 Three steps, each writing what the next reads::
 
-    # 1. the reference controllers on the test seeds (the benchmark's runner; ~5 min on one core)
+    # 1. the reference controllers on the test seeds (the benchmark's runner; ~5 min on one core):
+    #    3σ servo and pointing errors
     python scripts/rl_results.py references            # -> docs/results/rl_references.json
     # 2. the training campaigns (dss14 train <algo> --config <cfg> --seeds 0-4 --out runs/<agent>),
     #    then the results file and the learning-curve figures
     python scripts/rl_results.py build --runs runs  # -> docs/results/rl_results.json, rl/*.png
+    #    (an agent whose campaign is not under --runs keeps its row of the committed file,
+    #    marked kept_from: servo error only, the trained runs of those campaigns are not kept)
     # 3. the shipped policies: each shipped agent's seed with the best validation score
     python scripts/rl_results.py ship --runs runs      # -> agents/policies/<name>/
     # 4. the tables of README.md and docs/rl.md (rendered from the results file, never typed)
@@ -30,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dss14_env.agents.results import HOLDS, build_results, rl_tables
+from dss14_env.agents.results import HOLDS, POINTING_AXES, build_results, has_pointing, rl_tables
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -47,6 +50,8 @@ REFERENCE_CONTROLLERS = {"pi_kp1": "PI (report: kp 1, ki 0.3)", "lqg": "LQG", "m
 #: acceleration limit, which its design ignores, it saturates on some seeds -- front hold,
 #: test seed 3: 2342 of 3000 steps at the limit, 245 mdeg); the table shows its analytic value
 TABLE_REFERENCES = ("pi_kp1", "lqg", "mpc")
+#: the pointing-aware references, run and tabled when the baselines provide them
+POINTING_CONTROLLERS = {"lqg_pointing": "pointing-aware LQG", "mpc_pointing": "pointing-aware MPC"}
 #: the agents: key -> (label, campaign folder under --runs, shipped policy folder or None)
 AGENTS = {
     "ppo_plain": ("plain PPO", "ppo_plain", "ppo_plain"),
@@ -56,11 +61,22 @@ AGENTS = {
     "sac": ("SAC", "sac", None),
     "ppo_residual_pi": ("residual PPO on the PI", "ppo_residual_pi", None),
     "ppo_residual_pi_hold": ("residual PPO on the PI, benchmark wind", "ppo_residual_pi_hold", None),
+    # trained on the dish's true pointing error (reward: pointing, select_by: pointing)
+    "ppo_plain_pointing": ("plain PPO, trained on the pointing error", "ppo_plain_pointing", None),
+    "ppo_residual_lqg_pointing": ("model-informed PPO on the pointing LQG, trained on the pointing "
+                                  "error", "ppo_residual_lqg_pointing", None),
 }
 #: single policies scored like the campaigns' (one training seed: an interval over test seeds
-#: only): key -> (label, shipped folder)
-SINGLE_POLICIES = {"residual_pi_shipped": ("residual PPO on the PI, the policy shipped first "
-                                           "(one training seed)", "residual_pi")}
+#: only): key -> (label, shipped folder, the agent whose campaign it is a seed of): a shipped
+#: seed of a campaign gets its own row only while that campaign's row has no pointing scores
+SINGLE_POLICIES = {
+    "residual_pi_shipped": ("residual PPO on the PI, the policy shipped first (one training seed)",
+                            "residual_pi", None),
+    "ppo_plain_shipped": ("plain PPO, the shipped policy (its campaign's seed 11000)", "ppo_plain",
+                          "ppo_plain"),
+    "ppo_residual_lqg_shipped": ("model-informed PPO, the shipped policy (its campaign's seed "
+                                 "10000)", "ppo_residual_lqg", "ppo_residual_lqg"),
+}
 TEST_SEEDS = list(range(10))
 
 
@@ -69,25 +85,38 @@ def _machine() -> dict:
             "python": platform.python_version(), "platform": platform.platform()}
 
 
+def _reference_controllers() -> dict[str, str]:
+    """The reference controllers to run: :data:`REFERENCE_CONTROLLERS` and those of
+    :data:`POINTING_CONTROLLERS` the installed baselines provide."""
+    from dss14_env.bench.runner import CONTROLLERS
+
+    known = set(CONTROLLERS)
+    return {**REFERENCE_CONTROLLERS, **{k: v for k, v in POINTING_CONTROLLERS.items() if k in known}}
+
+
 def references(out: Path) -> None:
-    """Run the reference controllers on the test seeds of both holds (full 3000-step episodes)."""
+    """Run the reference controllers on the test seeds of both holds (full 3000-step episodes):
+    the 3σ servo error of the loaded axis and the 3σ pointing error of the swung axis."""
     from dss14_env.bench.runner import run
 
-    res = run(list(REFERENCE_CONTROLLERS), list(HOLDS), TEST_SEEDS)
+    labels = _reference_controllers()
+    res = run(list(labels), list(HOLDS), TEST_SEEDS)
     values: dict[str, dict[str, list[float]]] = {
-        c: {h: [float("nan")] * len(TEST_SEEDS) for h in HOLDS} for c in REFERENCE_CONTROLLERS}
+        c: {h: [float("nan")] * len(TEST_SEEDS) for h in HOLDS} for c in labels}
+    pointing = {c: {h: [float("nan")] * len(TEST_SEEDS) for h in HOLDS} for c in labels}
     for e in res["episodes"]:
         if e["scenario"] in HOLDS:
-            axis = HOLDS[e["scenario"]]
-            values[e["controller"]][e["scenario"]][TEST_SEEDS.index(e["seed"])] = \
-                e["servo_error_mdeg"][axis]["three_sigma"]
+            h, i = e["scenario"], TEST_SEEDS.index(e["seed"])
+            values[e["controller"]][h][i] = e["servo_error_mdeg"][HOLDS[h]]["three_sigma"]
+            pointing[e["controller"]][h][i] = e["pointing_error_mdeg"][POINTING_AXES[h]]["three_sigma"]
     analytic = {h: res["yardstick"][h]["three_sigma_mdeg"][0 if a == "az" else 1]
                 for h, a in HOLDS.items() if h in res.get("yardstick", {})}
-    doc = {"what": "3-sigma servo error (mdeg) of the loaded axis per test seed, the benchmark's "
+    doc = {"what": "3-sigma servo error (mdeg) of the loaded axis and 3-sigma pointing error (mdeg) "
+                   "of the swung axis (front: el, side: xel) per test seed, the benchmark's "
                    "runner (dss14_env.bench.runner.run), hold scenarios, 3000 steps, 5-s warm-up",
            "date_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
            "machine": _machine(), "test_seeds": TEST_SEEDS, "wall_time_s": res["meta"]["wall_time_s"],
-           "labels": REFERENCE_CONTROLLERS, "three_sigma_mdeg": values,
+           "labels": labels, "three_sigma_mdeg": values, "pointing_three_sigma_mdeg": pointing,
            "yardstick_analytic_three_sigma_mdeg": analytic}
     out.write_text(json.dumps(doc, indent=1) + "\n")
     print(f"wrote {out}")
@@ -109,58 +138,117 @@ def _best_validation(run: Path) -> float:
         return float(np.max(d["selection_score"]))
 
 
-def build(runs: Path, out: Path, refs: Path, figures: Path) -> None:
-    """The results file from the campaigns' summaries and the reference runs; the curves."""
+def _campaign(key: str, camp: Path, label: str, shipped: str | None) -> tuple[str, dict, dict]:
+    """An agent's ``(label, summary, extra)`` from its campaign folder."""
+    summary = json.loads((camp / "summary.json").read_text())
+    if "/configs/" in summary.get("config", ""):  # a checkout's path: the shipped config's
+        summary["config"] = "configs/" + summary["config"].rsplit("/configs/", 1)[1]
+    seed_runs = [camp / f"seed_{e['seed_index']}" for e in summary["per_seed"]]
+    val = [_best_validation(r) for r in seed_runs]
+    pick = int(np.argmax(val))
+    extra = {"selected_at_steps": [_selected_at(r) for r in seed_runs],
+             "validation_score": val,
+             "shipped": None if shipped is None else {
+                 "folder": f"agents/policies/{shipped}",
+                 "seed_index": summary["per_seed"][pick]["seed_index"],
+                 "training_seed": summary["training_seeds"][pick],
+                 "why": "the best validation score (selection_score of eval/best) of the "
+                        "campaign's seeds; the test seeds played no part"}}
+    return label, summary, extra
+
+
+def _reference_drift(committed: dict, ref: dict) -> dict:
+    """How far the reference runs' servo errors moved since the committed results (whose rows
+    were divided by the references of their time): per reference and hold, the committed
+    per-test-seed values and the relative change of their mean."""
+    out = {}
+    for r in ("pi_kp1", "lqg", "mpc"):
+        if r not in committed["rows"] or r not in ref["three_sigma_mdeg"]:
+            continue
+        out[r] = {}
+        for h in HOLDS:
+            old = np.asarray(committed["rows"][r]["holds"][h]["per_test_seed"], float)
+            new = np.asarray(ref["three_sigma_mdeg"][r][h], float)
+            out[r][h] = {"committed_per_test_seed": old.tolist(),
+                         "relative_change_of_mean": float(new.mean() / old.mean() - 1.0)}
+    return out
+
+
+def build(runs: Path, out: Path, refs: Path, figures: Path, keep_from: Path = RESULTS) -> None:
+    """The results file from the campaigns' summaries and the reference runs; the curves.
+
+    An agent whose campaign is not under ``runs`` keeps its row of the committed results file
+    (``keep_from``) as it is, marked ``kept_from``: the trained runs are not in the repository,
+    and a row is only ever computed from its campaign's own summary.
+    """
     ref = json.loads(refs.read_text())
-    references_ = {k: (ref["labels"][k], ref["three_sigma_mdeg"][k]) for k in TABLE_REFERENCES}
-    agents = {}
+    committed = json.loads(keep_from.read_text()) if keep_from.is_file() else None
+    agents, kept = {}, {}
     figures.mkdir(parents=True, exist_ok=True)
     for key, (label, folder, shipped) in AGENTS.items():
         camp = runs / folder
-        if not (camp / "summary.json").is_file():
+        if (camp / "summary.json").is_file():
+            agents[key] = _campaign(key, camp, label, shipped)
+            for png in sorted(camp.glob("curves_*.png")):
+                shutil.copyfile(png, figures / f"{key}_{png.name}")
+        elif committed is not None and key in committed["rows"]:
+            kept[key] = {**committed["rows"][key], "kept_from": committed["rows"][key].get(
+                "kept_from", committed["meta"].get("date_utc", "the committed results"))}
+            print(f"{key}: no {camp / 'summary.json'}; its committed row is kept (no pointing scores)")
+        else:
             print(f"skipping {key}: no {camp / 'summary.json'}")
-            continue
-        summary = json.loads((camp / "summary.json").read_text())
-        if "/configs/" in summary.get("config", ""):  # a checkout's path: the shipped config's
-            summary["config"] = "configs/" + summary["config"].rsplit("/configs/", 1)[1]
-        seed_runs = [camp / f"seed_{e['seed_index']}" for e in summary["per_seed"]]
-        val = [_best_validation(r) for r in seed_runs]
-        pick = int(np.argmax(val))
-        extra = {"selected_at_steps": [_selected_at(r) for r in seed_runs],
-                 "validation_score": val,
-                 "shipped": None if shipped is None else {
-                     "folder": f"agents/policies/{shipped}",
-                     "seed_index": summary["per_seed"][pick]["seed_index"],
-                     "training_seed": summary["training_seeds"][pick],
-                     "why": "the best validation score (selection_score of eval/best) of the "
-                            "campaign's seeds; the test seeds played no part"}}
-        agents[key] = (label, summary, extra)
-        for png in sorted(camp.glob("curves_*.png")):
-            shutil.copyfile(png, figures / f"{key}_{png.name}")
     meta = {"date_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
             "references": str(refs.relative_to(ROOT)) if refs.is_relative_to(ROOT) else str(refs),
             "yardstick_analytic_three_sigma_mdeg": ref.get("yardstick_analytic_three_sigma_mdeg"),
             "protocol": "training seeds 10000 + 1000 k (k = 0-4), validation seeds 1000-1005 "
-                        "(2000-step holds, select_by three_sigma), test seeds 0-9 (3000-step "
-                        "holds, 5-s warm-up); the validation-selected policy (eval/best) is scored",
+                        "(2000-step holds, select_by three_sigma, or pointing for the agents "
+                        "trained on the pointing error), test seeds 0-9 (3000-step holds, 5-s "
+                        "warm-up); the validation-selected policy (eval/best) is scored",
+            "kept_rows": {k: "its campaign's runs are not in the repository: the row is the "
+                             "committed one (servo error only, its ratios against the references "
+                             "of its time)" for k in kept},
             "yardstick_simulated_three_sigma_mdeg": ref["three_sigma_mdeg"].get("yardstick"),
             "yardstick_note": "the yardstick simulated (references file) is not tabled: its design "
                               "ignores the 0.2 deg/s^2 acceleration limit, and on front-hold test "
                               "seeds 1 and 3 it saturates (548 and 2342 of 3000 steps at the "
                               "limit; 1.47 and 245 mdeg); the table gives its analytic value"}
-    from dss14_env.agents.evaluation import DSS14_TASKS, run_task
-    from dss14_env.agents.policy import load_policy, shipped_policy
-
-    for key, (label, folder) in SINGLE_POLICIES.items():
-        ctrl = load_policy(shipped_policy(folder))  # scored as the campaigns score (10 seeds at once)
-        values = {t.name: run_task(ctrl, t, ref["test_seeds"], 3000)["three_sigma_mdeg"].tolist()
-                  for t in DSS14_TASKS}
-        references_[key] = (label, values)
+    if kept:
+        meta["kept_rows_reference_drift"] = committed["meta"].get("kept_rows_reference_drift") \
+            or _reference_drift(committed, ref)
+    references_ = {k: _reference(ref, k) for k in TABLE_REFERENCES}
+    with_pointing = {k for k, (_, s, _) in agents.items() if has_pointing(s)}
+    for key, (label, folder, campaign) in SINGLE_POLICIES.items():
+        if campaign is None or campaign not in with_pointing:
+            references_[key] = (label, *_score_shipped(folder, ref["test_seeds"]))
+    for key in POINTING_CONTROLLERS:
+        if key in ref["labels"]:
+            references_[key] = _reference(ref, key)
     analytic = {"yardstick_analytic": ("yardstick, expected value (H2 analysis)",
                                        ref["yardstick_analytic_three_sigma_mdeg"])}
     results = build_results(agents, references_, ref["test_seeds"], meta, analytic)
+    rows = results["rows"]
+    results["rows"] = {**{k: v for k, v in rows.items() if v["kind"] != "agent"},
+                       **{k: kept[k] if k in kept else rows[k] for k in AGENTS if k in kept or k in rows}}
     out.write_text(json.dumps(results, indent=1) + "\n")
-    print(f"wrote {out} ({len(agents)} agents)")
+    print(f"wrote {out} ({len(agents)} agents from campaigns, {len(kept)} kept)")
+
+
+def _reference(ref: dict, key: str) -> tuple:
+    """A reference controller's ``(label, servo, pointing)`` from the references file."""
+    pointing = ref.get("pointing_three_sigma_mdeg", {}).get(key)
+    return ref["labels"][key], ref["three_sigma_mdeg"][key], pointing
+
+
+def _score_shipped(folder: str, test_seeds: list[int]) -> tuple[dict, dict]:
+    """A shipped policy's 3σ servo and pointing errors per test seed in both holds, scored as
+    the campaigns score (the seeds at once through the batched controller)."""
+    from dss14_env.agents.evaluation import DSS14_TASKS, run_task
+    from dss14_env.agents.policy import load_policy, shipped_policy
+
+    ctrl = load_policy(shipped_policy(folder))
+    res = {t.name: run_task(ctrl, t, test_seeds, 3000) for t in DSS14_TASKS}
+    return ({h: r["three_sigma_mdeg"].tolist() for h, r in res.items()},
+            {h: r["pointing_three_sigma_mdeg"].tolist() for h, r in res.items()})
 
 
 def ship(runs: Path, results_path: Path) -> None:
@@ -170,7 +258,7 @@ def ship(runs: Path, results_path: Path) -> None:
     results = json.loads(results_path.read_text())
     for key, row in results["rows"].items():
         shipped = row.get("shipped")
-        if not shipped:
+        if not shipped or row.get("kept_from"):  # a kept row: its runs are not here
             continue
         run = runs / AGENTS[key][1] / f"seed_{shipped['seed_index']}"
         dest = ROOT / shipped["folder"]
@@ -216,6 +304,8 @@ def main(argv: list[str] | None = None) -> int:
     b.add_argument("--references", type=Path, default=REFERENCES)
     b.add_argument("--out", type=Path, default=RESULTS)
     b.add_argument("--figures", type=Path, default=FIGURES)
+    b.add_argument("--keep-from", type=Path, default=RESULTS,
+                   help="the results file whose rows are kept for campaigns not under --runs")
     s = sub.add_parser("ship", help="copy the shipped agents' chosen seeds to agents/policies")
     s.add_argument("--runs", type=Path, default=Path("runs"))
     s.add_argument("--results", type=Path, default=RESULTS)
@@ -226,7 +316,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.cmd == "references":
         references(args.out)
     elif args.cmd == "build":
-        build(args.runs, args.out, args.references, args.figures)
+        build(args.runs, args.out, args.references, args.figures, args.keep_from)
     elif args.cmd == "ship":
         ship(args.runs, args.results)
     else:

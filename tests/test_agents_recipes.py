@@ -26,8 +26,8 @@ from dss14_env.agents.interface import (
     PolicyInterface,
 )
 from dss14_env.agents.policy import PolicyController, load_policy
-from dss14_env.agents.train import selection_score, train
-from dss14_env.baselines.lqg import LQGController
+from dss14_env.agents.train import selection_key, selection_score, train
+from dss14_env.baselines.lqg import LQGController, PointingLQGController
 from dss14_env.bench.runner import run
 
 HOLD_SIDE = {"wind_direction": "side", "wind_speed_kmh": 50.0}
@@ -107,21 +107,25 @@ def test_lqg_features_are_the_named_parts_of_the_full_estimate(features: tuple) 
     assert np.abs(want).max() > 0  # the features move: a real comparison
 
 
-def test_the_lqg_residual_recipe_at_zero_output_is_the_lqg() -> None:
-    cfg = load_config("ppo_residual_lqg")
+@pytest.mark.parametrize("name, controller", [("ppo_residual_lqg", LQGController),
+                                              ("ppo_residual_lqg_pointing", PointingLQGController)])
+def test_the_lqg_residual_recipe_at_zero_output_is_the_lqg(name: str, controller: type) -> None:
+    """At zero policy output the residual recipe's loop is its base controller's (the LQG, or
+    the pointing-aware LQG): the same servo and pointing errors step by step."""
+    cfg = load_config(name)
     kw = {k: v for k, v in cfg.env_kwargs.items() if k != "max_episode_steps"}
     wrapped = gym.make(cfg.env_id, **{**kw, "wind_direction": "side"})
     base = gym.make("DSS14-Hold-v0", wind_direction="side")
-    lqg = LQGController(base)
+    lqg = controller(base)
     wrapped.reset(seed=7)
     obs, _ = base.reset(seed=7)
     e_w, e_b = [], []
     for _ in range(300):
         *_, info_w = wrapped.step(np.zeros(2, np.float32))
         obs, *_, info_b = base.step(lqg.act(obs))
-        e_w.append(info_w["servo_error_az_mdeg"])
-        e_b.append(info_b["servo_error_az_mdeg"])
-    assert np.abs(e_b).max() > 0.05
+        e_w.append([info_w["servo_error_az_mdeg"], info_w["pointing_error_xel_mdeg"]])
+        e_b.append([info_b["servo_error_az_mdeg"], info_b["pointing_error_xel_mdeg"]])
+    assert np.abs(e_b).max(axis=0).min() > 0.05
     np.testing.assert_array_equal(e_w, e_b)
 
 
@@ -148,6 +152,8 @@ RECIPES = {  # config -> (algo, policy observation size, action scale the policy
     "ppo_plain": ("ppo", 8 + 8 * 4, 0.02),
     "ppo_plain_sweep": ("ppo", 8 + 8 * 4, 0.02),  # the plain recipe's environment at every point
     "ppo_residual_lqg": ("ppo", 8 + 4 + 4 * 4, 0.25),
+    "ppo_plain_pointing": ("ppo", 8 + 8 * 4, 0.02),
+    "ppo_residual_lqg_pointing": ("ppo", 8 + 4 + 4 * 4, 0.25),
     "ppo_residual_pi": ("ppo", 12 + 2 + 8 * 4, 0.25),
     "ppo_residual_pi_hold": ("ppo", 12 + 2 + 8 * 4, 0.25),
     "recurrent_ppo": ("recurrent_ppo", 4, 0.02),
@@ -159,21 +165,27 @@ RECIPES = {  # config -> (algo, policy observation size, action scale the policy
 def test_recipe_configs_build_their_environment(name: str) -> None:
     algo, obs_dim, scale = RECIPES[name]
     cfg = load_config(name)
-    assert cfg.algo == algo and cfg.select_by == "three_sigma"
+    # a recipe on the beam is rewarded, validated and selected on the pointing error
+    on_beam = name.endswith("_pointing")
+    assert cfg.algo == algo and cfg.select_by == ("pointing" if on_beam else "three_sigma")
     assert cfg.seed >= 10_000 and all(1000 <= s < 10_000 for s in cfg.eval_seeds)
     plan, obs_space, act_space, env_cfg = check_env(cfg)
+    assert env_cfg.reward == ("pointing" if on_beam else "servo")
+    assert cfg.eval_env_kwargs.get("reward", "servo") == env_cfg.reward
     assert obs_space.shape == (obs_dim,) and act_space.shape == (2,)
     assert env_cfg.action_scale_deg_s == scale
     # the reward's action-change term keeps the benchmark's weight in deg/s: w = (scale/0.25)^2
     assert env_cfg.action_change_weight == pytest.approx((scale / 0.25) ** 2)
 
 
-#: the rl-zoo3 entries that carry a recipe: (algo, env id) -> config
-ZOO_RECIPES = {("ppo", "DSS14-Plain-v0"): "ppo_plain",
-               ("ppo", "DSS14-ResidualLQG-v0"): "ppo_residual_lqg",
-               ("ppo", "DSS14-Residual-v0"): "ppo_residual_pi",
-               ("recurrent_ppo", "DSS14-Plain-v0"): "recurrent_ppo",
-               ("sac", "DSS14-Plain-v0"): "sac"}
+#: the rl-zoo3 entries that carry a recipe: (algo, hyperparameter file, env id) -> config
+ZOO_RECIPES = {("ppo", "ppo", "DSS14-Plain-v0"): "ppo_plain",
+               ("ppo", "ppo", "DSS14-ResidualLQG-v0"): "ppo_residual_lqg",
+               ("ppo", "ppo", "DSS14-Residual-v0"): "ppo_residual_pi",
+               ("recurrent_ppo", "recurrent_ppo", "DSS14-Plain-v0"): "recurrent_ppo",
+               ("sac", "sac", "DSS14-Plain-v0"): "sac",
+               ("ppo", "ppo_pointing", "DSS14-Plain-v0"): "ppo_plain_pointing",
+               ("ppo", "ppo_pointing", "DSS14-ResidualLQG-v0"): "ppo_residual_lqg_pointing"}
 #: keys a recipe's zoo entry must give as the training config does
 RECIPE_KEYS = ("env_id", "env_kwargs", "n_envs", "total_timesteps", "normalize_obs",
                "normalize_reward", "learning_rate", "gamma", "net_arch", "activation_fn",
@@ -182,10 +194,10 @@ RECIPE_KEYS = ("env_id", "env_kwargs", "n_envs", "total_timesteps", "normalize_o
                "buffer_size", "learning_starts", "tau", "train_freq", "gradient_steps")
 
 
-@pytest.mark.parametrize("algo, env_id", sorted(ZOO_RECIPES))
-def test_zoo_entries_are_the_recipes(algo: str, env_id: str) -> None:
-    zoo = load_hyperparams(algo, env_id).to_dict()
-    cfg = load_config(ZOO_RECIPES[(algo, env_id)]).to_dict()
+@pytest.mark.parametrize("algo, file, env_id", sorted(ZOO_RECIPES))
+def test_zoo_entries_are_the_recipes(algo: str, file: str, env_id: str) -> None:
+    zoo = load_hyperparams(algo, env_id, hyperparams_path(file)).to_dict()
+    cfg = load_config(ZOO_RECIPES[(algo, file, env_id)]).to_dict()
     for key in RECIPE_KEYS:
         if key in cfg:
             assert zoo[key] == cfg[key], key
@@ -194,9 +206,9 @@ def test_zoo_entries_are_the_recipes(algo: str, env_id: str) -> None:
 def test_zoo_entries_are_plain_yaml_for_rl_zoo3() -> None:
     """rl-zoo3 passes every key but its own to the algorithm: none of this package's keys."""
     ours = {"frame_stack", "select_by", "eval_seeds", "eval_episode_steps", "obs_entries"}
-    for algo in ("ppo", "recurrent_ppo", "sac"):
-        for env_id, entry in yaml.safe_load(hyperparams_path(algo).read_text()).items():
-            assert not ours & set(entry), (algo, env_id)
+    for file in ("ppo", "recurrent_ppo", "sac", "ppo_pointing"):
+        for env_id, entry in yaml.safe_load(hyperparams_path(file).read_text()).items():
+            assert not ours & set(entry), (file, env_id)
 
 
 # ------------------------------------------------------------------------------ selection score
@@ -232,31 +244,38 @@ def test_three_sigma_score_scales_and_orders(front: list, side: list, c: float) 
     assert selection_score(cfg, r, worse) < s
 
 
-def test_training_keeps_the_best_validation_three_sigma(tmp_path: Path) -> None:
+@pytest.mark.parametrize("select_by", ["three_sigma", "pointing"])
+def test_training_keeps_the_best_validation_three_sigma(tmp_path: Path, select_by: str) -> None:
+    """eval/best is the evaluation with the lowest geometric mean of the holds' validation 3σ
+    of the selected error (servo, or pointing), and that policy scores that 3σ again."""
     cfg = {"algo": "ppo", "env_id": "DSS14-Plain-v0",
            "env_kwargs": {"max_episode_steps": 100, "action_scale_deg_s": 0.02, "history": 2},
            "n_envs": 2, "n_steps": 64, "batch_size": 64, "n_epochs": 1, "net_arch": [8],
            "total_timesteps": 384, "eval_freq": 128, "eval_seeds": [1000],
-           "eval_episode_steps": 300, "select_by": "three_sigma", "checkpoint_freq": 0,
+           "eval_episode_steps": 300, "select_by": select_by, "checkpoint_freq": 0,
            "progress_bar": False, "verbose": 0}
+    key = selection_key(TrainConfig.from_dict(cfg))
+    assert key == ("pointing_three_sigma_mdeg" if select_by == "pointing" else "three_sigma_mdeg")
     run_dir = train(cfg, run_dir=tmp_path / "run")
     with np.load(run_dir / "eval" / "evaluations.npz") as d:
         score = d["selection_score"]
-        geo = -np.sqrt(d["three_sigma_mdeg_hold_front"].mean(1) * d["three_sigma_mdeg_hold_side"].mean(1))
+        geo = -np.sqrt(d[f"{key}_hold_front"].mean(1) * d[f"{key}_hold_side"].mean(1))
         assert d["timesteps"].tolist() == [128, 256, 384]
+        # both errors are recorded whatever selects, and they differ
+        assert not np.allclose(d["three_sigma_mdeg_hold_side"], d["pointing_three_sigma_mdeg_hold_side"])
     np.testing.assert_allclose(score, geo)
     best = load_policy(run_dir / "eval" / "best")
     res = run_task(best, DSS14_TASKS[0], [1000], 300)
     k = int(np.argmax(score))
     with np.load(run_dir / "eval" / "evaluations.npz") as d:
-        np.testing.assert_allclose(res["three_sigma_mdeg"], d["three_sigma_mdeg_hold_front"][k],
-                                   rtol=1e-6)
+        np.testing.assert_allclose(res[key], d[f"{key}_hold_front"][k], rtol=1e-6)
 
 
 # ------------------------------------------------------------------------------ scoring
 def test_campaign_scoring_equals_the_benchmark_runner() -> None:
     """run_task (the campaign's test scoring, batched through act_batch) gives the runner's 3σ
-    for a policy trained at another action scale (converted on the way)."""
+    servo and pointing errors for a policy trained at another action scale (converted on the
+    way)."""
     import torch
 
     from dss14_env.agents.algos import build_policy
@@ -273,7 +292,9 @@ def test_campaign_scoring_equals_the_benchmark_runner() -> None:
                 ["hold_side"], seeds=[0, 1], steps=steps)
     ref = [e["servo_error_mdeg"]["az"]["three_sigma"] for e in bench["episodes"]]
     np.testing.assert_allclose(res["three_sigma_mdeg"], ref, rtol=1e-6)  # float32 BLAS order
-    assert not res["terminated"].any()
+    ref_p = [e["pointing_error_mdeg"]["xel"]["three_sigma"] for e in bench["episodes"]]
+    np.testing.assert_allclose(res["pointing_three_sigma_mdeg"], ref_p, rtol=1e-6)
+    assert DSS14_TASKS[1].pointing_axis == "xel" and not res["terminated"].any()
 
 
 @pytest.mark.parametrize("features", [("command", "disturbance"), ("law", "command")])

@@ -21,12 +21,16 @@ ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "docs" / "results" / "rl_results.json"
 
 
-def _summary(x_front: np.ndarray, x_side: np.ndarray, test_seeds: list[int]) -> dict:
-    """A campaign summary with the given (training seeds, test seeds) 3σ."""
+def _summary(x_front: np.ndarray, x_side: np.ndarray, test_seeds: list[int],
+             pointing: tuple[np.ndarray, np.ndarray] | None = None) -> dict:
+    """A campaign summary with the given (training seeds, test seeds) 3σ (and pointing 3σ)."""
     per_seed = []
     for k in range(x_front.shape[0]):
         res = {"hold_front": {"three_sigma_mdeg": x_front[k].tolist()},
                "hold_side": {"three_sigma_mdeg": x_side[k].tolist()}}
+        if pointing is not None:
+            for hold, p in zip(("hold_front", "hold_side"), pointing, strict=True):
+                res[hold]["pointing_three_sigma_mdeg"] = p[k].tolist()
         per_seed.append({"seed_index": k, "wall_s": 10.0, "env_steps": 1000,
                          "final": res, "best": res})
     return {"algo": "ppo", "env_id": "DSS14-Plain-v0", "config": "x.yaml",
@@ -75,6 +79,46 @@ def test_build_results_rows_and_seed_check() -> None:
     assert json.loads(json.dumps(res)) == res  # JSON-ready
     with pytest.raises(ValueError, match="test seeds"):
         build_results({"a": ("agent", _summary(xf, xs, seeds), {})}, refs, list(range(1, 11)))
+
+
+def test_pointing_columns_of_agents_references_and_bounds() -> None:
+    """Pointing entries come from the summaries' pointing scores and divide by the references'
+    pointing errors; an agent or reference without them shows "–" in the pointing table only."""
+    rng = np.random.default_rng(3)
+    seeds = list(range(10))
+
+    def holds(lo: float, hi: float) -> dict:
+        return {h: rng.uniform(lo, hi, 10).tolist() for h in ("hold_front", "hold_side")}
+
+    refs = {"pi_kp1": ("PI", holds(2, 3), holds(3, 4)), "lqg": ("LQG", holds(0.4, 0.5), holds(2.5, 4.5)),
+            "mpc": ("MPC", holds(0.4, 0.5)), "lqg_pointing": ("pointing LQG", None, holds(1, 2))}
+    xf, xs = rng.uniform(1, 2, (5, 10)), rng.uniform(1, 2, (5, 10))
+    pf, ps = rng.uniform(2, 3, (5, 10)), rng.uniform(2, 3, (5, 10))
+    res = build_results({"p": ("pointing agent", _summary(xf, xs, seeds, (pf, ps)), {}),
+                         "s": ("servo agent", _summary(xf, xs, seeds), {})}, refs, seeds,
+                        analytic={"bound": ("bound", None, {"hold_front": 1.0, "hold_side": 0.5})})
+    d = res["rows"]["p"]["holds"]["hold_side"]["pointing"]
+    assert d["axis"] == "xel" and d["iqm"]["value"] == pytest.approx(_iqm5(ps.mean(axis=1)))
+    assert d["ratios"]["pi_kp1"]["value"] == pytest.approx(
+        _iqm5(ps.mean(axis=1)) / np.mean(refs["pi_kp1"][2]["hold_side"]))
+    # the servo entry is the same with and without pointing scores (own resampling streams)
+    sp, ss = (res["rows"][k]["holds"]["hold_side"] for k in ("p", "s"))
+    assert sp["per_seed"] == ss["per_seed"] and sp["iqm"]["value"] == ss["iqm"]["value"]
+    assert "pointing" not in res["rows"]["s"]["holds"]["hold_side"]
+    lp = res["rows"]["lqg_pointing"]["holds"]["hold_front"]
+    assert "mean" not in lp and lp["pointing"]["ratios"]["lqg"]["value"] == pytest.approx(
+        np.mean(refs["lqg_pointing"][2]["hold_front"]) / np.mean(refs["lqg"][2]["hold_front"]))
+    assert res["rows"]["bound"]["holds"]["hold_side"]["pointing"]["value"] == 0.5
+    table = rl_tables(res)["rl-table"]
+    pointing, servo = table.split("**Servo error**")
+    line = {r.split(" | ")[0]: r for r in pointing.splitlines() if r.startswith("| ")}
+    assert line["| servo agent"].count("| – ") == 6 and "**" in line["| pointing agent"]
+    assert line["| MPC"].count("| – ") == 6 and line["| LQG"].count("| – ") == 0
+    sline = {r.split(" | ")[0]: r for r in servo.splitlines() if r.startswith("| ")}
+    assert sline["| pointing LQG"].count("| – ") == 6 and sline["| servo agent"].count("| – ") == 0
+    seeds_rows = [r.split(" | ") for r in rl_tables(res)["rl-seeds"].splitlines()]
+    assert all(r[2] != "–" and r[3] != "–" for r in seeds_rows if r[0] == "| pointing agent")
+    assert all(r[2] == "–" and r[4] != "–" for r in seeds_rows if r[0] == "| servo agent")
 
 
 # ------------------------------------------------------------------------------ committed results

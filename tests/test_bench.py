@@ -450,8 +450,39 @@ def test_committed_results_are_a_default_run() -> None:
     assert results["meta"]["controllers"] == list(P.DEFAULT_CONTROLLERS)
     assert cfg["sweep"]["seeds"] == list(range(P.DEFAULT_SWEEP.episodes))
     assert cfg["wind_speeds_kmh"] == list(P.DEFAULT_WIND_SPEEDS_KMH)
-    # every controller but the MPC acted on batches
-    assert results["meta"]["batched"] == {c: c != "mpc" for c in P.DEFAULT_CONTROLLERS}
+    # every batchable row acted on batches
+    assert results["meta"]["batched"] == {c: catalog.CONTROLLERS[c].batchable for c in P.DEFAULT_CONTROLLERS}
+
+
+def test_the_repositorys_generated_tables_are_current() -> None:
+    """README.md and docs/bench.md: every generated region equals its rendering from the
+    committed default results and the catalog."""
+    done = _script("readme_tables.py", "--check")
+    assert done.returncode == 0, done.stderr
+
+
+def test_pointing_is_the_headline(tiny) -> None:
+    """The dish's pointing error leads results.md, and its paired ratios to the PI are the
+    pooled 3σ (root mean square over episodes) of the same seeds, recomputed here from the
+    stored episodes."""
+    md, js = tiny["res"]["markdown"], tiny["json"]
+    assert md.index(tiny["res"]["pointing_table"]) < md.index(tiny["res"]["main_table"])
+    assert md.index("true pointing error") < md.index("servo error at the drive encoders")
+    eps = {(e["controller"], e["scenario"], e["seed"]): e for e in R.episode_rows(js["episodes"])}
+    for c in CTRLS:
+        for s in SCENS:
+            cell = js["summary"][c][s]
+            assert R.fmt_ci(cell["pointing_error_mdeg"]["xel"]["three_sigma"]) in md
+            r = cell["vs_reference_pointing_error_mdeg"]
+            seeds = [k[2] for k in eps if k[:2] == (c, s)]
+            for ax in ("el", "xel"):
+                num = [eps[(c, s, k)]["pointing_error_mdeg"][ax]["three_sigma"] for k in seeds]
+                den = [eps[("pi_kp1", s, k)]["pointing_error_mdeg"][ax]["three_sigma"] for k in seeds]
+                expect = np.sqrt(np.mean(np.square(num))) / np.sqrt(np.mean(np.square(den)))
+                assert r[ax]["value"] == pytest.approx(expect, rel=1e-5)  # 6-digit stored episodes
+                assert r[ax]["n_episodes"] == len(seeds)
+                lo, hi = r[ax]["ci95"]
+                assert c == "pi_kp1" or lo <= r[ax]["value"] <= hi
 
 
 def test_readme_script_checks_and_writes(tmp_path) -> None:

@@ -154,6 +154,53 @@ def summarise(spec: Any, episodes: Sequence[Mapping[str, Any]], reqs: Mapping[st
     return out
 
 
+def draw_summary(spec: Any, plants: Sequence[Mapping[str, Any]],
+                 episodes: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    """The plants' draws: the draws rejected before them (by reason, and as a share of all
+    draws), and each controller's unstable share -- plants on which one of its episodes
+    terminated (the error bound), and, for the report's PI gain sets, plants on which the PI
+    loop has a pole at or right of 0 (exact) -- with Wilson intervals.
+    """
+    rejected: dict[str, int] = {}
+    for p in plants:
+        for why, n in (p.get("params_rejected") or {}).items():
+            rejected[why] = rejected.get(why, 0) + int(n)
+    n_rej = sum(rejected.values())
+    out: dict[str, Any] = {"condition_on_pi": bool(getattr(spec, "condition_on_pi", True)),
+                           "plants": len(plants), "rejected": rejected,
+                           "rejected_share": share_ci(n_rej, n_rej + len(plants)) if plants else None}
+    bad: dict[str, set] = {c: set() for c in spec.names}
+    for ep in episodes:
+        if ep["terminated"]:
+            bad.setdefault(ep["controller"], set()).add(ep["plant"])
+    out["terminated_share"] = {c: share_ci(len(bad[c]), len(plants)) for c in spec.names} if plants else {}
+    gains = sorted({g for p in plants for g in (p.get("pi_loop_abscissa") or {})})
+    out["pi_unstable_share"] = {g: share_ci(sum(p["pi_loop_abscissa"][g] >= 0 for p in plants
+                                                if g in (p.get("pi_loop_abscissa") or {})), len(plants))
+                                for g in gains}
+    return out
+
+
+def draws_markdown(d: Mapping[str, Any]) -> str:
+    """:func:`draw_summary` as a paragraph and a table."""
+    def pct(x: Mapping[str, Any]) -> str:
+        lo, hi = x["ci95"]
+        return f"{100 * x['share']:.1f} % [{100 * lo:.1f}, {100 * hi:.1f}] ({x['k']}/{x['n']})"
+
+    how = ("conditioned on the report's PI (kp 1) being stable with a 0.01 1/s margin, as "
+           "`randomize_params` draws" if d["condition_on_pi"] else
+           "not conditioned on any controller (only the drive's rate loop must be stable)")
+    why = ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in d["rejected"].items() if v) or "none"
+    lines = [f"Plants drawn {how}; draws rejected before them: "
+             + (pct(d["rejected_share"]) if d["rejected_share"] else "—") + f" ({why}).", "",
+             "| controller | plants with a terminated episode | PI loop unstable (exact) |", "|---|---|---|"]
+    for c, x in d["terminated_share"].items():
+        g = c.replace("pi_", "") if c.startswith("pi_") else None
+        exact = d["pi_unstable_share"].get(g)
+        lines.append(f"| {c} | {pct(x)} | {pct(exact) if exact else '—'} |")
+    return "\n".join(lines) + "\n"
+
+
 #: the per-episode entries the statistics read (:func:`compact_results` keeps only these)
 STAT_FIELDS = ("plant", "controller", "condition", "terminated", "failures", "fallbacks", "limit_hits")
 
@@ -238,11 +285,14 @@ def results_markdown(results: Mapping[str, Any]) -> str:
              f"hydraulic parameter ranges (stable part); controllers {', '.join(s['controllers'])}, "
              f"designed on the nominal plant; hold episodes of {s['steps']} steps "
              f"({s['steps'] * control_period():g} s, {s['warmup_s']:g}-s warm-up); "
-             f"{c['chunks']['total']} chunks "
-             f"of {s['chunk_size']} plants ({c['chunks']['computed']} computed in this run, "
+             f"{c['chunks']['total']} chunk{'s' if c['chunks']['total'] != 1 else ''} "
+             f"of {s['chunk_size']} plant{'s' if s['chunk_size'] != 1 else ''} "
+             f"({c['chunks']['computed']} computed in this run, "
              f"{c['chunks']['resumed']} read back), {where}; wall time "
              f"{c['wall_time_s']['total']:.0f} s.", "",
              "## 3σ servo error (mdeg) and pointing requirements", "", main_table(results), ""]
+    if results.get("draws"):
+        parts += ["## Plant draws and unstable shares", "", draws_markdown(results["draws"])]
     if c.get("figures"):
         parts += ["## Cumulative distributions", ""]
         parts += [f"![{f}]({f})" for f in c["figures"]] + [""]

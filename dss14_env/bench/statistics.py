@@ -29,7 +29,7 @@ import numpy as np
 
 from dss14_env.bench.catalog import Scenario
 from dss14_env.core import stats
-from dss14_env.core.results import Cell, RatioCell
+from dss14_env.core.results import ERRORS, SERVO, Cell, RatioCell, episode_error, ratio_key
 from dss14_env.core.units import AXES, KMH
 
 #: confidence level of every interval
@@ -144,17 +144,34 @@ def _ratio_dict(r: stats.Ratio) -> dict[str, Any]:
 
 def reference_ratios(episodes: Sequence[Mapping[str, Any]], reference: Sequence[Mapping[str, Any]],
                      rng: np.random.Generator, n_resamples: int = N_RESAMPLES,
-                     level: float = LEVEL) -> dict[str, Any]:
-    """Pooled 3σ of ``episodes`` over the reference's, per axis, on the seeds both ran
-    (paired bootstrap).
+                     level: float = LEVEL, quantity: str = SERVO) -> dict[str, Any]:
+    """Pooled 3σ of ``quantity`` (:data:`dss14_env.core.results.ERRORS`: the servo error at
+    the encoders, az / el, or the dish's pointing error, el / xel) of ``episodes`` over the
+    reference's, per axis, on the seeds both ran (paired bootstrap).
     """
+    axes = ERRORS[quantity]
     ref = {int(ep["seed"]): ep for ep in reference}
     common = [ep for ep in episodes if int(ep["seed"]) in ref]
-    num = {ax: [ep["servo_error_mdeg"][ax]["three_sigma"] for ep in common] for ax in AXES}
-    den = {ax: [ref[int(ep["seed"])]["servo_error_mdeg"][ax]["three_sigma"] for ep in common]
-           for ax in AXES}
-    r = stats.paired_ratios(num, den, {ax: "rms" for ax in AXES}, rng, n_resamples, level)
-    return {ax: _ratio_dict(r[ax]) for ax in AXES}
+    num = {ax: [episode_error(ep, quantity, ax) for ep in common] for ax in axes}
+    den = {ax: [episode_error(ref[int(ep["seed"])], quantity, ax) for ep in common] for ax in axes}
+    r = stats.paired_ratios(num, den, {ax: "rms" for ax in axes}, rng, n_resamples, level)
+    return {ax: _ratio_dict(r[ax]) for ax in axes}
+
+
+def all_reference_ratios(episodes: Sequence[Mapping[str, Any]],
+                         reference: Sequence[Mapping[str, Any]], names: Sequence[str],
+                         seed: int = 0, n_resamples: int = N_RESAMPLES) -> dict[str, Any]:
+    """The ratios to the reference of every error quantity, keyed by
+    :func:`dss14_env.core.results.ratio_key` (``vs_reference``: the servo error;
+    ``vs_reference_pointing_error_mdeg``: the pointing error), each from its own generator
+    (:func:`cell_rng` of ``names``, plus the quantity for all but the servo error).
+    """
+    out = {}
+    for q in ERRORS:
+        extra = () if q == SERVO else (q,)
+        out[ratio_key("vs_reference", q)] = reference_ratios(
+            episodes, reference, cell_rng(*names, *extra, seed=seed), n_resamples, quantity=q)
+    return out
 
 
 def yardstick_ratios(summary: Mapping[str, Any], ref: Mapping[str, Any]) -> dict[str, Any]:
@@ -183,5 +200,5 @@ def yardstick_reference(scenario: Scenario, env: Any) -> dict[str, Any] | None:
 
 
 __all__ = ["ERROR_POOLING", "LEVEL", "N_RESAMPLES", "POOLING", "RATE_POOLING", "STEP_POOLING",
-           "TIME_POOLING", "cell_rng", "flatten", "reference_ratios", "summarise", "yardstick_ratios",
-           "yardstick_reference"]
+           "TIME_POOLING", "all_reference_ratios", "cell_rng", "flatten", "reference_ratios",
+           "summarise", "yardstick_ratios", "yardstick_reference"]
