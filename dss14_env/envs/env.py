@@ -36,7 +36,7 @@ from dss14_env.envs.plant import (
 )
 from dss14_env.envs.presets import registered_ids_table
 from dss14_env.envs.render import Renderer
-from dss14_env.envs.scenarios import NOISE_BLOCK, Episode, block_rows, command, draw_episode, draw_noise_block
+from dss14_env.envs.scenarios import NOISE_BLOCK, Episode, block_rows, command, draw_noise_block, draw_reset
 
 __all__ = ["DSS14Env", "EnvState", "OBS_HIGH", "OBS_NAMES"]
 
@@ -383,7 +383,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
             self.plants.check_params(cfg.params, cfg.source_of("params"))
         super().reset(seed=seed)
         k = self.constants
-        ep = draw_episode(cfg, self.np_random, self.plants)
+        ep, ne, normals = draw_reset(cfg, self.np_random, self.plants, k.encoder_sigma)
         p = ep.plant
         M, Tm, Pm = p.episode_map(ep.kappa, ep.t_mean)
         C = p.C @ Tm
@@ -394,9 +394,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         self._state_map, self._C_gust = Tm, C[N_STEP_OUTPUTS:]
         self._gust_az, self._gust_inv = gust_divisor(ep.kappa, p.g0)
         self.episode = ep
-        # encoder noise of the reading at t = 0, then the first noise block (this order)
-        ne = self.np_random.standard_normal(2) * k.encoder_sigma if k.encoder_sigma else np.zeros(2)
-        self._next_block(0)
+        self._next_block(0, normals)
         # the state, first observation and info through the batched core (N = 1)
         c, cd = command(ep.traj, np.zeros(1))
         st, obs, rinfo = reset_state(c, cd, y0[None], ep.start[None], ne[None], ep.r0[None],
@@ -433,13 +431,14 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         v0, v1 = (buffer_views(z, self._m) for z in self._z)
         return (v1, v0) if swapped else (v0, v1)
 
-    def _next_block(self, k0: int) -> None:
+    def _next_block(self, k0: int, normals: np.ndarray | None = None) -> None:
         """Per-step rows of steps ``k0 .. k0 + NOISE_BLOCK - 1`` (as lists of floats):
-        :func:`dss14_env.envs.scenarios.block_rows`.
+        :func:`dss14_env.envs.scenarios.block_rows`, from ``normals`` (drawn here if None).
         """
         k = self.constants
-        blk = block_rows(self.episode.traj, k0, k.dt, k.rate_limit,
-                         draw_noise_block(self.np_random, self._rank, k.encoder_sigma > 0.0), k.encoder_sigma)
+        if normals is None:
+            normals = draw_noise_block(self.np_random, self._rank, k.encoder_sigma > 0.0)
+        blk = block_rows(self.episode.traj, k0, k.dt, k.rate_limit, normals, k.encoder_sigma)
         self._rows = blk.tolist()
         self._k0 = k0
 

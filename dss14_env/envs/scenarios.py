@@ -209,6 +209,19 @@ def draw_episode(cfg: EnvConfig, rng: np.random.Generator, plants: PlantFactory)
     return Episode(cfg, plant, speed, float(direction), kappa, t_mean, start, tr, x0, r0, params, rejected)
 
 
+def draw_reset(cfg: EnvConfig, rng: np.random.Generator, plants: PlantFactory, encoder_sigma: float
+               ) -> tuple[Episode, np.ndarray, np.ndarray]:
+    """Every draw of a reset, in their order, for both environments: the episode
+    (:func:`draw_episode`), the encoder noise of the reading at t = 0 (rad; zeros without
+    noise) and the standard normals of the first noise block (:func:`draw_noise_block`).
+
+    :param encoder_sigma: encoder noise std, rad
+    """
+    ep = draw_episode(cfg, rng, plants)
+    ne = rng.standard_normal(2) * encoder_sigma if encoder_sigma else np.zeros(2)
+    return ep, ne, draw_noise_block(rng, ep.plant.noise_rank, encoder_sigma > 0.0)
+
+
 def start_elevation(cfg: EnvConfig, rng: np.random.Generator, plants: PlantFactory) -> float:
     """The episode's absolute start elevation, rad (one draw, unless fixed).
 

@@ -64,7 +64,7 @@ from dss14_env.envs.core import (
 )
 from dss14_env.envs.env import EnvState, check_snapshot, restore, snapshot
 from dss14_env.envs.plant import N_STEP_OUTPUTS, Plant, PlantFactory, resolve_factory
-from dss14_env.envs.scenarios import NOISE_BLOCK, block_rows, command, draw_episode, draw_noise_block
+from dss14_env.envs.scenarios import NOISE_BLOCK, block_rows, command, draw_noise_block, draw_reset
 
 _TRAJ_KEYS = ("v", "amp", "omega", "phase", "sin_phase", "step", "t_step", "slew_acc", "slew_t0",
               "slew_ta", "slew_T")
@@ -193,11 +193,8 @@ class DSS14VectorEnv(VectorEnv):
         inv_old = self._inv
         for i in idx.tolist():
             rng = self._rngs[i]
-            ep = draw_episode(cfg, rng, self.plants)
-            ne = rng.standard_normal(2) * k.encoder_sigma if k.encoder_sigma else np.zeros(2)
-            block_rows(ep.traj, 0, k.dt, k.rate_limit,
-                       draw_noise_block(rng, self._k_rank, k.encoder_sigma > 0.0), k.encoder_sigma,
-                       out=self._blocks[:, i])
+            ep, ne, normals = draw_reset(cfg, rng, self.plants, k.encoder_sigma)
+            block_rows(ep.traj, 0, k.dt, k.rate_limit, normals, k.encoder_sigma, out=self._blocks[:, i])
             p = ep.plant
             self._pid[i] = self._plant_id(p)
             slot = i if inv_old is None else inv_old[i]
