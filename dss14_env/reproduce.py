@@ -28,6 +28,7 @@ import json
 import math
 import re
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -92,6 +93,14 @@ SENSITIVITY_MU_KPAS = (2.8e-4, 2.8e-3)
 #: the DSS-13 34-m antenna.  Only the order of magnitude is claimed here.
 LITERATURE_MOMENT_COEFFICIENTS = {"el_front": 0.10, "az_side": 0.05}
 RATE_CHANNELS = {"az": ("enc_rate_az", "r_a"), "el": ("enc_rate_el", "r_e")}
+#: [R]'s conclusion: the drive encoders limit the PI loop's bandwidth to 0.1 Hz; "master
+#: equatorial or new encoders located close to the axes" would allow 0.7-1.0 Hz
+ENCODER_BANDWIDTH_REPORT = {"drive": "0.1", "axis": "0.7-1.0"}
+#: the rate-loop outputs each kind of encoder reads (az, el), and whether the az output is a
+#: cross-elevation angle (read as the axis angle: divided by cos(E))
+ENCODER_CHANNELS = {"drive": (("enc_az", "enc_el"), False), "axis": (("point_xel", "point_el"), True)}
+#: the phase margin the highest-gain PI loops keep, deg
+MIN_PHASE_MARGIN_DEG = 45.0
 _LOOP_CHANNELS = (("az", "c_a", "enc_az", "enc_el"), ("el", "c_e", "enc_el", "enc_az"))
 
 
@@ -151,6 +160,80 @@ def loop_rows(m: DSS14Model, gain_set: str) -> dict:
     return out
 
 
+def highest_gain_loop(m: DSS14Model, encoders: str, ax: str, pm_min: float = MIN_PHASE_MARGIN_DEG
+                      ) -> dict[str, float]:
+    """The PI position loop of one axis at the highest gain that keeps ``pm_min``.
+
+    The gains are the first gain set's ``(kp, ki)`` times a factor ``g``; ``g`` rises from 1
+    (the report's gains) until the loop first fails -- the open loop's phase margin at its
+    first gain crossover below ``pm_min``, or the closed loop (both axes, the other at the
+    first gain set) unstable -- and the boundary is found by bisection (to 1e-5 relative).
+    The loop is broken at the axis's rate command, ``L = g (kp + ki/s) G`` with ``G`` the rate
+    loop's r -> measured angle: the drive encoder, or with ``encoders="axis"`` the structure's
+    pointing angle (el), resp. its cross-elevation angle divided by ``cos(E)`` (the az axis
+    angle).
+
+    :return: ``gain_factor``, ``kp``, ``ki``, ``crossover_hz``, ``phase_margin_deg`` and
+        ``bandwidth_hz`` (-3 dB of command -> measured angle); all NaN when the loop fails at
+        ``g = 1`` already or still holds at ``g = 40``
+    """
+    (outs, xel), k = ENCODER_CHANNELS[encoders], AXES.index(ax)
+    scale = [1.0 / math.cos(m.cfg.structure.elevation_angle) if xel else 1.0, 1.0]
+    kp, ki = m.gains(next(iter(m.cfg.gain_sets)))
+    rl, c_in = m.rate_loop, ("c_a", "c_e")[k]
+    fl = np.geomspace(0.005, 5.0, 1200)  # loop_margins interpolates
+    G = freqresp(rl, fl, outs[k], ("r_a", "r_e")[k]) * scale[k]
+
+    def margins(g: float) -> tuple[float, float]:
+        return loop_margins(g * (kp[k] + ki[k] / (2j * np.pi * fl)) * G, fl)
+
+    def closed(g: float) -> Any:
+        f = [g if i == k else 1.0 for i in range(2)]
+        return position_loop(rl, tuple(f[i] * kp[i] * scale[i] for i in range(2)),
+                             tuple(f[i] * ki[i] * scale[i] for i in range(2)), outs)
+
+    def ok(g: float) -> bool:
+        return bool(margins(g)[1] >= pm_min and spectral_abscissa(closed(g)) < 0.0)
+
+    grid = np.geomspace(1.0, 40.0, 40)
+    fails = [g for g in grid if not ok(g)]
+    if not fails or fails[0] == grid[0]:
+        keys = ("gain_factor", "kp", "ki", "crossover_hz", "phase_margin_deg", "bandwidth_hz")
+        return dict.fromkeys(keys, math.nan)
+    lo, hi = float(grid[grid < fails[0]][-1]), float(fails[0])
+    while hi - lo > 1e-5 * hi:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if ok(mid) else (lo, mid)
+    (fc, pm), pl = margins(lo), closed(lo)
+    return {"gain_factor": lo, "kp": lo * kp[k], "ki": lo * ki[k], "crossover_hz": fc,
+            "phase_margin_deg": pm, "bandwidth_hz": bandwidth_hz(pl, outs[k], c_in, n=800)}
+
+
+def encoder_rows(m: DSS14Model) -> dict:
+    """The PI loop at the highest gain with >= 45 deg phase margin (:func:`highest_gain_loop`),
+    with drive and with axis encoders, both axes, against [R]'s conclusion (drive encoders: 0.1
+    Hz; encoders close to the axes: 0.7-1.0 Hz).  Reported, not accepted: the report gives the
+    figures without their criterion, and the pointing angles here come from the project's
+    lumped structure (docs/model.md).
+    """
+    out: dict[str, dict] = {}
+    for enc in ENCODER_CHANNELS:
+        rep = ENCODER_BANDWIDTH_REPORT[enc]
+        what = f"{enc} encoders, PI at the highest gain with >= {MIN_PHASE_MARGIN_DEG:g} deg phase margin"
+        for ax in AXES:
+            r = highest_gain_loop(m, enc, ax)
+            tag = f"{enc}_{ax}"
+            out[f"pi_pm45_gain_factor_{tag}"] = _row("-", r["gain_factor"], None,
+                                                     f"{what}: factor on the first gain set's kp, ki")
+            out[f"pi_pm45_crossover_hz_{tag}"] = _row(rep, r["crossover_hz"], None,
+                                                      f"{what}: open-loop gain crossover, Hz (conclusion)")
+            out[f"pi_pm45_bandwidth_hz_{tag}"] = _row(
+                rep, r["bandwidth_hz"], None, f"{what}: -3 dB of c -> measured angle, Hz (conclusion)")
+            out[f"pi_pm45_phase_margin_deg_{tag}"] = _row(
+                f">= {MIN_PHASE_MARGIN_DEG:g}", r["phase_margin_deg"], None, f"{what}: phase margin, deg")
+    return out
+
+
 def compute_metrics(m: DSS14Model, sweep_levels: int = 3) -> dict:
     """Every quantity of the reproduction table, keyed by a stable snake_case name."""
     out: dict[str, dict] = {}
@@ -183,6 +266,7 @@ def compute_metrics(m: DSS14Model, sweep_levels: int = 3) -> dict:
     out["structure_peaks_below_3hz_el"] = _row(0, pk_el.size, [0, 0], "Fig. 15(a): none in el")
     for gname in m.cfg.gain_sets:
         out.update(loop_rows(m, gname))
+    out.update(encoder_rows(m))
     sw = stability_sweep(m, levels=sweep_levels)
     for gname, v in sw["gain_sets"].items():
         out[f"sweep_stable_share_{gname}"] = _row("-", v["stable_share"], None,
@@ -528,6 +612,13 @@ def readme_table(results: dict) -> str:
     model, keys = both("cross_coupling_{ax}_step_{g}", ".2e")
     rows.append(("step cross-coupling az→el / el→az, kp 1; kp 0.7", "~1e-3", model, keys, ".0e",
                  "az→el kp 1 only"))
+    for enc in ENCODER_CHANNELS:
+        keys = [f"pi_pm45_{q}_{enc}_{ax}" for q in ("crossover_hz", "bandwidth_hz") for ax in AXES]
+        model = "; ".join(" / ".join(_v(mt, f"pi_pm45_{q}_{enc}_{ax}", ".2f") for ax in AXES)
+                          for q in ("crossover_hz", "bandwidth_hz"))
+        rows.append((f"{enc} encoders, PI at the highest gain with ≥ {MIN_PHASE_MARGIN_DEG:g}° phase margin: "
+                     "gain crossover az / el; −3 dB bandwidth az / el, Hz (conclusion)",
+                     ENCODER_BANDWIDTH_REPORT[enc].replace("-", "–"), model, keys, ".2f", "no"))
     keys = [f"stable_position_loop_{g}" for g in gs]
     rows.append(("nominal position loops: largest pole real part kp 1; kp 0.7, 1/s", "stable",
                  "; ".join(_v(mt, k, ".3f") for k in keys), keys, ".0f", "no"))

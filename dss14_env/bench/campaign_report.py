@@ -41,6 +41,7 @@ from dss14_env.bench.plan import control_period
 from dss14_env.bench.report import fmt, package_versions
 from dss14_env.core.results import ERRORS, POINTING, SERVO, episode_error
 from dss14_env.core.stats import bootstrap_ci
+from dss14_env.core.text import counted
 
 #: pointing requirements by default: 3σ pointing error, mdeg.  The half-power beamwidth of a 70-m
 #: dish, about 1.2 lambda / D, is 9.2 mdeg at Ka-band (32 GHz) and 35 mdeg at X-band (8.4 GHz);
@@ -308,8 +309,8 @@ def results_markdown(results: Mapping[str, Any]) -> str:
              f"hydraulic parameter ranges (stable part); controllers {', '.join(s['controllers'])}, "
              f"designed on the nominal plant; hold episodes of {s['steps']} steps "
              f"({s['steps'] * control_period():g} s, {s['warmup_s']:g}-s warm-up); "
-             f"{c['chunks']['total']} chunk{'s' if c['chunks']['total'] != 1 else ''} "
-             f"of {s['chunk_size']} plant{'s' if s['chunk_size'] != 1 else ''} "
+             f"{counted(c['chunks']['total'], 'chunk')} "
+             f"of {counted(s['chunk_size'], 'plant')} "
              f"({c['chunks']['computed']} computed in this run, "
              f"{c['chunks']['resumed']} read back), {where}; wall time "
              f"{c['wall_time_s']['total']:.0f} s.", "",

@@ -599,8 +599,9 @@ LEGEND = """\
   controllers ran, with a paired bootstrap interval (the same gusts in numerator and
   denominator, so the ratio is much sharper than either figure).  **÷ yardstick**: over the
   analytic expected 3σ of the H2-optimal full-order LQG for the scenario's wind
-  (`baselines/yardstick.py`), the best a linear controller can do on the model with white
-  quantisation noise; the interval is the controller's.  **n.s.**: not significant, the
+  (`baselines/yardstick.py`), optimal for the benchmark's quadratic cost on the model with white
+  quantisation noise (a bound on that cost, not on the 3σ: more action change gives a smaller
+  3σ); the interval is the controller's.  **n.s.**: not significant, the
   interval contains 1.
 * Controllers that act on batches (PI, LQG, PPO with the batch interface) run many episodes
   at once through the vector environment; the MPC runs one episode at a time on the first

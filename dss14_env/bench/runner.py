@@ -202,6 +202,8 @@ def _run_scenario(ctrls: list[tuple[str, Callable[[Any], Controller]]], sname: s
             cells[cname] = summarise(eps, cell_rng(cname, sname, seed=bootstrap_seed), n_resamples)
             if ref is not None:
                 cells[cname]["vs_yardstick"] = yardstick_ratios(cells[cname], ref)
+                cells[cname]["vs_yardstick_pointing_error_mdeg"] = yardstick_ratios(cells[cname], ref,
+                                                                                    pointing=True)
     if reference in by_ctrl:
         for cname, eps in by_ctrl.items():
             cells[cname].update(all_reference_ratios(eps, by_ctrl[reference], (cname, reference, sname),

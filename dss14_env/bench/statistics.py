@@ -13,7 +13,9 @@ resampled together from a generator seeded by the cell's name (:func:`cell_rng`)
 reproduces it.  Ratios (``three_sigma`` per axis): ``vs_reference``, over the reference
 controller (default the report's PI, ``pi_kp1``) on the seeds both ran, resampling the pairs
 together; ``vs_yardstick``, over the yardstick's analytic expected 3σ
-(:func:`dss14_env.baselines.yardstick.expected_performance`) for scenarios with one fixed wind;
+(:func:`dss14_env.baselines.yardstick.expected_performance`) for scenarios with one fixed wind,
+and ``vs_yardstick_pointing_error_mdeg`` (per pointing axis, el and xel), the pointing error's
+over the pointing yardstick's;
 each ``{"value", "ci95", "significant", "n_episodes"}``, with ``significant`` False when the
 interval contains 1 (None without an interval).
 """
@@ -29,7 +31,7 @@ import numpy as np
 
 from dss14_env.bench.catalog import Scenario
 from dss14_env.core import stats
-from dss14_env.core.results import ERRORS, SERVO, Cell, RatioCell, episode_error, ratio_key
+from dss14_env.core.results import ERRORS, POINTING_AXES, SERVO, Cell, RatioCell, episode_error, ratio_key
 from dss14_env.core.units import AXES, KMH
 
 #: confidence level of every interval
@@ -174,14 +176,21 @@ def all_reference_ratios(episodes: Sequence[Mapping[str, Any]],
     return out
 
 
-def yardstick_ratios(summary: Mapping[str, Any], ref: Mapping[str, Any]) -> dict[str, Any]:
-    """Pooled 3σ per axis over the yardstick's analytic (exact) expected 3σ; the interval is
-    the controller's, divided by the same number.
+def yardstick_ratios(summary: Mapping[str, Any], ref: Mapping[str, Any], pointing: bool = False
+                     ) -> dict[str, Any]:
+    """Pooled 3σ per axis over a yardstick's analytic (exact) expected 3σ; the interval is
+    the controller's, divided by the same number.  Default: the servo error (az, el) over the
+    encoder yardstick's; ``pointing``: the pointing error (el, xel) over the pointing
+    yardstick's (``ref["pointing"]``).
     """
+    metric, key, axes = ("servo_error_mdeg", "three_sigma_mdeg", AXES)
+    if pointing:
+        metric, key, axes, ref = ("pointing_error_mdeg", "pointing_three_sigma_mdeg", POINTING_AXES,
+                                  ref["pointing"])
     out = {}
-    for i, ax in enumerate(AXES):
-        c = summary["servo_error_mdeg"][ax]["three_sigma"]
-        y = float(ref["three_sigma_mdeg"][i])
+    for i, ax in enumerate(axes):
+        c = summary[metric][ax]["three_sigma"]
+        y = float(ref[key][i])
         r = stats.Ratio(c["value"] / y, c["ci95"][0] / y, c["ci95"][1] / y, c["n_episodes"], 1,
                         "the controller's interval over the analytic figure")
         out[ax] = _ratio_dict(r)
@@ -189,14 +198,16 @@ def yardstick_ratios(summary: Mapping[str, Any], ref: Mapping[str, Any]) -> dict
 
 
 def yardstick_reference(scenario: Scenario, env: Any) -> dict[str, Any] | None:
-    """The yardstick's expected performance for a scenario with one fixed wind, else None."""
+    """The yardsticks' expected performance for a scenario with one fixed wind, else None: the
+    encoder yardstick's, the pointing yardstick's under ``"pointing"``
+    (:func:`dss14_env.baselines.yardstick.references`).
+    """
     kw = scenario.env
     speed, direction = kw.get("wind_speed_kmh"), kw.get("wind_direction")
     if not isinstance(speed, (int, float)) or speed <= 0 or direction in (None, "random"):
         return None
-    from dss14_env.baselines.yardstick import expected_performance
-    return expected_performance(env, speed * KMH, direction)
-
+    from dss14_env.baselines.yardstick import references
+    return references(env, speed * KMH, direction)
 
 
 __all__ = ["ERROR_POOLING", "LEVEL", "N_RESAMPLES", "POOLING", "RATE_POOLING", "STEP_POOLING",
