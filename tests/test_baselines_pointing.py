@@ -4,6 +4,9 @@ pointing LQG against the PI on the dish's true pointing error (baselines/lqg.py)
 from __future__ import annotations
 
 import math
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -260,3 +263,9 @@ def test_designs_on_axis_encoders_beat_the_pi_on_them(axis_holds, ctrl: str, sce
     r = _paired(axis_holds, ctrl, "pi_kp1", scenario, DOMINANT[scenario])
     assert r.high < 1.0, r
     assert axis_holds["summary"][ctrl][scenario]["terminated"] == 0
+
+
+def test_yardsticks_table_is_the_committed_results() -> None:
+    """docs/controllers.md's yardsticks table is the rendering of docs/results/yardsticks.json."""
+    script = Path(__file__).resolve().parents[1] / "scripts" / "yardsticks.py"
+    assert subprocess.run([sys.executable, str(script), "--check"], capture_output=True).returncode == 0

@@ -111,11 +111,12 @@ CONTROLLER_ROWS: tuple[ControllerRow, ...] = (
     ControllerRow("lqg_pointing", "dss14_env.baselines.lqg", "PointingLQGController",
                   "LQG designed for the dish's true pointing error: Kalman filter on the drive "
                   "encoders, the LQR scores the structure's pointing (deformation included) "
-                  "(`baselines/lqg.py`, docs/controllers.md)", config="pointing", campaign=True),
+                  "(`baselines/lqg.py`, docs/controllers.md)", config="pointing", bench=False,
+                  campaign=True),
     ControllerRow("mpc_pointing", "dss14_env.baselines.mpc", "PointingMPCController",
                   "MPC on the pointing LQG's design and estimator, its soft error bound on the "
                   "predicted pointing error (`baselines/mpc.py`)", batchable=False,
-                  config="pointing"),
+                  config="pointing", bench=False),
     _policy_row("ppo", "residual_pi", "PPO residual on the report's PI, the policy shipped with the "
                 "package (`agents/policies/residual_pi`); `--ppo-model PATH` replaces it by a "
                 "trained policy, scored under its own name"),
@@ -267,9 +268,11 @@ SCENARIO_ROWS: tuple[ScenarioRow, ...] = (
     # the report's encoders close to the axes: the batched controllers only (the MPCs' budget is
     # the drive-encoder holds')
     ScenarioRow("hold_front_axis", Budget(60.0, 64, 0), Budget(15.0, 4, 0), preset="hold_front",
-                env={"encoders": "axis"}, note="axis encoders (the structure's angles at the axes)"),
+                env={"encoders": "axis"}, note="axis encoders (the structure's angles at the axes)",
+                bench=False),
     ScenarioRow("hold_side_axis", Budget(60.0, 64, 0), Budget(15.0, 4, 0), preset="hold_side",
-                env={"encoders": "axis"}, note="axis encoders (the structure's angles at the axes)"),
+                env={"encoders": "axis"}, note="axis encoders (the structure's angles at the axes)",
+                bench=False),
 )
 
 #: scenario rows by name
