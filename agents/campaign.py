@@ -17,7 +17,7 @@ of different runs never share a seed), then scores every run's final and best
     config.yaml         the configuration the runs share (seed: the base seed)
 
 An interrupted campaign continues with ``resume=True`` (``dss14 train ... --seeds ...
---continue``): the seeds whose run finished with the campaign's configuration are scored
+--resume``): the seeds whose run finished with the campaign's configuration are scored
 again, not retrained; the others are trained anew.
 
 The interval resamples training seeds (the independent units); with fewer than 5 seeds it is
@@ -165,15 +165,15 @@ def finished_run(cfg: TrainConfig, run: Path) -> bool:
 def check_saved_config(cfg: TrainConfig, folder: Path) -> None:
     """Refuse to continue in ``folder`` unless its ``config.yaml`` is ``cfg``.
 
-    :raises ValueError: no readable ``config.yaml``, or another configuration (``--continue``)
+    :raises ValueError: no readable ``config.yaml``, or another configuration (``--resume``)
     """
     try:
         saved = yaml.safe_load((folder / "config.yaml").read_text())
     except (OSError, yaml.YAMLError):
-        raise ValueError(f"--continue: {folder} holds no campaign to continue (no readable "
+        raise ValueError(f"--resume: {folder} holds no campaign to continue (no readable "
                          f"config.yaml)") from None
     if saved != _as_yaml_data(cfg):
-        raise ValueError(f"--continue: {folder / 'config.yaml'} is another configuration than "
+        raise ValueError(f"--resume: {folder / 'config.yaml'} is another configuration than "
                          f"{cfg.source}; continue with the campaign's own --config")
 
 

@@ -130,7 +130,8 @@ def _train(args: argparse.Namespace) -> int:
     if args.out is None:
         raise ValueError("--seeds needs --out (the campaign folder)")
     if resume_campaign and args.overwrite:
-        raise ValueError("--resume keeps the finished runs in --out: without --overwrite")
+        opt = "--continue" if args.continue_ else "--resume"
+        raise ValueError(f"{opt} keeps the finished runs in --out: without --overwrite")
     seeds = parse_seeds(args.seeds)
     run_all = train_sweep if cfg.sweep else train_seeds
     try:
@@ -274,7 +275,7 @@ def _add_campaign_parser(sub: Any) -> None:
     p.add_argument("--chunk-size", type=int, default=None, metavar="N",
                    help="plants per chunk, the unit of work and of resuming (default 5)")
     p.add_argument("--requirements", nargs="+", metavar="NAME=MDEG", default=None,
-                   help="pointing requirements on the 3-sigma servo error (default: Ka=2 X=8)")
+                   help="pointing requirements on the 3-sigma pointing error (default: Ka=2 X=8)")
     p.add_argument("--ray", action="store_true", help="run the chunks as Ray tasks (a local Ray by default)")
     p.add_argument("--address", default=None,
                    help="join a running Ray cluster: 'auto' or its address (implies --ray)")
@@ -407,8 +408,21 @@ def run_command(args: argparse.Namespace) -> int:
         print(f"dss14 {args.command}: error: {_one_line(exc)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(f"dss14 {args.command}: interrupted", file=sys.stderr)
+        print(f"dss14 {args.command}: interrupted{_again(args)}", file=sys.stderr)
         return 130
+
+
+def _again(args: argparse.Namespace) -> str:
+    """``; start again with: <command>`` for an interrupted command that keeps nothing to
+    continue from (its files so far are in its manifest, so ``--overwrite`` replaces them).
+    """
+    import shlex
+
+    argv = getattr(args, "argv", None)
+    if argv is None or args.command not in ("bench", "reproduce"):
+        return ""
+    again = [a for a in argv if a != "--overwrite"] + ["--overwrite"]
+    return f"; start again with: dss14 {shlex.join(again)}"
 
 
 def _one_line(exc: BaseException) -> str:

@@ -468,6 +468,8 @@ def test_pointing_is_the_headline(tiny) -> None:
     md, js = tiny["res"]["markdown"], tiny["json"]
     assert md.index(tiny["res"]["pointing_table"]) < md.index(tiny["res"]["main_table"])
     assert md.index("true pointing error") < md.index("servo error at the drive encoders")
+    # the pointing yardstick's analytic figure and the ratios to it, on the loaded pointing axis
+    assert "| pointing yardstick (analytic) |" in md and "hold_side xel ÷ pointing yardstick" in md
     eps = {(e["controller"], e["scenario"], e["seed"]): e for e in R.episode_rows(js["episodes"])}
     for c in CTRLS:
         for s in SCENS:

@@ -10,6 +10,8 @@ import dataclasses
 import gymnasium as gym
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import dss14_env  # noqa: F401  (registers the ids)
 from dss14_env.envs.env import DSS14Env, EnvState
@@ -102,3 +104,48 @@ def test_wrapper_ids_restore_their_next_observation_bit_for_bit(env_id: str) -> 
         got = _steps(env, 40, seed=2)
         for (o1, r1), (o2, r2) in zip(ref, got, strict=True):
             assert np.array_equal(o1, o2) and r1 == r2
+
+
+# ---------------------------------------------------------------------------- hypothesis
+_ENV = DSS14Env(**KW)
+_ENV.reset(seed=5)
+_GOOD = _ENV.get_state()
+_VENV = DSS14VectorEnv(num_envs=2, **{**KW, "wind_speed_kmh": "random"})  # two plants: a permutation
+_VENV.reset(seed=5)
+_VGOOD = _VENV.get_state()
+
+
+@st.composite
+def damaged(draw, good: EnvState) -> EnvState:
+    """A snapshot with parts missing, parts cut short, another configuration or foreign riders."""
+    data = dict(good.data)
+    kind = draw(st.sampled_from(["drop", "cut", "config", "riders", "num_envs"]))
+    if kind == "drop":
+        names = sorted(k for k in data if not k.startswith("_np_random"))  # the vector env's own seed
+        for name in draw(st.lists(st.sampled_from(names), min_size=1, max_size=len(names), unique=True)):
+            del data[name]
+        return dataclasses.replace(good, data=data)
+    if kind == "cut":
+        arrays = sorted(k for k, v in data.items() if isinstance(v, np.ndarray) and v.ndim and v.shape[0] > 1)
+        if not arrays:
+            return dataclasses.replace(good, data={})
+        name = draw(st.sampled_from(arrays))
+        data[name] = data[name][:draw(st.integers(0, data[name].shape[0] - 1))]
+        return dataclasses.replace(good, data=data)
+    if kind == "config":
+        key, value = draw(st.sampled_from([("dt", 0.01), ("scenario", "track"), ("reward", "pointing"),
+                                           ("encoders", "axis"), ("wind_speed_kmh", 30.0)]))
+        return dataclasses.replace(good, config=good.config.replace(**{key: value}))
+    if kind == "riders":
+        return dataclasses.replace(good, riders=good.riders + (draw(st.integers()),))
+    return dataclasses.replace(good, num_envs=good.num_envs + draw(st.integers(1, 3)))
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.data())
+def test_every_damaged_snapshot_is_refused_in_one_line(data) -> None:
+    for env, good in ((_ENV, _GOOD), (_VENV, _VGOOD)):
+        bad = data.draw(damaged(good))
+        with pytest.raises(ValueError) as err:
+            env.set_state(bad)
+        assert "\n" not in str(err.value) and str(err.value).startswith("state ")

@@ -19,6 +19,7 @@ from dss14_env.envs.config import EnvConfig, load_env_config
 from dss14_env.envs.core import (
     OBS_HIGH,
     OBS_NAMES,
+    EpisodeConstants,
     StepConstants,
     StepState,
     as_actions,
@@ -29,6 +30,7 @@ from dss14_env.envs.core import (
 )
 from dss14_env.envs.plant import (
     N_STEP_OUTPUTS,
+    OUTPUTS,
     PlantFactory,
     buffer_views,
     resolve_factory,
@@ -56,7 +58,7 @@ class EnvState:
     config: Any = None
     #: its number of sub-environments (1: a single environment)
     num_envs: int = 1
-    #: its model file (None: the shipped model)
+    #: its model (:func:`model_name`)
     model: str | None = None
     #: the states of the objects attached to it, in order
     riders: tuple = ()
@@ -70,7 +72,15 @@ def snapshot(env: Any, attrs: dict[str, Any], names: tuple[str, ...], shared: tu
     """
     memo = {id(x): x for x in shared}
     return EnvState(type(env).__name__, copy.deepcopy({n: attrs[n] for n in names}, memo), env.config,
-                    getattr(env, "num_envs", 1), env.plants.source, tuple(r.get_state() for r in riders))
+                    getattr(env, "num_envs", 1), model_name(env.plants), tuple(r.get_state() for r in riders))
+
+
+def model_name(plants: PlantFactory) -> str:
+    """The model an environment runs on, in words: its file (or the shipped one) and whether its
+    wind loads were refitted to Table 4 on it.
+    """
+    name = plants.source or "the shipped model"
+    return name + (" (wind loads refitted)" if plants.recalibrated else "")
 
 
 def check_snapshot(env: Any, state: Any, names: tuple[str, ...], riders: tuple = ()) -> None:
@@ -94,10 +104,9 @@ def check_snapshot(env: Any, state: Any, names: tuple[str, ...], riders: tuple =
         key = next((k for k in ours if theirs.get(k, ours[k]) != ours[k]), "config")
         raise ValueError(f"state must come from an environment of this configuration: field {key!r} is "
                          f"{theirs.get(key)!r} in the snapshot, {ours.get(key)!r} here")
-    if state.model != env.plants.source:
-        ours, theirs = env.plants.source or "the shipped model", state.model or "the shipped model"
-        raise ValueError(f"state must come from an environment of this model ({ours}), got a snapshot of "
-                         f"{theirs}")
+    if state.model != model_name(env.plants):
+        raise ValueError(f"state must come from an environment of this model ({model_name(env.plants)}), got "
+                         f"a snapshot of {state.model}")
     data = state.data if isinstance(state.data, dict) else {}
     missing = [k for k in names if k not in data]
     if missing:
@@ -572,7 +581,10 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
               and all(isinstance(b, np.ndarray) and b.shape == (width + N_STEP_OUTPUTS,) for b in z)
               and isinstance(st, StepState) and all(len(v) == 2 for v in st[:4])
               and isinstance(rows, list) and len(rows) == NOISE_BLOCK
-              and all(len(r) == 8 + p.noise_rank for r in rows))
+              and all(len(r) == 8 + p.noise_rank for r in rows)
+              and _shape(data["_state_map"]) == (p.n, m)
+              and _shape(data["_C_gust"]) == (len(OUTPUTS) - N_STEP_OUTPUTS, m)
+              and isinstance(data["episode"], Episode) and isinstance(data["_sc"], EpisodeConstants))
         if not ok:
             raise ValueError(f"state must hold the plant and step state of this model ({p.n - p.n_wind} "
                              f"one-copy states, {p.noise_rank} noise inputs): its parts have other shapes")
@@ -598,6 +610,11 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
 
 DSS14Env.__doc__ = DSS14Env.__doc__.replace("{registered_ids}",
                                             registered_ids_table().replace("\n", "\n    "))
+
+
+def _shape(x: Any) -> tuple | None:
+    """The shape of an array (None for anything else)."""
+    return x.shape if isinstance(x, np.ndarray) else None
 
 
 def gust_divisor(kappa: np.ndarray, g0: float) -> tuple[bool, float]:

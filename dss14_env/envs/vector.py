@@ -426,13 +426,15 @@ class DSS14VectorEnv(VectorEnv):
         s = data["_s"]
         shapes = {"_Zs": (N, n + 4 + 2 * k), "_Os": (N, n + N_STEP_OUTPUTS), "_Y": (N, N_STEP_OUTPUTS),
                   "_blocks": (NOISE_BLOCK, N, 8 + k), "_start": (N, 2), "_k": (N,), "_wind": (N, 2),
-                  "_max_e": (N,), "_r0": (N, 2), "_ne0": (N, 2), "_prev_done": (N,), "_pid": (N,)}
+                  "_max_e": (N,), "_r0": (N, 2), "_ne0": (N, 2), "_prev_done": (N,), "_pid": (N,),
+                  "_kappa": (N, 2), "_kappa_s": (N, 2)}
         bad = [name for name, shape in shapes.items()
                if not isinstance(data[name], np.ndarray) or data[name].shape != shape]
         if not isinstance(s, StepState) or any(np.shape(v)[:1] != (N,) for v in s):
             bad.append("_s")
         if not isinstance(data["_rngs"], list) or len(data["_rngs"]) != N:
             bad.append("_rngs")
+        bad += [name for name in ("_perm", "_inv") if data[name] is not None and np.shape(data[name]) != (N,)]
         if bad:
             raise ValueError(f"state must hold {N} sub-environments of this model ({n} states, {k} noise "
                              f"inputs): its part(s) {', '.join(bad)} have other shapes")
