@@ -17,7 +17,7 @@ of different runs never share a seed), then scores every run's final and best
     config.yaml         the configuration the runs share (seed: the base seed)
 
 An interrupted campaign continues with ``resume=True`` (``dss14 train ... --seeds ...
---continue``): the seeds whose run finished with the campaign's configuration are scored
+--resume``): the seeds whose run finished with the campaign's configuration are scored
 again, not retrained; the others are trained anew.
 
 The interval resamples training seeds (the independent units); with fewer than 5 seeds it is
@@ -55,6 +55,7 @@ from dss14_env.core.outdir import (
     update_manifest,
 )
 from dss14_env.core.parallel import Executor, SerialExecutor, pinned_threads
+from dss14_env.core.seeds import parse_seed_list
 from dss14_env.core.stats import iqm_ci
 from dss14_env.core.text import counted
 
@@ -68,28 +69,12 @@ BOOTSTRAP_SEED = 0
 
 
 def parse_seeds(values: Sequence[str | int]) -> list[int]:
-    """Seed indices from ``--seeds`` values: ``["0-4"]`` -> 0..4, ``["0", "3", "7"]``.
+    """Seed indices from ``--seeds`` values: ``["0-4"]`` -> 0..4, ``["0", "3", "7"]``
+    (:func:`dss14_env.core.seeds.parse_seed_list`, the grammar of ``--seeds`` in every command).
 
     :raises ValueError: a value that is not an index or a range, a repeated index
     """
-    out: list[int] = []
-    for v in values:
-        s = str(v).strip()
-        m = re.fullmatch(r"(\d+)-(\d+)", s)
-        if m:
-            lo, hi = int(m[1]), int(m[2])
-            if hi < lo:
-                raise ValueError(f"--seeds: empty range {s!r}")
-            out += list(range(lo, hi + 1))
-        elif re.fullmatch(r"\d+", s):
-            out.append(int(s))
-        else:
-            raise ValueError(f"--seeds: expected seed indices (0 3 7) or a range (0-4), got {s!r}")
-    if not out:
-        raise ValueError("--seeds: no seed given")
-    if len(set(out)) != len(out):
-        raise ValueError(f"--seeds: a seed is repeated: {out}")
-    return out
+    return parse_seed_list(values)
 
 
 def training_seed(config: TrainConfig, k: int) -> int:
@@ -165,15 +150,15 @@ def finished_run(cfg: TrainConfig, run: Path) -> bool:
 def check_saved_config(cfg: TrainConfig, folder: Path) -> None:
     """Refuse to continue in ``folder`` unless its ``config.yaml`` is ``cfg``.
 
-    :raises ValueError: no readable ``config.yaml``, or another configuration (``--continue``)
+    :raises ValueError: no readable ``config.yaml``, or another configuration (``--resume``)
     """
     try:
         saved = yaml.safe_load((folder / "config.yaml").read_text())
     except (OSError, yaml.YAMLError):
-        raise ValueError(f"--continue: {folder} holds no campaign to continue (no readable "
+        raise ValueError(f"--resume: {folder} holds no campaign to continue (no readable "
                          f"config.yaml)") from None
     if saved != _as_yaml_data(cfg):
-        raise ValueError(f"--continue: {folder / 'config.yaml'} is another configuration than "
+        raise ValueError(f"--resume: {folder / 'config.yaml'} is another configuration than "
                          f"{cfg.source}; continue with the campaign's own --config")
 
 

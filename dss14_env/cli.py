@@ -130,7 +130,8 @@ def _train(args: argparse.Namespace) -> int:
     if args.out is None:
         raise ValueError("--seeds needs --out (the campaign folder)")
     if resume_campaign and args.overwrite:
-        raise ValueError("--resume keeps the finished runs in --out: without --overwrite")
+        opt = "--continue" if args.continue_ else "--resume"
+        raise ValueError(f"{opt} keeps the finished runs in --out: without --overwrite")
     seeds = parse_seeds(args.seeds)
     run_all = train_sweep if cfg.sweep else train_seeds
     try:
@@ -173,10 +174,12 @@ def _bench(args: argparse.Namespace) -> int:
     import shlex
 
     from dss14_env.bench.bench import bench, build_plan, prepare_out
+    from dss14_env.bench.plan import parse_episodes
 
     args.ppo_model = _policy_option(args.ppo_model)
     cmd = "dss14 " + shlex.join(args.argv)
-    plan = build_plan(controllers=args.controllers, scenarios=args.scenarios, seeds=args.seeds,
+    seeds = parse_episodes(args.episodes) if args.episodes is not None else args.seeds
+    plan = build_plan(controllers=args.controllers, scenarios=args.scenarios, seeds=seeds,
                       wind_speeds=args.wind_speeds, steps=args.steps, quick=args.quick,
                       ppo_model=args.ppo_model, randomize=args.randomize, out=args.out,
                       figures=not args.no_figures, sweep=not args.no_sweep,
@@ -274,7 +277,7 @@ def _add_campaign_parser(sub: Any) -> None:
     p.add_argument("--chunk-size", type=int, default=None, metavar="N",
                    help="plants per chunk, the unit of work and of resuming (default 5)")
     p.add_argument("--requirements", nargs="+", metavar="NAME=MDEG", default=None,
-                   help="pointing requirements on the 3-sigma servo error (default: Ka=2 X=8)")
+                   help="pointing requirements on the 3-sigma pointing error (default: Ka=2 X=8)")
     p.add_argument("--ray", action="store_true", help="run the chunks as Ray tasks (a local Ray by default)")
     p.add_argument("--address", default=None,
                    help="join a running Ray cluster: 'auto' or its address (implies --ray)")
@@ -354,9 +357,13 @@ def main(argv: list[str] | None = None) -> int:
                        "figure with its 95 % confidence interval (docs/bench.md).")
     p.add_argument("--quick", action="store_true",
                    help="short version for CI: few, short episodes, wind speeds 30 50 70 (under 30 s)")
-    p.add_argument("--seeds", nargs="+", metavar="SEED", default=None,
-                   help="episodes of the batched controllers in every scenario: one value N: seeds "
-                   "0..N-1; several: those seeds (default: each scenario's count, e.g. 128 for hold)")
+    seeds = p.add_mutually_exclusive_group()
+    seeds.add_argument("--episodes", default=None, metavar="N",
+                       help="episodes of the batched controllers in every scenario: seeds 0..N-1 "
+                       "(default: each scenario's count, e.g. 128 for hold)")
+    seeds.add_argument("--seeds", nargs="+", metavar="SEED", default=None,
+                       help="the seeds of the batched controllers' episodes in every scenario, as in "
+                       "every command: seeds and ranges, e.g. 0 3 7 or 0-4 (one value: that seed)")
     p.add_argument("--sequential-episodes", type=int, default=None, metavar="M",
                    help="episodes of the controllers that run one at a time (MPC): the first M seeds "
                    "of every scenario and sweep point (default: each scenario's, e.g. 16 for hold)")
@@ -407,8 +414,21 @@ def run_command(args: argparse.Namespace) -> int:
         print(f"dss14 {args.command}: error: {_one_line(exc)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(f"dss14 {args.command}: interrupted", file=sys.stderr)
+        print(f"dss14 {args.command}: interrupted{_again(args)}", file=sys.stderr)
         return 130
+
+
+def _again(args: argparse.Namespace) -> str:
+    """``; start again with: <command>`` for an interrupted command that keeps nothing to
+    continue from (its files so far are in its manifest, so ``--overwrite`` replaces them).
+    """
+    import shlex
+
+    argv = getattr(args, "argv", None)
+    if argv is None or args.command not in ("bench", "reproduce"):
+        return ""
+    again = [a for a in argv if a != "--overwrite"] + ["--overwrite"]
+    return f"; start again with: dss14 {shlex.join(again)}"
 
 
 def _one_line(exc: BaseException) -> str:

@@ -375,17 +375,28 @@ def three_sigma_table(results: Mapping[str, Any], quantity: str = SERVO) -> str:
                      " / ".join(_bold(fmt_ci(cl), ax in loaded_axes(s, quantity))
                                 for cl, ax in zip(cells, axes, strict=True)))
         rows.append(r + [_episode_counts(results, c)])
-    yard = results["yardstick"] if quantity == SERVO else {}
+    yard = _yardstick_figures(results, quantity)
     if yard:
-        r = ["yardstick (analytic)"]
+        r = [f"{'pointing ' if quantity == POINTING else ''}yardstick (analytic)"]
         for s in scens:
-            if s in yard:
-                r.append(" / ".join(_bold(fmt(x), ax in LOADED_AXES.get(s, ()))
-                                    for x, ax in zip(yard[s]["three_sigma_mdeg"], AXES, strict=True)))
-            else:
-                r.append("—")
+            r.append(" / ".join(_bold(fmt(x), ax in loaded_axes(s, quantity))
+                                for x, ax in zip(yard[s], axes, strict=True)) if s in yard else "—")
         rows.append(r + ["exact"])
     return _table(header, rows)
+
+
+def _yardstick_figures(results: Mapping[str, Any], quantity: str) -> dict[str, list[float]]:
+    """Per scenario with one fixed wind, the yardstick's analytic 3σ of ``quantity`` per axis
+    (the servo error: the encoder yardstick's; the pointing error: the pointing yardstick's,
+    where the results hold it).
+    """
+    out = {}
+    for s, y in (results.get("yardstick") or {}).items():
+        if quantity == SERVO:
+            out[s] = list(y["three_sigma_mdeg"])
+        elif isinstance(y.get("pointing"), Mapping) and "pointing_three_sigma_mdeg" in y["pointing"]:
+            out[s] = list(y["pointing"]["pointing_three_sigma_mdeg"])
+    return out
 
 
 def main_table(results: Mapping[str, Any]) -> str:
@@ -412,7 +423,10 @@ def pointing_ratio_table(results: Mapping[str, Any]) -> str | None:
     key = ratio_key("vs_reference", POINTING)
     if not ref or not any(key in x for _, _, x in _cells(results)):
         return None
+    yard = [(s, ax) for s in scens if s in _yardstick_figures(results, POINTING)
+            for ax in loaded_axes(s, POINTING)]
     header = ["controller"] + [f"{s} el / xel ÷ {ref}" for s in scens]
+    header += [f"{s} {ax} ÷ pointing yardstick" for s, ax in yard]
     rows = []
     for c in results["meta"]["controllers"]:
         r = [c]
@@ -423,6 +437,7 @@ def pointing_ratio_table(results: Mapping[str, Any]) -> str | None:
                 continue
             rs = [ratio_cell(x, "vs_reference", ax, POINTING) for ax in POINTING_AXES]
             r.append("—" if x is None or None in rs else " / ".join(fmt_ratio(v) for v in rs))
+        r += [fmt_ratio(ratio_cell(_cell(results, c, s), "vs_yardstick", ax, POINTING)) for s, ax in yard]
         rows.append(r)
     return _table(header, rows)
 

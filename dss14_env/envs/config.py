@@ -13,9 +13,13 @@ Bounds.  Besides sign and type, every key is bounded to the range the model is m
 that no accepted configuration can make the plant, the noise or the reward non-finite (see
 :data:`WIND_SPEED_MAX_KMH` and the ``spec`` of each field).
 
->>> cfg = load_env_config(dt="1e-2", wind_speed_kmh=30)
+>>> cfg = load_env_config(dt=1e-2, wind_speed_kmh=30)
 >>> cfg.dt, cfg.wind_speed_kmh
 (0.01, 30.0)
+>>> load_env_config(wind_speed_kmh="50")  # doctest: +ELLIPSIS
+Traceback (most recent call last):
+...
+dss14_env.core.schema.ConfigError: keyword arguments: field 'wind_speed_kmh': must be a number ... got '50'
 >>> load_env_config(wind_speed_kmh=1e5)  # doctest: +ELLIPSIS
 Traceback (most recent call last):
 ...
