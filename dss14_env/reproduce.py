@@ -70,6 +70,9 @@ from dss14_env.wind.loads import (
 #: the files ``dss14 reproduce`` writes into its output folder (and replaces with --overwrite)
 OWNED_FILES = ("metrics.json", "metrics.md", "*.png")
 STEP_T_END, STEP_N = 40.0, 2001
+#: Fig. 14 draws Hankel singular values below this fraction of the largest at that floor: the
+#: computation (double precision over 150 modes) cannot resolve them (some come out ~1e-37)
+HANKEL_NOISE = 1e-12
 WIND_SPEEDS_KMH = (30.0, 50.0, 70.0)
 WIND_SIM = dict(duration=1800.0, dt=0.05, n_records=4)  # 2 h per case: statistical error < 1 %
 WIND_SEED = 20261122
@@ -700,14 +703,34 @@ def fill_blocks(text: str, blocks: dict[str, str]) -> str:
 
 
 # ------------------------------------------------------------------------------ figures
-def _figure(nrows: int = 1, figsize=(7, 4)):
+def _figure(nrows: int = 1, figsize=(7, 4), ncols: int = 1):
     """A figure on an off-screen Agg canvas (no pyplot, no backend switch) and its axes."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=figsize)
     FigureCanvasAgg(fig)
-    return fig, fig.subplots(nrows, 1)
+    return fig, fig.subplots(nrows, ncols)
+
+
+def wind_error_histories(records: dict, dt: float, seconds: float = 600.0):
+    """Servo-error time histories, one panel per wind direction and axis (each on its own
+    scale: in front wind the azimuth error is ~25x below the elevation one, and would hide
+    under it on a shared axis), every panel with its time axis labelled.
+    """
+    fig, axes = _figure(len(records), (10, 6), ncols=2)
+    n = min(int(round(seconds / dt)), next(iter(records.values())).shape[0])
+    t = np.arange(n) * dt
+    for row, (d, y) in zip(np.atleast_2d(axes), records.items(), strict=True):
+        for k, (axp, name, colour) in enumerate(zip(row, ("azimuth", "elevation"), ("C0", "C1"),
+                                                     strict=True)):
+            axp.plot(t, y[:n, k], lw=0.6, color=colour)
+            axp.set_title(f"{d} wind, {name}: 3σ {3 * np.std(y[:, k]):.2g} mdeg", fontsize=9)
+            axp.set_ylabel("servo error, mdeg")
+            axp.set_xlabel("time, s")
+            axp.grid(True, alpha=0.3)
+    fig.tight_layout()
+    return fig
 
 
 def draw_wind_figures(loads: WindLoads, records: dict, dt: float, out: Path) -> list[str]:
@@ -718,16 +741,7 @@ def draw_wind_figures(loads: WindLoads, records: dict, dt: float, out: Path) -> 
     plot_gust_psd(wcfg.table4.speed, np.random.default_rng(WIND_SEED), out / "wind_gust_psd.png",
                   duration=2 * 3600.0, order=loads.cfg.filter_order, kappa=loads.cfg.davenport_kappa,
                   length=loads.cfg.davenport_length)
-    fig, axes = _figure(2, (8, 6))
-    n = min(int(round(600.0 / dt)), next(iter(records.values())).shape[0])
-    t = np.arange(n) * dt
-    for axp, (d, y) in zip(axes, records.items(), strict=True):
-        axp.plot(t, y[:n, 0], lw=0.7, label="azimuth")
-        axp.plot(t, y[:n, 1], lw=0.7, label="elevation")
-        axp.set_ylabel(f"{d} wind: servo error, mdeg")
-        axp.grid(True, alpha=0.3)
-        axp.legend(loc="upper right")
-    axes[-1].set_xlabel("time, s")
+    fig = wind_error_histories(records, dt)
     fig.suptitle("Encoder servo errors, PI kp 1 ki 0.3, 50 km/h Davenport gusts (Table 4)")
     fig.tight_layout()
     fig.savefig(out / "wind_servo_errors.png", dpi=90)
@@ -798,13 +812,20 @@ def draw_figures(m: DSS14Model, out: Path) -> list[str]:
     flex = np.isfinite(hsv)
     kept = np.zeros(full.n_modes, bool)
     kept[m.kept_modes] = True
-    a.semilogy(fr[flex & ~kept], hsv[flex & ~kept], "o", ms=3, label="truncated")
-    a.semilogy(fr[flex & kept], hsv[flex & kept], "s", ms=5, label="kept (22 flexible)")
+    floor = HANKEL_NOISE * np.max(hsv[flex])
+    shown = np.maximum(hsv, floor)
+    noise = flex & (hsv < floor)
+    a.semilogy(fr[flex & ~kept & ~noise], shown[flex & ~kept & ~noise], "o", ms=3, label="truncated")
+    a.semilogy(fr[flex & kept], shown[flex & kept], "s", ms=5, label="kept (22 flexible)")
+    if noise.any():
+        a.semilogy(fr[noise], shown[noise], "v", ms=3, color="0.5",
+                   label=f"numerically zero ({int(noise.sum())} modes, drawn at the floor)")
+    a.axhline(floor, color="0.5", ls=":", lw=1, label=f"numerical noise floor ({HANKEL_NOISE:g} × largest)")
     a.set_xscale("log")
     a.set_xlabel("natural frequency, Hz")
     a.set_ylabel("Hankel singular value, Eq. (55)")
     a.grid(True, which="both", alpha=0.3)
-    a.legend()
+    a.legend(loc="center right", fontsize=8)
     save(fig, "fig14_hankel_singular_values.png", "Fig. 14: Hankel singular values of the 150 modes")
     s = m.structure.to_ss()
     fs = np.geomspace(0.1, 100, 3000)
