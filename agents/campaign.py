@@ -55,6 +55,7 @@ from dss14_env.core.outdir import (
     update_manifest,
 )
 from dss14_env.core.parallel import Executor, SerialExecutor, pinned_threads
+from dss14_env.core.seeds import parse_seed_list
 from dss14_env.core.stats import iqm_ci
 from dss14_env.core.text import counted
 
@@ -68,28 +69,12 @@ BOOTSTRAP_SEED = 0
 
 
 def parse_seeds(values: Sequence[str | int]) -> list[int]:
-    """Seed indices from ``--seeds`` values: ``["0-4"]`` -> 0..4, ``["0", "3", "7"]``.
+    """Seed indices from ``--seeds`` values: ``["0-4"]`` -> 0..4, ``["0", "3", "7"]``
+    (:func:`dss14_env.core.seeds.parse_seed_list`, the grammar of ``--seeds`` in every command).
 
     :raises ValueError: a value that is not an index or a range, a repeated index
     """
-    out: list[int] = []
-    for v in values:
-        s = str(v).strip()
-        m = re.fullmatch(r"(\d+)-(\d+)", s)
-        if m:
-            lo, hi = int(m[1]), int(m[2])
-            if hi < lo:
-                raise ValueError(f"--seeds: empty range {s!r}")
-            out += list(range(lo, hi + 1))
-        elif re.fullmatch(r"\d+", s):
-            out.append(int(s))
-        else:
-            raise ValueError(f"--seeds: expected seed indices (0 3 7) or a range (0-4), got {s!r}")
-    if not out:
-        raise ValueError("--seeds: no seed given")
-    if len(set(out)) != len(out):
-        raise ValueError(f"--seeds: a seed is repeated: {out}")
-    return out
+    return parse_seed_list(values)
 
 
 def training_seed(config: TrainConfig, k: int) -> int:

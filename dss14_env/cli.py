@@ -174,10 +174,12 @@ def _bench(args: argparse.Namespace) -> int:
     import shlex
 
     from dss14_env.bench.bench import bench, build_plan, prepare_out
+    from dss14_env.bench.plan import parse_episodes
 
     args.ppo_model = _policy_option(args.ppo_model)
     cmd = "dss14 " + shlex.join(args.argv)
-    plan = build_plan(controllers=args.controllers, scenarios=args.scenarios, seeds=args.seeds,
+    seeds = parse_episodes(args.episodes) if args.episodes is not None else args.seeds
+    plan = build_plan(controllers=args.controllers, scenarios=args.scenarios, seeds=seeds,
                       wind_speeds=args.wind_speeds, steps=args.steps, quick=args.quick,
                       ppo_model=args.ppo_model, randomize=args.randomize, out=args.out,
                       figures=not args.no_figures, sweep=not args.no_sweep,
@@ -355,9 +357,13 @@ def main(argv: list[str] | None = None) -> int:
                        "figure with its 95 % confidence interval (docs/bench.md).")
     p.add_argument("--quick", action="store_true",
                    help="short version for CI: few, short episodes, wind speeds 30 50 70 (under 30 s)")
-    p.add_argument("--seeds", nargs="+", metavar="SEED", default=None,
-                   help="episodes of the batched controllers in every scenario: one value N: seeds "
-                   "0..N-1; several: those seeds (default: each scenario's count, e.g. 128 for hold)")
+    seeds = p.add_mutually_exclusive_group()
+    seeds.add_argument("--episodes", default=None, metavar="N",
+                       help="episodes of the batched controllers in every scenario: seeds 0..N-1 "
+                       "(default: each scenario's count, e.g. 128 for hold)")
+    seeds.add_argument("--seeds", nargs="+", metavar="SEED", default=None,
+                       help="the seeds of the batched controllers' episodes in every scenario, as in "
+                       "every command: seeds and ranges, e.g. 0 3 7 or 0-4 (one value: that seed)")
     p.add_argument("--sequential-episodes", type=int, default=None, metavar="M",
                    help="episodes of the controllers that run one at a time (MPC): the first M seeds "
                    "of every scenario and sweep point (default: each scenario's, e.g. 16 for hold)")

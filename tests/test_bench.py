@@ -34,18 +34,33 @@ SEQ = 2
 
 
 # ------------------------------------------------------------------ options
-@pytest.mark.parametrize("values,seeds", [(["3"], [0, 1, 2]), (["1"], [0]), (["4", "2"], [4, 2]),
-                                         ([5, 7, 9], [5, 7, 9]), (None, None)])
-def test_seeds_are_a_count_or_a_list(values, seeds) -> None:
+@pytest.mark.parametrize("values,seeds", [(["3"], [3]), (["0-2"], [0, 1, 2]), (["4", "2"], [4, 2]),
+                                         ([5, 7, 9], [5, 7, 9]), (["0-1", "5"], [0, 1, 5]), (None, None)])
+def test_seeds_are_seeds_in_every_command(values, seeds) -> None:
+    """--seeds has one grammar in bench and train: seeds and ranges, one value is that seed."""
+    from dss14_env.agents.campaign import parse_seeds as train_seeds
+
     assert P.parse_seeds(values) == seeds
+    if values is not None:
+        assert train_seeds(values) == seeds
 
 
-@pytest.mark.parametrize("values,message", [(["x"], "not an integer"), (["3", "-1"], "non-negative"),
-                                            (["0"], ">= 1"), (["-2"], ">= 1"), (["1", "1"], "repeated"),
-                                            ([], "give a count"), (["1.5"], "not an integer")])
+@pytest.mark.parametrize("values,message", [(["x"], "expected seed indices"), (["3", "-1"], "expected"),
+                                            (["2-1"], "empty range"), (["1", "1"], "repeated"),
+                                            ([], "no seed"), (["1.5"], "expected")])
 def test_bad_seeds_are_named(values, message) -> None:
     with pytest.raises(P.BenchOptionError, match=f"--seeds: .*{message}"):
         P.parse_seeds(values)
+
+
+@pytest.mark.parametrize("value,seeds,message", [("3", [0, 1, 2], None), (1, [0], None),
+                                                 ("0", None, ">= 1"), ("x", None, "not an integer")])
+def test_episodes_is_a_count(value, seeds, message) -> None:
+    if message is None:
+        assert P.parse_episodes(value) == seeds
+    else:
+        with pytest.raises(P.BenchOptionError, match=f"--episodes: .*{message}"):
+            P.parse_episodes(value)
 
 
 def test_wind_speeds_are_sorted_floats() -> None:
@@ -108,17 +123,17 @@ def test_default_and_quick_plans(monkeypatch) -> None:
         q, d = quick.runs[s], plan.runs[s]
         assert q.steps <= d.steps and len(q.seeds) < len(d.seeds)
     # explicit options win over --quick; --randomize; the sweep follows the hold scenarios
-    p = P.build_plan(quick=True, seeds=["2"], steps=300, randomize=True, scenarios=["hold_side", "step"],
+    p = P.build_plan(quick=True, seeds=2, steps=300, randomize=True, scenarios=["hold_side", "step"],
                      sequential_episodes=1, sweep_seeds=3)
     assert all(r.seeds == (0, 1) and r.steps == 300 and r.sequential == 1 for r in p.runs.values())
     assert p.sweep.steps == 300 and p.sweep.seeds == (0, 1, 2) and p.sweep.sequential == 1
     assert p.env_kwargs == {"randomize_params": True} and p.sweep_directions == ["side"]
     assert P.build_plan(scenarios=["step"]).sweep_directions == []
     assert P.build_plan(sweep=False).sweep_directions == []
-    # from Python: an int is a count, ints are the seeds, strings are command-line values
+    # from Python: an int is a count (--episodes), ints are the seeds, strings --seeds values
     assert P.build_plan(seeds=3).runs["step"].seeds == (0, 1, 2)
     assert P.build_plan(seeds=[4]).runs["step"].seeds == (4,)
-    assert P.build_plan(seeds=["4"]).runs["step"].seeds == (0, 1, 2, 3)
+    assert P.build_plan(seeds=["4"]).runs["step"].seeds == (4,)
     # a sweep point equal to a main scenario (same keys, length, warm-up) is taken from it
     same = P.build_plan(steps=300, wind_speeds=[40, 50])
     assert [pt[-1] for pt in sweep_points(same)] == [None, "hold_front", None, "hold_side"]

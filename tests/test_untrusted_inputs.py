@@ -138,7 +138,7 @@ def test_bench_refuses_the_policy_folder_before_any_work(payload, tmp_path: Path
     folder = _evil_policy(tmp_path, env_module=name)
     out = tmp_path / "o1"
     assert cli.main(["bench", "--ppo-model", str(folder), "--controllers", "ppo", "--scenarios",
-                     "hold_front", "--no-sweep", "--seeds", "2", "--steps", "300",
+                     "hold_front", "--no-sweep", "--episodes", "2", "--steps", "300",
                      "--out", str(out)]) == 2
     _one_line(capsys, "--ppo-model", "env_module")
     assert not marker.exists() and not out.exists()
