@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -159,6 +160,23 @@ class Episode:
     r0: np.ndarray
     params: dict
     params_rejected: dict = field(default_factory=dict)
+
+
+#: the reset-info keys that describe the episode drawn (:func:`episode_info`), beside the
+#: first state's (:data:`dss14_env.envs.core.RESET_INFO_KEYS`)
+EPISODE_INFO_KEYS = ("scenario", "start_az_deg", "start_el_deg", "params", "params_rejected", "wind_loads")
+
+
+def episode_info(ep: Episode, wind_loads: str) -> dict[str, Any]:
+    """The reset-info entries of one drawn episode (keys :data:`EPISODE_INFO_KEYS`), for both
+    environments: scenario, start position (deg), hydraulic parameters (``{}`` = nominal), the
+    parameter draws rejected before them, and where the wind loads come from.
+
+    :param wind_loads: the plant factory's ``wind_loads``
+    """
+    return {"scenario": ep.cfg.scenario, "start_az_deg": float(ep.start[0]) * R2D,
+            "start_el_deg": float(ep.start[1]) * R2D, "params": dict(ep.params),
+            "params_rejected": dict(ep.params_rejected), "wind_loads": wind_loads}
 
 
 def draw_episode(cfg: EnvConfig, rng: np.random.Generator, plants: PlantFactory) -> Episode:
