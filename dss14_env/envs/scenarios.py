@@ -257,7 +257,7 @@ def start_elevation(cfg: EnvConfig, rng: np.random.Generator, plants: PlantFacto
         return float(val) * DEG
     e = plants.model.cfg.structure.elevation_angle * R2D
     lo, hi = cfg.el_limits_deg
-    if not lo <= e - MODEL_EL_SPREAD_DEG and e + MODEL_EL_SPREAD_DEG <= hi:
+    if not (lo <= e - MODEL_EL_SPREAD_DEG and e + MODEL_EL_SPREAD_DEG <= hi):
         raise ValueError(f"{cfg.source_of('start_el_deg')}: field 'start_el_deg': 'model' starts at the "
                          f"model's elevation {e:g} deg, outside el_limits_deg [{lo:g}, {hi:g}]; set an angle "
                          "or 'random'")
