@@ -45,7 +45,10 @@ MODEL_EL_SPREAD_DEG = 0.01
 
 
 # ---------------------------------------------------------------------------- trajectories
-def _axes_mask(axes: str) -> np.ndarray:
+def axes_mask(axes: str) -> np.ndarray:
+    """``[az, el]`` as 1.0 for the axes an axis selection (``step_axes``, ``slew_axes``:
+    ``"az"``, ``"el"``, ``"both"``) moves, 0.0 for the other.
+    """
     return np.array([axes in ("az", "both"), axes in ("el", "both")], float)
 
 
@@ -66,7 +69,7 @@ def trajectory(cfg: EnvConfig, rng: np.random.Generator) -> dict[str, np.ndarray
         tr["omega"] = 2.0 * math.pi / rng.uniform(lo, hi, 2)
         tr["phase"] = rng.uniform(0.0, 2.0 * math.pi, 2)
     elif s == "step":
-        tr["step"] = _axes_mask(cfg.step_axes) * cfg.step_deg * DEG
+        tr["step"] = axes_mask(cfg.step_axes) * cfg.step_deg * DEG
         tr["t_step"] = np.full(2, cfg.step_time_s)
     elif s == "slew":
         sign = 2.0 * rng.integers(0, 2, 2) - 1.0
@@ -77,7 +80,7 @@ def trajectory(cfg: EnvConfig, rng: np.random.Generator) -> dict[str, np.ndarray
             ta = math.sqrt(dist / acc)
             rate = acc * ta
         T = dist / rate + ta if dist > 0 else 0.0
-        tr["slew_acc"] = sign * acc * _axes_mask(cfg.slew_axes) * (dist > 0)
+        tr["slew_acc"] = sign * acc * axes_mask(cfg.slew_axes) * (dist > 0)
         tr["slew_t0"] = np.full(2, cfg.slew_time_s)
         tr["slew_ta"] = np.full(2, ta)
         tr["slew_T"] = np.full(2, T)
