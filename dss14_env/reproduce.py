@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import json
 import math
-import re
 from pathlib import Path
 from typing import Any
 
@@ -34,6 +33,7 @@ import numpy as np
 
 from dss14_env.core.outdir import atomic_write_text
 from dss14_env.core.schema import default_config_path
+from dss14_env.core.text import fill_blocks, find_blocks  # noqa: F401 - the block helpers, re-exported
 from dss14_env.core.units import AXES, rad_to_mdeg, to_si
 from dss14_env.envs.plant import ENCODER_OUTPUTS
 from dss14_env.model.analysis import (
@@ -694,19 +694,6 @@ def doc_blocks(results: dict) -> dict[str, str]:
             "reproduce-poles": pole_table_markdown(results["rate_loop_poles"]),
             "reproduce-bandwidth-rigid": bandwidth_rigid_markdown(results),
             "reproduce-viscosity": viscosity_markdown(results["viscosity_sensitivity"])}
-
-
-_BLOCK = re.compile(r"(<!-- (?P<name>[\w-]+):start -->\n)(?P<body>.*?)(<!-- (?P=name):end -->)", re.S)
-
-
-def find_blocks(text: str) -> dict[str, str]:
-    """The generated blocks of a document: ``{name: body}``."""
-    return {m["name"]: m["body"] for m in _BLOCK.finditer(text)}
-
-
-def fill_blocks(text: str, blocks: dict[str, str]) -> str:
-    """``text`` with every marked block whose name is in ``blocks`` replaced by its rendering."""
-    return _BLOCK.sub(lambda m: m.group(1) + blocks.get(m["name"], m["body"]) + m.group(4), text)
 
 
 # ------------------------------------------------------------------------------ figures
