@@ -17,7 +17,7 @@ of different runs never share a seed), then scores every run's final and best
     config.yaml         the configuration the runs share (seed: the base seed)
 
 An interrupted campaign continues with ``resume=True`` (``dss14 train ... --seeds ...
---continue``): the seeds whose run finished with the campaign's configuration are scored
+--resume``): the seeds whose run finished with the campaign's configuration are scored
 again, not retrained; the others are trained anew.
 
 The interval resamples training seeds (the independent units); with fewer than 5 seeds it is
@@ -55,7 +55,9 @@ from dss14_env.core.outdir import (
     update_manifest,
 )
 from dss14_env.core.parallel import Executor, SerialExecutor, pinned_threads
+from dss14_env.core.seeds import parse_seed_list
 from dss14_env.core.stats import iqm_ci
+from dss14_env.core.text import counted
 
 #: distance between the training seeds of two seed indices
 SEED_STRIDE = 1000
@@ -67,28 +69,12 @@ BOOTSTRAP_SEED = 0
 
 
 def parse_seeds(values: Sequence[str | int]) -> list[int]:
-    """Seed indices from ``--seeds`` values: ``["0-4"]`` -> 0..4, ``["0", "3", "7"]``.
+    """Seed indices from ``--seeds`` values: ``["0-4"]`` -> 0..4, ``["0", "3", "7"]``
+    (:func:`dss14_env.core.seeds.parse_seed_list`, the grammar of ``--seeds`` in every command).
 
     :raises ValueError: a value that is not an index or a range, a repeated index
     """
-    out: list[int] = []
-    for v in values:
-        s = str(v).strip()
-        m = re.fullmatch(r"(\d+)-(\d+)", s)
-        if m:
-            lo, hi = int(m[1]), int(m[2])
-            if hi < lo:
-                raise ValueError(f"--seeds: empty range {s!r}")
-            out += list(range(lo, hi + 1))
-        elif re.fullmatch(r"\d+", s):
-            out.append(int(s))
-        else:
-            raise ValueError(f"--seeds: expected seed indices (0 3 7) or a range (0-4), got {s!r}")
-    if not out:
-        raise ValueError("--seeds: no seed given")
-    if len(set(out)) != len(out):
-        raise ValueError(f"--seeds: a seed is repeated: {out}")
-    return out
+    return parse_seed_list(values)
 
 
 def training_seed(config: TrainConfig, k: int) -> int:
@@ -164,15 +150,15 @@ def finished_run(cfg: TrainConfig, run: Path) -> bool:
 def check_saved_config(cfg: TrainConfig, folder: Path) -> None:
     """Refuse to continue in ``folder`` unless its ``config.yaml`` is ``cfg``.
 
-    :raises ValueError: no readable ``config.yaml``, or another configuration (``--continue``)
+    :raises ValueError: no readable ``config.yaml``, or another configuration (``--resume``)
     """
     try:
         saved = yaml.safe_load((folder / "config.yaml").read_text())
     except (OSError, yaml.YAMLError):
-        raise ValueError(f"--continue: {folder} holds no campaign to continue (no readable "
+        raise ValueError(f"--resume: {folder} holds no campaign to continue (no readable "
                          f"config.yaml)") from None
     if saved != _as_yaml_data(cfg):
-        raise ValueError(f"--continue: {folder / 'config.yaml'} is another configuration than "
+        raise ValueError(f"--resume: {folder / 'config.yaml'} is another configuration than "
                          f"{cfg.source}; continue with the campaign's own --config")
 
 
@@ -346,6 +332,41 @@ def train_seeds(config: TrainConfig | Mapping[str, Any] | str | Path, seeds: Seq
     return folder
 
 
+def is_campaign_folder(path: str | Path) -> bool:
+    """A training campaign's folder (``seed_<k>/`` runs) rather than a policy folder."""
+    p = Path(path)
+    return p.is_dir() and not (p / "policy.pt").is_file() and any(
+        d.is_dir() and re.fullmatch(r"seed_\d+", d.name) for d in p.iterdir())
+
+
+def best_seed_policy(folder: str | Path) -> tuple[Path, str]:
+    """The policy a training campaign folder stands for: ``seed_<k>/eval/best`` of the seed
+    whose validation-selected policy has the best validation score (:func:`selection_score`
+    in ``eval/evaluations.npz``: validation seeds only, never the test seeds).
+
+    :return: the policy folder and a one-line note saying which seed and why
+    :raises ValueError: no seed of the folder has an ``eval/best`` with its scores
+    """
+    folder = Path(folder)
+    scores: dict[Path, float] = {}
+    for run in sorted(folder.glob("seed_*"), key=lambda d: int(d.name[5:]) if d.name[5:].isdigit() else -1):
+        hist = run / "eval" / "evaluations.npz"
+        if not ((run / "eval" / "best" / "policy.pt").is_file() and hist.is_file()):
+            continue
+        with np.load(hist, allow_pickle=False) as d:
+            if "selection_score" in d.files and d["selection_score"].size:
+                scores[run] = float(np.max(d["selection_score"]))
+    if not scores:
+        raise ValueError(f"--ppo-model: {folder} is a training campaign folder without a seed's "
+                         f"eval/best and its validation scores; give a policy folder (e.g. "
+                         f"{folder}/seed_0/eval/best)")
+    best = max(scores, key=lambda r: scores[r])
+    note = (f"--ppo-model: {folder} is a training campaign: using {best.name}/eval/best, the best "
+            f"validation score of its {counted(len(scores), 'seed')} "
+            f"({scores[best]:.4g}); the campaign's figures over all seeds are in its summary.json")
+    return best / "eval" / "best", note
+
+
 def learning_curves(runs: Sequence[Path], task: str) -> dict[str, Any]:
     """Validation curves of several runs on a common step grid (the steps all runs share).
 
@@ -410,7 +431,7 @@ def write_curves(folder: Path, runs: Sequence[Path], tasks: Sequence[EvalTask]) 
                 ax.plot(c["steps"], row, color="0.7", lw=0.8)
             mid, lo, hi = _band(v)
             ax.fill_between(c["steps"], lo, hi, alpha=0.3, label="95 % bootstrap CI")
-            ax.plot(c["steps"], mid, lw=2, label=f"IQM over {len(runs)} seeds")
+            ax.plot(c["steps"], mid, lw=2, label=f"IQM over {counted(len(runs), 'seed')}")
             ax.set_xlabel("environment steps")
             ax.set_ylabel(label)
             ax.grid(alpha=0.3)
@@ -427,5 +448,6 @@ def write_curves(folder: Path, runs: Sequence[Path], tasks: Sequence[EvalTask]) 
 __all__ = ["CAMPAIGN_FILES", "SEED_STRIDE", "campaign_tasks", "check_saved_config",
            "check_training_seeds", "finished_run",
            "owned_files",
-           "learning_curves", "open_campaign", "parse_seeds", "seed_items", "train_one_seed", "train_seeds",
+           "best_seed_policy", "is_campaign_folder", "learning_curves", "open_campaign", "parse_seeds",
+           "seed_items", "train_one_seed", "train_seeds",
            "training_seed", "write_curves", "write_summary"]

@@ -502,6 +502,38 @@ def shipped_training_configs() -> list[str]:
     return [n for n in shipped_configs() if n.split("_")[0] in ("ppo", "sac", "recurrent")]
 
 
+def shipped_training_configs_by_algo() -> dict[str, list[str]]:
+    """The shipped training configurations grouped by their ``algo`` key (read from the files)."""
+    import yaml
+
+    out: dict[str, list[str]] = {}
+    for name in shipped_training_configs():
+        algo = yaml.safe_load(shipped_config_path(f"{name}.yaml").read_text(encoding="utf-8")).get("algo")
+        out.setdefault(str(algo), []).append(name)
+    return out
+
+
+def check_training_config_name(path: str | Path) -> None:
+    """Refuse, in one line, a ``--config`` that is neither a file nor a shipped training
+    configuration (a shipped model, env, wind or controllers configuration is named as such).
+
+    :raises ConfigError: listing the shipped training configurations
+    """
+    p = Path(path)
+    if p.exists():
+        return
+    stem = p.name[:-5] if p.name.endswith(".yaml") else p.name
+    training = shipped_training_configs()
+    if stem in training and (len(p.parts) <= 1 or p.parts[0] == "configs"):
+        return
+    names = ", ".join(training)
+    if stem in shipped_configs():
+        raise ConfigError(f"{path}: a shipped {stem} configuration, not a training one; the shipped "
+                          f"training configurations: {names}")
+    raise ConfigError(f"{path}: configuration file not found (neither a file nor a shipped training "
+                      f"configuration: {names})")
+
+
 def is_own_module(name: str) -> bool:
     """Whether ``name`` is a module of this package (:data:`OWN_PACKAGE`), the only modules a
     configuration file may name.
@@ -563,6 +595,8 @@ def load_config(path: str | Path | None = None, env_module: str | None = None) -
     :raises ConfigError: missing/unreadable file, YAML error, unknown key or bad value, a module
         to import (one line naming the file and the field)
     """
+    if path is not None:
+        check_training_config_name(path)
     data, source = read_config(path if path is not None else "ppo")
     return check_file_imports(TrainConfig.from_dict(data, source=source), env_module)
 
@@ -586,4 +620,5 @@ __all__ = ["ACTIVATIONS", "ALGOS", "MAX_LABEL_CHARS", "MAX_SWEEP_POINTS", "NOT_S
            "SETTINGS", "SweepPoint", "TrainConfig", "VEC_ENVS", "as_config", "check_file_imports",
            "check_sweep", "is_own_module",
            "default_config_path", "keys_of", "load_config", "point_labels", "shipped_config_path",
-           "shipped_training_configs", "sweep_grid"]
+           "check_training_config_name", "shipped_training_configs", "shipped_training_configs_by_algo",
+           "sweep_grid"]

@@ -215,6 +215,20 @@ class PolicyInterface:
             if self.lqg:
                 self.lqg[i].reset()
 
+    #: the attributes of the dynamic state (:meth:`get_state`)
+    _STATE = ("pi", "lqg", "lqg_batch", "base_action", "_past", "_fresh")
+
+    def get_state(self) -> dict[str, Any]:
+        """A copy of the dynamic state (base controllers, last base action, history) that
+        :meth:`set_state` restores (the environment's snapshots hold it,
+        :meth:`dss14_env.envs.env.DSS14Env.attach`).
+        """
+        return copy.deepcopy({name: getattr(self, name) for name in self._STATE})
+
+    def set_state(self, state: dict[str, Any]) -> None:
+        """Restore a :meth:`get_state` copy (any number of times)."""
+        self.__dict__.update(copy.deepcopy(state))
+
     # ------------------------------------------------------------------ observation
     def observe(self, obs: np.ndarray) -> np.ndarray:
         """Advance every row on its environment observation; the policy's observations.
@@ -363,6 +377,8 @@ class InterfaceWrapper(gym.Wrapper):
         super().__init__(env)
         cfg = env.unwrapped.config
         self.interface = PolicyInterface(spec, cfg, 1)
+        if hasattr(env.unwrapped, "attach"):  # its snapshots restore the interface too
+            env.unwrapped.attach(self.interface)
         self.observation_space = interface_observation_space(self.interface)
         self.action_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
 

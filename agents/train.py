@@ -406,6 +406,14 @@ def _eval_callback(evaluator: _Evaluator, every: int, start: int) -> Any:
                 evaluator(self.model, self.logger)
             return True
 
+        def _on_training_end(self) -> None:
+            """A final evaluation unless the last one was at the end: a budget shorter than
+            ``eval_freq`` still gets ``eval/best`` and ``eval/evaluations.npz``.
+            """
+            done = evaluator.history["timesteps"]
+            if not done or done[-1] != self.num_timesteps:
+                evaluator(self.model, self.logger)
+
     return PeriodicEvaluation()
 
 
@@ -513,7 +521,7 @@ def _drop_abandoned(run: Path, src: _Resume | None) -> None:
 
 def train(config: TrainConfig | Mapping[str, Any] | str | Path, run_dir: str | Path | None = None,
           resume: str | Path | None = None, overwrite: bool = False,
-          trust_pickle: bool = False) -> Path:
+          trust_pickle: bool = False, progress: bool | None = None) -> Path:
     """Train the configured algorithm (CPU) and write the run folder (see the module doc).
 
     :param config: a :class:`TrainConfig`, a mapping of its keys, a YAML path or a shipped name
@@ -523,6 +531,8 @@ def train(config: TrainConfig | Mapping[str, Any] | str | Path, run_dir: str | P
         folder) to continue from; a foreign SB3 ``.zip`` only with ``trust_pickle``
     :param overwrite: a new run may replace the run files in ``run_dir``
     :param trust_pickle: allow a foreign (pickled) resume source
+    :param progress: show the progress bar (None: the config's ``progress_bar``); a run-time
+        choice, not written into the run's config
     :return: the run folder
     :raises ValueError: bad config (or a sweep: ``dss14 train --seeds``), unusable folder,
         unmakeable environment, missing or refused checkpoint, budget already reached, or an
@@ -550,11 +560,12 @@ def train(config: TrainConfig | Mapping[str, Any] | str | Path, run_dir: str | P
         src.check_spaces(obs_space, act_space)
     run, src = prepare_run(cfg, run_dir, src, overwrite, trust_pickle)
     with manifest_kept(run):
-        return _train_in(cfg, run, src, plan, obs_space, act_space, env_config)
+        return _train_in(cfg, run, src, plan, obs_space, act_space, env_config,
+                         cfg.progress_bar if progress is None else bool(progress))
 
 
 def _train_in(cfg: TrainConfig, run: Path, src: _Resume | None, plan: EnvPlan, obs_space: Any,
-              act_space: Any, env_config: Any) -> Path:
+              act_space: Any, env_config: Any, progress: bool) -> Path:
     """The training itself, in the claimed run folder (see :func:`train`)."""
     import stable_baselines3
     import torch
@@ -570,7 +581,6 @@ def _train_in(cfg: TrainConfig, run: Path, src: _Resume | None, plan: EnvPlan, o
     else:
         print("note: tensorboard is not installed; training curves go to monitor/ and "
               "eval/evaluations.npz only (pip install tensorboard)")
-    progress = cfg.progress_bar
     if progress and not _installed("tqdm", "rich"):
         print("note: tqdm and rich are not installed; no progress bar (pip install tqdm rich)")
         progress = False

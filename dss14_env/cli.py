@@ -8,7 +8,9 @@ import time
 from pathlib import Path
 from typing import Any
 
+from dss14_env.agents.config import shipped_training_configs_by_algo
 from dss14_env.bench import catalog
+from dss14_env.core.text import counted
 
 
 def _reproduce(args: argparse.Namespace) -> int:
@@ -113,8 +115,9 @@ def _train(args: argparse.Namespace) -> int:
         if args.continue_:
             raise ValueError("--continue continues a campaign: give --seeds and --out")
         try:
+            progress = args.progress if args.progress is not None else (True if sys.stderr.isatty() else None)
             run = train(cfg, run_dir=args.out, resume=resume, overwrite=args.overwrite,
-                        trust_pickle=args.trust_pickle)
+                        trust_pickle=args.trust_pickle, progress=progress)
         except TrainingInterrupted as exc:
             print(f"dss14 train: {exc.message}", file=sys.stderr)
             return 130
@@ -127,7 +130,8 @@ def _train(args: argparse.Namespace) -> int:
     if args.out is None:
         raise ValueError("--seeds needs --out (the campaign folder)")
     if resume_campaign and args.overwrite:
-        raise ValueError("--resume keeps the finished runs in --out: without --overwrite")
+        opt = "--continue" if args.continue_ else "--resume"
+        raise ValueError(f"{opt} keeps the finished runs in --out: without --overwrite")
     seeds = parse_seeds(args.seeds)
     run_all = train_sweep if cfg.sweep else train_seeds
     try:
@@ -143,20 +147,39 @@ def _train(args: argparse.Namespace) -> int:
         return 130
     if cfg.sweep:
         n = len(cfg.points())
-        print(f"{n} points x {len(seeds)} seeds: per point a campaign folder (summary.json, "
-              f"learning curves), sweep.json and sweep.md written to {out}")
+        print(f"{counted(n, 'point')} x {counted(len(seeds), 'seed')}: per point a campaign folder "
+              f"(summary.json, learning curves), sweep.json and sweep.md written to {out}")
     else:
-        print(f"{len(seeds)} runs, summary.json and learning curves written to {out}")
+        print(f"{counted(len(seeds), 'run')}, summary.json and learning curves "
+              f"written to {out}")
     return 0
+
+
+def _policy_option(path: str | None) -> str | None:
+    """``--ppo-model`` as a policy path: a training campaign folder stands for its best seed's
+    ``eval/best`` (said on stderr).
+    """
+    if path is None:
+        return None
+    from dss14_env.agents.campaign import best_seed_policy, is_campaign_folder
+
+    if not is_campaign_folder(path):
+        return path
+    best, note = best_seed_policy(path)
+    print(f"dss14: {note}", file=sys.stderr)
+    return str(best)
 
 
 def _bench(args: argparse.Namespace) -> int:
     import shlex
 
     from dss14_env.bench.bench import bench, build_plan, prepare_out
+    from dss14_env.bench.plan import parse_episodes
 
+    args.ppo_model = _policy_option(args.ppo_model)
     cmd = "dss14 " + shlex.join(args.argv)
-    plan = build_plan(controllers=args.controllers, scenarios=args.scenarios, seeds=args.seeds,
+    seeds = parse_episodes(args.episodes) if args.episodes is not None else args.seeds
+    plan = build_plan(controllers=args.controllers, scenarios=args.scenarios, seeds=seeds,
                       wind_speeds=args.wind_speeds, steps=args.steps, quick=args.quick,
                       ppo_model=args.ppo_model, randomize=args.randomize, out=args.out,
                       figures=not args.no_figures, sweep=not args.no_sweep,
@@ -167,6 +190,9 @@ def _bench(args: argparse.Namespace) -> int:
         print(f"dss14 bench: warning: {note}", file=sys.stderr)
     print(plan.describe(), flush=True)
     res = bench(plan, progress=not args.no_progress)
+    print("The dish's true pointing error, 3σ (mdeg), el / xel:")
+    print(res["pointing_table"])
+    print("The servo error at the drive encoders (the report's Table 4 quantity), 3σ (mdeg), az / el:")
     print(res["main_table"])
     print(f"results.json, results.md and {len(res['figures'])} figures written to {plan.out} "
           f"in {res['wall_time_s']:.1f} s")
@@ -180,12 +206,13 @@ def _campaign(args: argparse.Namespace) -> int:
     from dss14_env.bench.campaign_report import parse_requirements
     from dss14_env.core.parallel import check_ray_options, make_executor, probe_address, require_ray
 
+    args.ppo_model = _policy_option(args.ppo_model)
     given = {k: v for k, v in (("controllers", args.controllers), ("plants", args.plants),
                                ("first_plant", args.first_plant), ("steps", args.steps),
                                ("chunk_size", args.chunk_size), ("ppo_model", args.ppo_model),
                                ("wind_speeds_kmh", C.parse_wind_speeds(args.wind_speeds)),
                                ("directions", C.parse_directions(args.directions))) if v is not None}
-    spec = C.CampaignSpec(**given)
+    spec = C.CampaignSpec(**given, condition_on_pi=not args.unconditioned)
     reqs = parse_requirements(args.requirements)
     C.check_policy(spec)  # before any work: a policy that cannot act on the environment
     use_ray = args.ray or args.address is not None or args.num_cpus is not None
@@ -200,7 +227,7 @@ def _campaign(args: argparse.Namespace) -> int:
     where = "Ray " + (f"at {args.address}" if args.address else "(local)") if use_ray else "in-process"
     print(f"campaign: {spec.plants} plants x {len(spec.conditions)} wind conditions x "
           f"{len(spec.names)} controllers = {spec.n_episodes} episodes of {spec.steps} steps, "
-          f"{len(spec.chunks())} chunks, {where}", flush=True)
+          f"{counted(len(spec.chunks()), 'chunk')}, {where}", flush=True)
     try:
         res = C.run_campaign(spec, args.out, executor=executor, requirements=reqs, resume=args.resume,
                              overwrite=args.overwrite, figures=not args.no_figures,
@@ -215,7 +242,8 @@ def _campaign(args: argparse.Namespace) -> int:
         return 130
     print(res["table"])
     print(f"results.json, results.md and {len(res['figures'])} figures written to {res['out']} "
-          f"({len(res['computed'])} chunks computed, {len(res['resumed'])} read back) in "
+          f"({counted(len(res['computed']), 'chunk')} computed, "
+          f"{len(res['resumed'])} read back) in "
           f"{res['results']['campaign']['wall_time_s']['total']:.1f} s")
     return 0
 
@@ -236,6 +264,9 @@ def _add_campaign_parser(sub: Any) -> None:
     p.add_argument("--ppo-model", default=None, metavar="PATH",
                    help=f"a trained policy instead of the {catalog.POLICY_OPTION_ROW} row's "
                    "shipped one, scored under its own name (its folder's)")
+    p.add_argument("--unconditioned", action="store_true",
+                   help="draw the plants without conditioning on the report's PI being stable (only "
+                   "the drive must be): results.md gives each controller's unstable share")
     p.add_argument("--wind-speeds", nargs="+", metavar="KMH", default=None,
                    help="mean wind speeds, km/h (default 50)")
     p.add_argument("--directions", nargs="+", metavar="DIR", default=None,
@@ -246,7 +277,7 @@ def _add_campaign_parser(sub: Any) -> None:
     p.add_argument("--chunk-size", type=int, default=None, metavar="N",
                    help="plants per chunk, the unit of work and of resuming (default 5)")
     p.add_argument("--requirements", nargs="+", metavar="NAME=MDEG", default=None,
-                   help="pointing requirements on the 3-sigma servo error (default: Ka=2 X=8)")
+                   help="pointing requirements on the 3-sigma pointing error (default: Ka=2 X=8)")
     p.add_argument("--ray", action="store_true", help="run the chunks as Ray tasks (a local Ray by default)")
     p.add_argument("--address", default=None,
                    help="join a running Ray cluster: 'auto' or its address (implies --ray)")
@@ -279,8 +310,10 @@ def main(argv: list[str] | None = None) -> int:
                        "folder (docs/rl.md).")
     p.add_argument("algo", choices=["ppo", "recurrent_ppo", "sac"], help="algorithm")
     p.add_argument("--config", default=None, metavar="NAME|FILE",
-                   help="training YAML, or a shipped config's name (ppo, ppo_plain, ppo_smoke, "
-                   "sac, recurrent_ppo); default: configs/<algo>.yaml, on --resume the run's")
+                   help="training YAML, or a shipped training config's name ("
+                   + "; ".join(f"{algo}: {', '.join(names)}"
+                               for algo, names in shipped_training_configs_by_algo().items())
+                   + "); default: configs/<algo>.yaml, on --resume the run's")
     p.add_argument("--env", default=None, metavar="ID",
                    help="take the shipped hyperparameters of this environment id "
                    "(configs/hyperparams/<algo>.yml) instead of --config")
@@ -299,6 +332,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--env-module", default=None, metavar="MODULE",
                    help="import this module of yours first, to register the env_id it trains on "
                    "(importing runs its code: a configuration file can never ask for it)")
+    p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                   help="progress bar of a single run (default: on when stderr is a terminal, "
+                   "else the config's progress_bar)")
     p.add_argument("--timesteps", type=int, default=None, help="override total_timesteps")
     p.add_argument("--seed", type=int, default=None, help="override seed")
     p.add_argument("--seeds", nargs="+", default=None, metavar="K",
@@ -321,9 +357,13 @@ def main(argv: list[str] | None = None) -> int:
                        "figure with its 95 % confidence interval (docs/bench.md).")
     p.add_argument("--quick", action="store_true",
                    help="short version for CI: few, short episodes, wind speeds 30 50 70 (under 30 s)")
-    p.add_argument("--seeds", nargs="+", metavar="SEED", default=None,
-                   help="episodes of the batched controllers in every scenario: one value N: seeds "
-                   "0..N-1; several: those seeds (default: each scenario's count, e.g. 128 for hold)")
+    seeds = p.add_mutually_exclusive_group()
+    seeds.add_argument("--episodes", default=None, metavar="N",
+                       help="episodes of the batched controllers in every scenario: seeds 0..N-1 "
+                       "(default: each scenario's count, e.g. 128 for hold)")
+    seeds.add_argument("--seeds", nargs="+", metavar="SEED", default=None,
+                       help="the seeds of the batched controllers' episodes in every scenario, as in "
+                       "every command: seeds and ranges, e.g. 0 3 7 or 0-4 (one value: that seed)")
     p.add_argument("--sequential-episodes", type=int, default=None, metavar="M",
                    help="episodes of the controllers that run one at a time (MPC): the first M seeds "
                    "of every scenario and sweep point (default: each scenario's, e.g. 16 for hold)")
@@ -374,8 +414,21 @@ def run_command(args: argparse.Namespace) -> int:
         print(f"dss14 {args.command}: error: {_one_line(exc)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(f"dss14 {args.command}: interrupted", file=sys.stderr)
+        print(f"dss14 {args.command}: interrupted{_again(args)}", file=sys.stderr)
         return 130
+
+
+def _again(args: argparse.Namespace) -> str:
+    """``; start again with: <command>`` for an interrupted command that keeps nothing to
+    continue from (its files so far are in its manifest, so ``--overwrite`` replaces them).
+    """
+    import shlex
+
+    argv = getattr(args, "argv", None)
+    if argv is None or args.command not in ("bench", "reproduce"):
+        return ""
+    again = [a for a in argv if a != "--overwrite"] + ["--overwrite"]
+    return f"; start again with: dss14 {shlex.join(again)}"
 
 
 def _one_line(exc: BaseException) -> str:

@@ -1,5 +1,5 @@
 """Speed of the DSS14 environments: single-env steps/s against Pendulum-v1, and the batched
-vector env's env-steps/s.
+vector env's env-steps/s against the raw matrix product its step is built on.
 
 Run it from the repository (it imports the repository's ``dss14_env``)::
 
@@ -12,13 +12,19 @@ space); an episode end triggers a reset, which is counted in the time.  The envi
 in turn, ``--repeats`` rounds, so a change of the machine's load affects them alike; the ratio
 to Pendulum-v1 is taken per round (same load) and summarised by its median over the rounds with
 a 95 % bootstrap interval over the rounds (:func:`dss14_env.core.stats.bootstrap_ci`).  The
-vector env's rate is summarised the same way over its repeats.  ``--clock cpu`` times with the
-process's CPU time instead of the wall clock: on a machine shared with other jobs it is much
-less disturbed (the single environments are single-threaded; the vector env's BLAS threads are
-counted too -- OpenBLAS threads spin while they wait, so with several BLAS threads on a busy
-machine its CPU-time rate says little: use ``--blas-threads 1`` with ``--clock cpu``).  The
-result file records the clock, the settings, the machine (CPU count, load average) and the
-package versions with the figures.
+vector env's rate is summarised the same way over its repeats, and set against the **raw
+matmul** of its plant size measured in the same repeat (same load): ``(N x K) @ (K x n+4)``,
+the plant's batch step map (``Plant.batch_step_matrix`` restricted to the state and the
+step outputs, as the vector env uses it) into a preallocated output, rows per second -- the
+limit of a step that is one such product plus per-row work; the ratio is taken per repeat.
+``--check`` exits with status 1 when a ratio misses its target (single env >= 2x
+Pendulum-v1, vector env >= 0.5x the raw matmul), judged on the lower end of its interval.
+``--clock cpu`` times with the process's CPU time instead of the wall clock: on a machine
+shared with other jobs it is much less disturbed (the single environments are
+single-threaded; the vector env's BLAS threads are counted too -- OpenBLAS threads spin while
+they wait, so with several BLAS threads on a busy machine its CPU-time rate says little: use
+``--blas-threads 1`` with ``--clock cpu``).  The result file records the clock, the settings,
+the machine (CPU count, load average) and the package versions with the figures.
 """
 
 from __future__ import annotations
@@ -43,6 +49,8 @@ from dss14_env.core.stats import bootstrap_ci  # noqa: E402
 SINGLE_IDS = ("Pendulum-v1", "DSS14-v0", "DSS14-Hold-v0")
 VECTOR_IDS = ("DSS14-v0", "DSS14-Hold-v0")
 TARGET_RATIO = 2.0
+#: the vector env's target: at least this share of the raw matmul rate of its plant size
+TARGET_MATMUL_SHARE = 0.5
 CLOCKS = {"wall": time.perf_counter, "cpu": time.process_time}
 
 
@@ -81,23 +89,44 @@ def single_env_rates(env_ids: tuple[str, ...], n_steps: int, repeats: int, clock
     return rates
 
 
+def plant_product(envs, num_envs: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The operands of the vector env's plant step for ``num_envs`` rows: random rows ``Z``
+    (N x K), the plant's step map ``M`` (K x n+4) and the output (N x n+4).
+    """
+    from dss14_env.envs.plant import N_STEP_OUTPUTS
+
+    base = envs.unwrapped if hasattr(envs, "unwrapped") else envs
+    p = base.plants.plant(0.0, base.config.dt)  # the sizes of every plant of the env
+    M = np.ascontiguousarray(p.batch_step_matrix[:, :p.n + N_STEP_OUTPUTS])
+    Z = np.random.default_rng(seed).standard_normal((num_envs, M.shape[0]))
+    return Z, M, np.empty((num_envs, M.shape[1]))
+
+
 def vector_env_rates(env_id: str, num_envs: int, n_steps: int, repeats: int, clock,
-                     seed: int = 0) -> list[float]:
-    """Env-steps/s of the ``vector_entry_point`` vector env, per repeat."""
+                     seed: int = 0) -> tuple[list[float], list[float], list[int]]:
+    """Env-steps/s of the ``vector_entry_point`` vector env and rows/s of the raw matmul of
+    its plant size (:func:`plant_product`), measured back to back in every repeat, and the
+    product's shape ``[N, K, n+4]``.
+    """
     envs = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point")
     rng = np.random.default_rng(seed)
     actions = rng.uniform(-0.01, 0.01, (64, num_envs, 2)).astype(np.float32)
     envs.reset(seed=seed)
     for i in range(20):
         envs.step(actions[i % 64])
-    rates = []
+    Z, M, out = plant_product(envs, num_envs, seed)
+    rates, raw = [], []
     for _ in range(repeats):
         t0 = clock()
         for i in range(n_steps):
             envs.step(actions[i % 64])
         rates.append(num_envs * n_steps / (clock() - t0))
+        t0 = clock()
+        for _ in range(n_steps):
+            np.matmul(Z, M, out=out)
+        raw.append(num_envs * n_steps / (clock() - t0))
     envs.close()
-    return rates
+    return rates, raw, [num_envs, M.shape[0], M.shape[1]]
 
 
 def summary(values: list[float]) -> dict:
@@ -112,7 +141,7 @@ def run(args: argparse.Namespace) -> dict:
     """Measure everything; the results as a JSON-ready dict."""
     clock = CLOCKS[args.clock]
     rates = single_env_rates(SINGLE_IDS, args.steps, args.repeats, clock)
-    out: dict = {"single": {}, "ratio_to_pendulum": {}, "vector": {}}
+    out: dict = {"single": {}, "ratio_to_pendulum": {}, "vector": {}, "matmul": {}, "ratio_to_matmul": {}}
     for env_id, r in rates.items():
         out["single"][env_id] = summary(r)
     pend = np.asarray(rates["Pendulum-v1"])
@@ -124,8 +153,13 @@ def run(args: argparse.Namespace) -> dict:
         out["ratio_to_pendulum"][env_id] = s
     with threadpool_limits(limits=args.blas_threads, user_api="blas"):
         for env_id in VECTOR_IDS:
-            out["vector"][env_id] = summary(vector_env_rates(env_id, args.num_envs, args.vec_steps,
-                                                             args.repeats, clock))
+            vec, raw, shape = vector_env_rates(env_id, args.num_envs, args.vec_steps, args.repeats, clock)
+            out["vector"][env_id] = summary(vec)
+            out["matmul"][env_id] = {**summary(raw), "shape": shape}
+            s = summary((np.asarray(vec) / np.asarray(raw)).tolist())  # per repeat: the same load
+            s["target"] = TARGET_MATMUL_SHARE
+            s["meets_target"] = None if s["ci95"] is None else bool(s["ci95"][0] >= TARGET_MATMUL_SHARE)
+            out["ratio_to_matmul"][env_id] = s
     out["settings"] = {"clock": args.clock, "steps": args.steps, "vec_steps": args.vec_steps,
                        "num_envs": args.num_envs, "repeats": args.repeats, "blas_threads": args.blas_threads}
     out["machine"] = {"cpus": os.cpu_count(), "load_average_1_5_15": list(os.getloadavg()),
@@ -169,11 +203,27 @@ def report(res: dict) -> str:
     for env_id, s in res["vector"].items():
         lines.append(f"{env_id:15s} vector env N={res['settings']['num_envs']}: median {s['median']:12,.0f} "
                      f"env-steps/s{_fmt_ci(s, ',.0f')}, best {s['best']:,.0f}")
+    for env_id, s in res.get("ratio_to_matmul", {}).items():
+        mm = res["matmul"][env_id]
+        n, k, m = mm["shape"]
+        verdict = {True: "meets", False: "does not meet (CI reaches below)", None: "too few rounds for"}[
+            s["meets_target"]]
+        lines.append(f"{env_id:15s} raw matmul ({n}x{k})@({k}x{m}): median {mm['median']:12,.0f} rows/s; "
+                     f"vector env / matmul: median {s['median']:.2f}x{_fmt_ci(s, '.2f')}; {verdict} the "
+                     f"target >= {s['target']:g}")
     return "\n".join(lines)
 
 
-def main() -> None:
-    """Print the rates, the ratios to Pendulum-v1 and the vector-env rates; ``--json`` keeps them."""
+def misses(res: dict) -> list[str]:
+    """The ratios whose interval reaches below their target (or that have no interval)."""
+    return [f"{kind} {env_id}" for kind in ("ratio_to_pendulum", "ratio_to_matmul")
+            for env_id, s in res.get(kind, {}).items() if not s["meets_target"]]
+
+
+def main() -> int:
+    """Print the rates and the ratios to Pendulum-v1 and to the raw matmul; ``--json`` keeps
+    them; ``--check``: status 1 when a ratio misses its target.
+    """
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--steps", type=int, default=30000, help="single-env steps per round")
     ap.add_argument("--vec-steps", type=int, default=1000, help="vector-env steps per repeat")
@@ -183,6 +233,8 @@ def main() -> None:
     ap.add_argument("--blas-threads", type=int, default=None,
                     help="limit the BLAS threads of the vector env's matrix products (default: as is)")
     ap.add_argument("--json", type=Path, default=None, help="write the results to this JSON file")
+    ap.add_argument("--check", action="store_true",
+                    help="exit with status 1 when a ratio misses its target (the CI's lower end)")
     args = ap.parse_args()
     if args.repeats < 1 or args.steps < 1 or args.vec_steps < 1 or args.num_envs < 1 or (
             args.blas_threads is not None and args.blas_threads < 1):
@@ -195,7 +247,12 @@ def main() -> None:
     print(report(res), flush=True)
     if args.json is not None:
         atomic_write_text(args.json, json.dumps(res, indent=2) + "\n")
+    missed = misses(res)
+    if args.check and missed:
+        print(f"targets missed: {', '.join(missed)}", flush=True)
+        return 1
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

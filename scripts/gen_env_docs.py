@@ -62,9 +62,14 @@ def speed_table(path: Path = SPEED) -> str:
         r = res["ratio_to_pendulum"].get(env_id)
         ratio = "1" if r is None else f"{r['median']:.2f}{ci(r, '.2f')}"
         lines.append(f"| `{env_id}` | {s['median']:,.0f}{ci(s, ',.0f')} | {ratio} |")
-    lines += ["", f"| vector env, N = {st['num_envs']} | env-steps/s, median (95 % CI) |", "|---|---|"]
+    lines += ["", f"| vector env, N = {st['num_envs']} | env-steps/s, median (95 % CI) | raw matmul of "
+              "its plant size, rows/s | vector env ÷ raw matmul, median (95 % CI) |", "|---|---|---|---|"]
     for env_id, s in res["vector"].items():
-        lines.append(f"| `{env_id}` | {s['median']:,.0f}{ci(s, ',.0f')} |")
+        mm, r = res.get("matmul", {}).get(env_id), res.get("ratio_to_matmul", {}).get(env_id)
+        shape = "" if mm is None else " ({0}×{1})·({1}×{2})".format(*mm["shape"])
+        lines.append(f"| `{env_id}` | {s['median']:,.0f}{ci(s, ',.0f')} | "
+                     + ("—" if mm is None else f"{mm['median']:,.0f}{ci(mm, ',.0f')}{shape}") + " | "
+                     + ("—" if r is None else f"{r['median']:.2f}{ci(r, '.2f')}") + " |")
     blas = f", BLAS threads limited to {st['blas_threads']}" if st.get("blas_threads") else ""
     lines += ["", f"Measured {res['when']} with the {st['clock']} clock{blas}, {st['repeats']} rounds of "
               f"{st['steps']:,} single-env and {st['vec_steps']:,} vector-env steps, on {m['cpus']} CPUs at "

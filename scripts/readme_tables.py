@@ -24,12 +24,13 @@ from pathlib import Path
 from typing import Any
 
 from dss14_env.bench.catalog import controllers_table, scenarios_table
-from dss14_env.bench.report import readme_table
+from dss14_env.bench.report import pointing_summary, readme_table
 
 ROOT = Path(__file__).resolve().parents[1]
 #: the generated regions by name: their renderer (given the default results)
 REGIONS: dict[str, Callable[[Any], str]] = {
     "bench-table": readme_table,
+    "bench-pointing": pointing_summary,
     "catalog-controllers": lambda _: controllers_table(),
     "catalog-scenarios": lambda _: scenarios_table(),
 }
@@ -60,16 +61,19 @@ def render(text: str, results: Any, required: tuple[str, ...] = ()) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--readme", default=str(ROOT / "README.md"))
-    ap.add_argument("--bench-doc", default=str(ROOT / "docs" / "bench.md"),
-                    help="the bench's manual (its generated regions; '' to skip)")
+    ap.add_argument("--readme", default=None, help="the README (default: the repository's)")
+    ap.add_argument("--bench-doc", default=None,
+                    help="the bench's manual (default: the repository's docs/bench.md when --readme "
+                    "is not given, else none)")
     ap.add_argument("--results", default=str(ROOT / "docs" / "results" / "bench_default.json"))
     ap.add_argument("--check", action="store_true",
                     help="exit 1 if a file's tables are not the rendered ones")
     args = ap.parse_args(argv)
-    files = [(Path(args.readme), (README_REGION,))]
-    if args.bench_doc:
-        files.append((Path(args.bench_doc), ()))
+    files = [(Path(args.readme or ROOT / "README.md"), (README_REGION,))]
+    doc = args.bench_doc if args.bench_doc is not None else (
+        None if args.readme else str(ROOT / "docs" / "bench.md"))
+    if doc:
+        files.append((Path(doc), ()))
     status = 0
     try:
         results = json.loads(Path(args.results).read_text())

@@ -34,18 +34,33 @@ SEQ = 2
 
 
 # ------------------------------------------------------------------ options
-@pytest.mark.parametrize("values,seeds", [(["3"], [0, 1, 2]), (["1"], [0]), (["4", "2"], [4, 2]),
-                                         ([5, 7, 9], [5, 7, 9]), (None, None)])
-def test_seeds_are_a_count_or_a_list(values, seeds) -> None:
+@pytest.mark.parametrize("values,seeds", [(["3"], [3]), (["0-2"], [0, 1, 2]), (["4", "2"], [4, 2]),
+                                         ([5, 7, 9], [5, 7, 9]), (["0-1", "5"], [0, 1, 5]), (None, None)])
+def test_seeds_are_seeds_in_every_command(values, seeds) -> None:
+    """--seeds has one grammar in bench and train: seeds and ranges, one value is that seed."""
+    from dss14_env.agents.campaign import parse_seeds as train_seeds
+
     assert P.parse_seeds(values) == seeds
+    if values is not None:
+        assert train_seeds(values) == seeds
 
 
-@pytest.mark.parametrize("values,message", [(["x"], "not an integer"), (["3", "-1"], "non-negative"),
-                                            (["0"], ">= 1"), (["-2"], ">= 1"), (["1", "1"], "repeated"),
-                                            ([], "give a count"), (["1.5"], "not an integer")])
+@pytest.mark.parametrize("values,message", [(["x"], "expected seed indices"), (["3", "-1"], "expected"),
+                                            (["2-1"], "empty range"), (["1", "1"], "repeated"),
+                                            ([], "no seed"), (["1.5"], "expected")])
 def test_bad_seeds_are_named(values, message) -> None:
     with pytest.raises(P.BenchOptionError, match=f"--seeds: .*{message}"):
         P.parse_seeds(values)
+
+
+@pytest.mark.parametrize("value,seeds,message", [("3", [0, 1, 2], None), (1, [0], None),
+                                                 ("0", None, ">= 1"), ("x", None, "not an integer")])
+def test_episodes_is_a_count(value, seeds, message) -> None:
+    if message is None:
+        assert P.parse_episodes(value) == seeds
+    else:
+        with pytest.raises(P.BenchOptionError, match=f"--episodes: .*{message}"):
+            P.parse_episodes(value)
 
 
 def test_wind_speeds_are_sorted_floats() -> None:
@@ -108,17 +123,17 @@ def test_default_and_quick_plans(monkeypatch) -> None:
         q, d = quick.runs[s], plan.runs[s]
         assert q.steps <= d.steps and len(q.seeds) < len(d.seeds)
     # explicit options win over --quick; --randomize; the sweep follows the hold scenarios
-    p = P.build_plan(quick=True, seeds=["2"], steps=300, randomize=True, scenarios=["hold_side", "step"],
+    p = P.build_plan(quick=True, seeds=2, steps=300, randomize=True, scenarios=["hold_side", "step"],
                      sequential_episodes=1, sweep_seeds=3)
     assert all(r.seeds == (0, 1) and r.steps == 300 and r.sequential == 1 for r in p.runs.values())
     assert p.sweep.steps == 300 and p.sweep.seeds == (0, 1, 2) and p.sweep.sequential == 1
     assert p.env_kwargs == {"randomize_params": True} and p.sweep_directions == ["side"]
     assert P.build_plan(scenarios=["step"]).sweep_directions == []
     assert P.build_plan(sweep=False).sweep_directions == []
-    # from Python: an int is a count, ints are the seeds, strings are command-line values
+    # from Python: an int is a count (--episodes), ints are the seeds, strings --seeds values
     assert P.build_plan(seeds=3).runs["step"].seeds == (0, 1, 2)
     assert P.build_plan(seeds=[4]).runs["step"].seeds == (4,)
-    assert P.build_plan(seeds=["4"]).runs["step"].seeds == (0, 1, 2, 3)
+    assert P.build_plan(seeds=["4"]).runs["step"].seeds == (4,)
     # a sweep point equal to a main scenario (same keys, length, warm-up) is taken from it
     same = P.build_plan(steps=300, wind_speeds=[40, 50])
     assert [pt[-1] for pt in sweep_points(same)] == [None, "hold_front", None, "hold_side"]
@@ -450,8 +465,41 @@ def test_committed_results_are_a_default_run() -> None:
     assert results["meta"]["controllers"] == list(P.DEFAULT_CONTROLLERS)
     assert cfg["sweep"]["seeds"] == list(range(P.DEFAULT_SWEEP.episodes))
     assert cfg["wind_speeds_kmh"] == list(P.DEFAULT_WIND_SPEEDS_KMH)
-    # every controller but the MPC acted on batches
-    assert results["meta"]["batched"] == {c: c != "mpc" for c in P.DEFAULT_CONTROLLERS}
+    # every batchable row acted on batches
+    assert results["meta"]["batched"] == {c: catalog.CONTROLLERS[c].batchable for c in P.DEFAULT_CONTROLLERS}
+
+
+def test_the_repositorys_generated_tables_are_current() -> None:
+    """README.md and docs/bench.md: every generated region equals its rendering from the
+    committed default results and the catalog."""
+    done = _script("readme_tables.py", "--check")
+    assert done.returncode == 0, done.stderr
+
+
+def test_pointing_is_the_headline(tiny) -> None:
+    """The dish's pointing error leads results.md, and its paired ratios to the PI are the
+    pooled 3σ (root mean square over episodes) of the same seeds, recomputed here from the
+    stored episodes."""
+    md, js = tiny["res"]["markdown"], tiny["json"]
+    assert md.index(tiny["res"]["pointing_table"]) < md.index(tiny["res"]["main_table"])
+    assert md.index("true pointing error") < md.index("servo error at the drive encoders")
+    # the pointing yardstick's analytic figure and the ratios to it, on the loaded pointing axis
+    assert "| pointing yardstick (analytic) |" in md and "hold_side xel ÷ pointing yardstick" in md
+    eps = {(e["controller"], e["scenario"], e["seed"]): e for e in R.episode_rows(js["episodes"])}
+    for c in CTRLS:
+        for s in SCENS:
+            cell = js["summary"][c][s]
+            assert R.fmt_ci(cell["pointing_error_mdeg"]["xel"]["three_sigma"]) in md
+            r = cell["vs_reference_pointing_error_mdeg"]
+            seeds = [k[2] for k in eps if k[:2] == (c, s)]
+            for ax in ("el", "xel"):
+                num = [eps[(c, s, k)]["pointing_error_mdeg"][ax]["three_sigma"] for k in seeds]
+                den = [eps[("pi_kp1", s, k)]["pointing_error_mdeg"][ax]["three_sigma"] for k in seeds]
+                expect = np.sqrt(np.mean(np.square(num))) / np.sqrt(np.mean(np.square(den)))
+                assert r[ax]["value"] == pytest.approx(expect, rel=1e-5)  # 6-digit stored episodes
+                assert r[ax]["n_episodes"] == len(seeds)
+                lo, hi = r[ax]["ci95"]
+                assert c == "pi_kp1" or lo <= r[ax]["value"] <= hi
 
 
 def test_readme_script_checks_and_writes(tmp_path) -> None:

@@ -177,11 +177,16 @@ def test_unphysical_values_are_refused_by_both_envs(key: str, value) -> None:
             env.reset(seed=0, options={key: value})
 
 
-def test_scientific_notation_is_accepted_in_files_and_arguments(tmp_path) -> None:
+def test_scientific_notation_is_a_number_in_files_and_a_string_is_not(tmp_path) -> None:
     path = tmp_path / "env.yaml"
-    path.write_text("dt: 1e-2\nerror_scale_mdeg: 1e1\n")  # YAML 1.1 reads 1e-2 as a string
-    cfg = load_env_config(path, encoder_noise_mdeg="5e-2")
+    path.write_text("dt: 1e-2\nerror_scale_mdeg: 1e1\n")  # YAML 1.1 alone reads 1e-2 as a string
+    cfg = load_env_config(path, encoder_noise_mdeg=5e-2)
     assert (cfg.dt, cfg.error_scale_mdeg, cfg.encoder_noise_mdeg) == (0.01, 10.0, 0.05)
+    with pytest.raises(ValueError, match="field 'encoder_noise_mdeg': .* got '5e-2'"):
+        load_env_config(path, encoder_noise_mdeg="5e-2")
+    path.write_text("dt: '1e-2'\n")  # quoted: a string
+    with pytest.raises(ValueError, match=f"{path}: field 'dt': .* got '1e-2'"):
+        load_env_config(path)
 
 
 def test_config_file_errors_name_the_file_and_the_key(tmp_path) -> None:

@@ -20,7 +20,7 @@ CASES = {
     "track-random-wind-encoder-noise": (dict(scenario="track", wind_speed_kmh="random",
                                              wind_direction="random", encoder_noise_mdeg=0.1), None),
     "hold-terminating-at-el-limit": (dict(scenario="hold", wind_speed_kmh="random",
-                                          start_el_range_deg=[6.05, 6.5]), -0.5),
+                                          start_el_deg="random", start_el_range_deg=[6.05, 6.5]), -0.5),
     "slew-exact-encoders": (dict(scenario="slew", wind_speed_kmh=30.0, encoder_bits=None), None),
 }
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import sys
 import time
 from pathlib import Path
 
@@ -101,6 +102,31 @@ def test_a_sweep_cannot_name_a_module_either(tmp_path: Path) -> None:
         load_config(path)
 
 
+def test_env_module_on_the_command_line_is_the_users_opt_in(tmp_path: Path, monkeypatch,
+                                                            capsys) -> None:
+    pkg = tmp_path / "mine"
+    pkg.mkdir()
+    name = f"myenvs_{tmp_path.name.replace('-', '_')}"
+    env_id = f"Mine{abs(hash(name)) % 10**6}-v0"
+    (pkg / f"{name}.py").write_text(
+        "import gymnasium as gym\n"
+        f"gym.register({env_id!r}, entry_point='gymnasium.envs.classic_control:PendulumEnv', "
+        "max_episode_steps=200)\n")
+    monkeypatch.syspath_prepend(str(pkg))
+    cfg = _write(tmp_path / "c.yaml", {**TINY, "env_id": env_id, "env_module": name,
+                                       "checkpoint_freq": 0})
+    out = tmp_path / "run"
+    assert cli.main(["train", "ppo", "--config", str(cfg), "--out", str(out)]) == 2
+    _one_line(capsys, "field 'env_module'", f"--env-module {name}")
+    assert not out.exists() and name not in sys.modules
+    assert cli.main(["train", "ppo", "--config", str(cfg), "--out", str(out),
+                     "--env-module", name]) == 0
+    assert yaml.safe_load((out / "config.yaml").read_text())["env_module"] == name
+    with pytest.raises(ConfigError, match="field 'env_module'"):  # loading it needs the opt-in too
+        load_policy(out)
+    assert load_policy(out, env_module=name).config.env_id == env_id
+
+
 def test_an_unregistered_env_id_is_named_with_the_opt_in(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match=r"field 'env_id': 'Nowhere-v9' is not a registered .*--env-module"):
         train({**TINY, "env_id": "Nowhere-v9"}, run_dir=tmp_path / "r")
@@ -112,7 +138,7 @@ def test_bench_refuses_the_policy_folder_before_any_work(payload, tmp_path: Path
     folder = _evil_policy(tmp_path, env_module=name)
     out = tmp_path / "o1"
     assert cli.main(["bench", "--ppo-model", str(folder), "--controllers", "ppo", "--scenarios",
-                     "hold_front", "--no-sweep", "--seeds", "2", "--steps", "300",
+                     "hold_front", "--no-sweep", "--episodes", "2", "--steps", "300",
                      "--out", str(out)]) == 2
     _one_line(capsys, "--ppo-model", "env_module")
     assert not marker.exists() and not out.exists()
@@ -324,6 +350,20 @@ def test_an_interrupted_campaign_gives_its_command(tmp_path: Path, monkeypatch, 
     assert cli.main([*argv, "--overwrite"]) == 130
     err = _one_line(capsys, "continue with:")
     assert err.endswith("continue with: dss14 " + " ".join(argv) + " --resume")
+
+
+def test_an_interrupted_bench_gives_the_command_that_starts_it_again(tmp_path: Path, monkeypatch,
+                                                                     capsys) -> None:
+    from dss14_env.bench import bench as B
+
+    def stop(*a, **k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(B, "run_plan", stop)
+    argv = ["bench", "--controllers", "pi_kp1", "--scenarios", "step", "--out", str(tmp_path / "b")]
+    assert cli.main(argv) == 130
+    err = _one_line(capsys, "interrupted")
+    assert err.endswith("start again with: dss14 " + " ".join(argv) + " --overwrite")
 
 
 def test_continue_is_the_same_as_resume_for_a_campaign(tmp_path: Path, capsys) -> None:

@@ -37,6 +37,7 @@ from dss14_env.bench.report import (
     load_average,
     main_table,
     package_versions,
+    pointing_table,
     results_markdown,
     write_results,
 )
@@ -64,7 +65,8 @@ def bench(plan: BenchPlan, progress: bool = True) -> dict[str, Any]:
 
     :param plan: the plan (:func:`build_plan`; its ``threads`` sets the BLAS threads)
     :param progress: show the progress bar
-    :return: ``results`` (results.json's content), ``main_table`` (Markdown), ``markdown``
+    :return: ``results`` (results.json's content), ``pointing_table`` (the headline, the dish's
+        true pointing error, Markdown), ``main_table`` (the servo error, Markdown), ``markdown``
         (results.md), ``files`` (paths written), ``figures`` (names), ``wall_time_s``, and
         ``ran`` (:func:`dss14_env.bench.run.run_plan`'s output, with the time histories)
     """
@@ -90,7 +92,7 @@ def _bench_in(plan: BenchPlan, progress: bool) -> dict[str, Any]:
     results["bench"]["cpu_time_s"] = time.process_time() - c0
     results["bench"]["figures"] = figures
     pj, pm = write_results(results, plan.out)
-    return {"results": results, "main_table": main_table(results),
+    return {"results": results, "pointing_table": pointing_table(results), "main_table": main_table(results),
             "markdown": results_markdown(results), "files": [pj, pm] + [plan.out / f for f in figures],
             "figures": figures, "wall_time_s": wall, "ran": ran}
 

@@ -82,23 +82,44 @@ from dss14_env.core.outdir import (
     update_manifest,
 )
 from dss14_env.core.parallel import Executor, SerialExecutor
+from dss14_env.model.assembly import default_model
+from dss14_env.model.uncertainty import ParamDraw, draw_params, perturbed_rate_loop, pi_loop_abscissa
 
 
 # ---------------------------------------------------------------------------- plants
-@lru_cache(maxsize=512)
-def _plant_params(k: int) -> tuple[tuple[str, float], ...]:
-    from dss14_env.model.uncertainty import draw_stable_params
-    return tuple(sorted(draw_stable_params(np.random.default_rng((k, 0))).items()))
+@lru_cache(maxsize=1024)
+def _plant_draw(k: int, condition_on_pi: bool) -> ParamDraw:
+    return draw_params(np.random.default_rng((k, 0)), condition_on_pi=condition_on_pi)
 
 
-def plant_params(k: int) -> dict[str, float]:
-    """The hydraulic parameters of plant ``k`` (SI; names of
-    :data:`dss14_env.model.uncertainty.SWEEP_PARAMS`): a stable draw over the report's ranges
-    from ``numpy.random.default_rng((k, 0))``.  A pure function of ``k`` (remembered).
+def plant_draw(k: int, condition_on_pi: bool = True) -> ParamDraw:
+    """Plant ``k``'s draw (:func:`dss14_env.model.uncertainty.draw_params` from
+    ``numpy.random.default_rng((k, 0))``): its parameters and the draws rejected before them.
+    A pure function of its arguments (remembered).
     """
     if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 0:
         raise ValueError(f"plant index must be a non-negative integer, got {k!r}")
-    return dict(_plant_params(int(k)))
+    return _plant_draw(int(k), bool(condition_on_pi))
+
+
+def plant_params(k: int, condition_on_pi: bool = True) -> dict[str, float]:
+    """The hydraulic parameters of plant ``k`` (SI; names of
+    :data:`dss14_env.model.uncertainty.SWEEP_PARAMS`): a stable draw over the report's ranges
+    from ``numpy.random.default_rng((k, 0))`` (:func:`plant_draw`).
+    """
+    return dict(sorted(plant_draw(k, condition_on_pi).values.items()))
+
+
+def plant_record(k: int, condition_on_pi: bool = True) -> dict[str, Any]:
+    """What a chunk records of plant ``k``: index, parameters, reset seed, the draws rejected
+    before it (by reason) and the report's PI loops' largest pole real part on it (1/s; >= 0:
+    that PI is unstable on the plant).
+    """
+    draw, model = plant_draw(k, condition_on_pi), default_model()
+    rl = perturbed_rate_loop(model, dict(draw.values))
+    return {"index": k, "params": plant_params(k, condition_on_pi), "episode_seed": episode_seed(k),
+            "params_rejected": dict(draw.rejected),
+            "pi_loop_abscissa": {g: pi_loop_abscissa(rl, *model.gains(g)) for g in model.cfg.gain_sets}}
 
 
 def episode_seed(k: int) -> int:
@@ -117,7 +138,8 @@ def run_chunk(task: Mapping[str, Any]) -> dict[str, Any]:
 
     :param task: ``{"spec": CampaignSpec.as_dict(), "chunk": index, "plants": [k, ...]}``
     :return: JSON-ready ``{"format", "fingerprint", "chunk", "plants": [{"index", "params",
-        "episode_seed"}], "episodes": [...]}``; each episode is
+        "episode_seed", "params_rejected", "pi_loop_abscissa"}], "episodes": [...]}``
+        (:func:`plant_record`); each episode is
         :func:`dss14_env.baselines.rollout.run_episode`'s metrics (less :data:`DROPPED_METRICS`)
         plus ``plant``, ``controller``, ``condition``
     """
@@ -132,7 +154,7 @@ def run_chunk(task: Mapping[str, Any]) -> dict[str, Any]:
             ctrls[(row.name, cond.key)] = row.make(nominal)
     episodes = []
     for k in plants:
-        params = plant_params(k)
+        params = plant_params(k, spec.condition_on_pi)
         for cond in spec.conditions:
             env = DSS14Env(**cond.env_keys(), params=params)
             for name in spec.names:
@@ -143,8 +165,7 @@ def run_chunk(task: Mapping[str, Any]) -> dict[str, Any]:
                 m.update({"plant": k, "controller": name, "condition": cond.key})
                 episodes.append(m)
     return {"format": FORMAT, "fingerprint": spec.fingerprint(), "chunk": int(task["chunk"]),
-            "plants": [{"index": k, "params": plant_params(k), "episode_seed": episode_seed(k)}
-                       for k in plants],
+            "plants": [plant_record(k, spec.condition_on_pi) for k in plants],
             "episodes": episodes}
 
 
@@ -355,6 +376,7 @@ def _run_in(spec: CampaignSpec, out: Path, done: dict[int, dict[str, Any]],
                      "machine": {"platform": platform.platform(), "cpu_count": os.cpu_count()}},
         "versions": report.package_versions(),
         "summary": report.summarise(spec, episodes, reqs),
+        "draws": report.draw_summary(spec, plants, episodes),
         "plants": plants,
         "episodes": episodes,
     }

@@ -91,6 +91,10 @@ class CampaignSpec:
     :param warmup_s: seconds at the start left out of the statistics
     :param chunk_size: plants per chunk (one work item)
     :param ppo_model: the ``ppo`` policy (None: the shipped one)
+    :param condition_on_pi: draw the plants conditioned on the report's PI (kp 1) being stable
+        with margin, as the environment's ``randomize_params`` does (default); False: every
+        plant with a stable drive (rate loop), so a controller unstable on one is a finding
+        (:func:`dss14_env.model.uncertainty.draw_params`)
     """
 
     controllers: tuple[str, ...] = DEFAULT_CONTROLLERS
@@ -103,6 +107,7 @@ class CampaignSpec:
     chunk_size: int = DEFAULT_CHUNK_SIZE
     ppo_model: str | None = None
     format: int = field(default=FORMAT)
+    condition_on_pi: bool = True
 
     def __post_init__(self) -> None:
         for name in ("controllers", "wind_speeds_kmh", "directions"):
@@ -150,6 +155,8 @@ class CampaignSpec:
         d = asdict(self)
         for name in ("controllers", "wind_speeds_kmh", "directions"):
             d[name] = list(d[name])
+        if self.condition_on_pi:  # the default keeps the fingerprint of campaigns before the option
+            del d["condition_on_pi"]
         return d
 
     @classmethod
@@ -229,6 +236,8 @@ def check_spec(spec: CampaignSpec) -> None:
             raise CampaignOptionError(f"--directions: 'front', 'side' or degrees in [0, 360), got {d!r}")
     if len(set(spec.directions)) != len(spec.directions):
         raise CampaignOptionError(f"--directions: a direction is repeated: {list(spec.directions)}")
+    if not isinstance(spec.condition_on_pi, bool):
+        raise CampaignOptionError(f"condition_on_pi: must be true or false, got {spec.condition_on_pi!r}")
     w = spec.warmup_s
     if isinstance(w, bool) or not isinstance(w, (int, float)) or not (math.isfinite(w) and w >= 0):
         raise CampaignOptionError(f"warmup_s: must be a finite number >= 0, got {w!r}")

@@ -111,7 +111,8 @@ CONTROLLER_ROWS: tuple[ControllerRow, ...] = (
     ControllerRow("lqg_pointing", "dss14_env.baselines.lqg", "PointingLQGController",
                   "LQG designed for the dish's true pointing error: Kalman filter on the drive "
                   "encoders, the LQR scores the structure's pointing (deformation included) "
-                  "(`baselines/lqg.py`, docs/controllers.md)", config="pointing", campaign=True),
+                  "(`baselines/lqg.py`, docs/controllers.md)", config="pointing", bench=False,
+                  campaign=True),
     _policy_row("ppo", "residual_pi", "PPO residual on the report's PI, the policy shipped with the "
                 "package (`agents/policies/residual_pi`); `--ppo-model PATH` replaces it by a "
                 "trained policy, scored under its own name"),
@@ -124,6 +125,10 @@ CONTROLLER_ROWS: tuple[ControllerRow, ...] = (
                   "the H2-optimal full-order LQG told the episode's wind (an oracle designed "
                   "without the acceleration limit: limit-cycles on steps and slews and on some "
                   "holds, e.g. front wind seed 3)", bench=False),
+    ControllerRow("yardstick_pointing", "dss14_env.baselines.yardstick", "PointingYardstickController",
+                  "the pointing yardstick: the H2-optimal full-order LQG for the dish's pointing "
+                  "error from the drive encoders, told the episode's wind (an oracle designed "
+                  "without the acceleration limit)", bench=False),
 )
 
 #: the row that ``--ppo-model`` replaces by the given policy

@@ -148,14 +148,23 @@ def plot_hold_histories(results: Mapping[str, Any], ran: Mapping[str, Any], path
     fig = _figure(12.0, 3.3 * len(scens) + 0.8)
     axes = fig.subplots(len(scens), 2, squeeze=False)
     warm = results["meta"]["warmup_s"]
+    count = encoder_count_mdeg()
     for r, s in enumerate(scens):
         tr = _traces(ran, s)
         for i, ax in enumerate(AXES):
             axp = axes[r][i]
-            # largest first, so that the small errors stay visible on top
+            # largest first, so that the small errors stay visible on top; each controller's
+            # line style and markers (staggered), so that equal traces stay apart
             order = sorted(tr, key=lambda c: -float(np.std(tr[c]["servo_error_mdeg"][:, i])))
             for c in order:
-                axp.plot(tr[c]["t"], tr[c]["servo_error_mdeg"][:, i], lw=0.8, color=st[c]["color"], label=c)
+                n = len(tr[c]["t"])
+                every = max(n // 10, 1)
+                axp.plot(tr[c]["t"], tr[c]["servo_error_mdeg"][:, i], lw=0.8, color=st[c]["color"],
+                         ls=st[c]["ls"], marker=st[c]["marker"], ms=4,
+                         markevery=(ctrls.index(c) * every // max(len(ctrls), 1), every), label=c)
+            if count is not None:
+                for sign in (1, -1):
+                    axp.axhline(sign * count, color="k", lw=0.9, ls=(0, (5, 3)), zorder=5)
             axp.axvline(warm.get(s, 0.0), color="0.4", lw=0.8, ls=":")
             loaded = " (loaded)" if ax in LOADED_AXES.get(s, ()) else ""
             axp.set_title(f"{s}: {ax}{loaded}", fontsize=10)
@@ -163,14 +172,27 @@ def plot_hold_histories(results: Mapping[str, Any], ran: Mapping[str, Any], path
             axp.grid(True, alpha=0.3)
     for axp in axes[-1]:
         axp.set_xlabel("time, s")
-    handles = [_line({**st[c], "ls": "-"}, c, marker=False) for c in ctrls
-               if any(c in _traces(ran, s) for s in scens)]
+    handles = [_line(st[c], c) for c in ctrls if any(c in _traces(ran, s) for s in scens)]
+    if count is not None:
+        handles.append(_line({"color": "k", "ls": (0, (5, 3)), "marker": None},
+                             f"±1 encoder count ({count:.3f} mdeg)", marker=False))
     fig.legend(handles=handles, loc="outside right center", fontsize=10, title="controller")
     seed = results["meta"]["seeds"]
     seed0 = (seed.get(scens[0]) if isinstance(seed, Mapping) else seed)[0]
-    fig.suptitle(f"True servo error, seed {seed0}; dotted: end of the warm-up", fontsize=11)
+    fig.suptitle(f"True servo error, seed {seed0}; dotted: end of the warm-up; dashed black: one "
+                 f"encoder count, below which a figure is at the encoder's resolution", fontsize=11)
     _save(fig, path)
     return True
+
+
+def encoder_count_mdeg() -> float | None:
+    """One count of the shipped environment's encoder (``encoder_bits`` per turn), mdeg; None
+    without quantisation.
+    """
+    from dss14_env.envs.config import load_env_config
+
+    bits = load_env_config().encoder_bits
+    return None if bits is None else 360e3 / 2 ** bits
 
 
 def _line(style: Mapping[str, Any], label: str, marker: bool = True) -> Any:

@@ -27,6 +27,7 @@ import numpy as np
 
 from dss14_env.bench import catalog
 from dss14_env.bench.catalog import SCENARIO_ROWS, Budget, ControllerRow, Scenario
+from dss14_env.core.seeds import parse_seed_list
 
 #: per scenario, the default run's budget and the ``--quick`` one (the catalog's rows)
 DEFAULT_BUDGETS: Mapping[str, Budget] = MappingProxyType({r.name: r.default for r in SCENARIO_ROWS})
@@ -190,26 +191,33 @@ def _check_seeds(seeds: Sequence[int]) -> list[int]:
 
 
 def parse_seeds(values: Sequence[str | int] | None) -> list[int] | None:
-    """``--seeds`` as on the command line: one value N means the first N seeds (0 .. N-1);
-    several values are the seeds themselves.
+    """``--seeds`` as on the command line, the grammar of every command
+    (:func:`dss14_env.core.seeds.parse_seed_list`): seeds and ranges, ``0 3 7`` or ``0-4``; a
+    single value is that seed (a count of episodes is ``--episodes N``).
 
     :param values: the option's values (strings from the command line, or ints)
     :return: the seeds, or None when the option was not given
-    :raises BenchOptionError: not integers, negative, repeated, or a count below 1
+    :raises BenchOptionError: not seeds or ranges, an empty range, a repeated seed, none
     """
     if values is None:
         return None
-    ints = []
-    for v in values:
-        try:
-            ints.append(int(str(v), 10))
-        except ValueError:
-            raise BenchOptionError(f"--seeds: {v!r} is not an integer") from None
-    if len(ints) == 1:
-        if ints[0] < 1:
-            raise BenchOptionError("--seeds: a single value is a count of seeds and must be >= 1")
-        return list(range(ints[0]))
-    return _check_seeds(ints)
+    return parse_seed_list(values, "--seeds", BenchOptionError)
+
+
+def parse_episodes(value: int | str | None) -> list[int] | None:
+    """``--episodes N``: the first N seeds, 0 .. N-1 (None: not given).
+
+    :raises BenchOptionError: not an integer >= 1
+    """
+    if value is None:
+        return None
+    try:
+        n = int(str(value), 10)
+    except ValueError:
+        raise BenchOptionError(f"--episodes: {value!r} is not an integer") from None
+    if n < 1:
+        raise BenchOptionError(f"--episodes: a count of episodes, >= 1, got {n}")
+    return list(range(n))
 
 
 def _is_int(x: Any) -> bool:
@@ -217,13 +225,13 @@ def _is_int(x: Any) -> bool:
 
 
 def _seed_option(seeds: int | Sequence[str | int] | None) -> list[int] | None:
-    """build_plan's ``seeds``: an int is a count, a sequence of ints the seeds themselves,
-    strings (command-line values) go through :func:`parse_seeds`.
+    """build_plan's ``seeds``: an int is a count (:func:`parse_episodes`), a sequence of ints
+    the seeds themselves, strings (command-line values) go through :func:`parse_seeds`.
     """
     if seeds is None:
         return None
     if _is_int(seeds):
-        return parse_seeds([str(int(seeds))])
+        return parse_episodes(int(seeds))
     seeds = list(seeds)
     if seeds and all(_is_int(s) for s in seeds):
         return _check_seeds([int(s) for s in seeds])
@@ -360,8 +368,8 @@ def build_plan(controllers: Sequence[str] | None = None, scenarios: Sequence[str
         asked for explicitly, it is an error)
     :param scenarios: scenario names (default :data:`DEFAULT_SCENARIOS`)
     :param seeds: the batched controllers' seeds in every scenario: an int is that many seeds
-        from 0, ints are those seeds, strings are ``--seeds`` values (:func:`parse_seeds`: one
-        value is a count); default each scenario's count (:data:`DEFAULT_BUDGETS`, with
+        from 0 (``--episodes``), ints are those seeds, strings are ``--seeds`` values
+        (:func:`parse_seeds`: seeds and ranges); default each scenario's count (:data:`DEFAULT_BUDGETS`, with
         ``quick`` :data:`QUICK_BUDGETS`)
     :param wind_speeds: sweep speeds, km/h (default :data:`DEFAULT_WIND_SPEEDS_KMH`, with
         ``quick`` :data:`QUICK_WIND_SPEEDS_KMH`)
@@ -438,5 +446,5 @@ def sweep_name(direction: str, speed_kmh: float) -> str:
 __all__ = ["BenchOptionError", "BenchPlan", "Budget", "DEFAULT_BUDGETS", "DEFAULT_CONTROLLERS",
            "DEFAULT_SCENARIOS", "DEFAULT_SWEEP", "DEFAULT_WIND_SPEEDS_KMH", "LOADED_AXES",
            "QUICK_BUDGETS", "QUICK_SWEEP", "ScenarioRun", "SWEEP_DIRECTIONS", "build_plan",
-           "control_period", "controller_rows", "parse_seeds", "parse_wind_speeds", "sweep_name",
-           "sweep_scenario"]
+           "control_period", "controller_rows", "parse_episodes", "parse_seeds", "parse_wind_speeds",
+           "sweep_name", "sweep_scenario"]

@@ -39,6 +39,7 @@ from dss14_env.bench.statistics import (
     LEVEL,
     N_RESAMPLES,
     POOLING,
+    all_reference_ratios,
     cell_rng,
     flatten,
     reference_ratios,
@@ -165,7 +166,8 @@ def _check_run(names: list[str], scens: list, seeds: list[int], sequential_seeds
 def _statistics_meta(n_resamples: int, bootstrap_seed: int) -> dict[str, Any]:
     return {"level": LEVEL, "n_resamples": n_resamples, "bootstrap_seed": bootstrap_seed,
             "interval": "percentile bootstrap over episodes (all metrics of a cell resampled together)",
-            "ratios": "vs_reference: paired bootstrap over the common seeds; vs_yardstick: the "
+            "ratios": "vs_reference (servo error) and vs_reference_pointing_error_mdeg (the dish's "
+                      "pointing error): paired bootstrap over the common seeds; vs_yardstick: the "
                       "controller's interval over the analytic figure",
             "pooling": dict(POOLING)}
 
@@ -200,10 +202,12 @@ def _run_scenario(ctrls: list[tuple[str, Callable[[Any], Controller]]], sname: s
             cells[cname] = summarise(eps, cell_rng(cname, sname, seed=bootstrap_seed), n_resamples)
             if ref is not None:
                 cells[cname]["vs_yardstick"] = yardstick_ratios(cells[cname], ref)
+                cells[cname]["vs_yardstick_pointing_error_mdeg"] = yardstick_ratios(cells[cname], ref,
+                                                                                    pointing=True)
     if reference in by_ctrl:
         for cname, eps in by_ctrl.items():
-            cells[cname]["vs_reference"] = reference_ratios(
-                eps, by_ctrl[reference], cell_rng(cname, reference, sname, seed=bootstrap_seed), n_resamples)
+            cells[cname].update(all_reference_ratios(eps, by_ctrl[reference], (cname, reference, sname),
+                                                     bootstrap_seed, n_resamples))
     return [ep for eps in by_ctrl.values() for ep in eps], cells, ref, flags
 
 

@@ -13,7 +13,9 @@ resampled together from a generator seeded by the cell's name (:func:`cell_rng`)
 reproduces it.  Ratios (``three_sigma`` per axis): ``vs_reference``, over the reference
 controller (default the report's PI, ``pi_kp1``) on the seeds both ran, resampling the pairs
 together; ``vs_yardstick``, over the yardstick's analytic expected 3σ
-(:func:`dss14_env.baselines.yardstick.expected_performance`) for scenarios with one fixed wind;
+(:func:`dss14_env.baselines.yardstick.expected_performance`) for scenarios with one fixed wind,
+and ``vs_yardstick_pointing_error_mdeg`` (per pointing axis, el and xel), the pointing error's
+over the pointing yardstick's;
 each ``{"value", "ci95", "significant", "n_episodes"}``, with ``significant`` False when the
 interval contains 1 (None without an interval).
 """
@@ -29,7 +31,7 @@ import numpy as np
 
 from dss14_env.bench.catalog import Scenario
 from dss14_env.core import stats
-from dss14_env.core.results import Cell, RatioCell
+from dss14_env.core.results import ERRORS, POINTING_AXES, SERVO, Cell, RatioCell, episode_error, ratio_key
 from dss14_env.core.units import AXES, KMH
 
 #: confidence level of every interval
@@ -144,27 +146,51 @@ def _ratio_dict(r: stats.Ratio) -> dict[str, Any]:
 
 def reference_ratios(episodes: Sequence[Mapping[str, Any]], reference: Sequence[Mapping[str, Any]],
                      rng: np.random.Generator, n_resamples: int = N_RESAMPLES,
-                     level: float = LEVEL) -> dict[str, Any]:
-    """Pooled 3σ of ``episodes`` over the reference's, per axis, on the seeds both ran
-    (paired bootstrap).
+                     level: float = LEVEL, quantity: str = SERVO) -> dict[str, Any]:
+    """Pooled 3σ of ``quantity`` (:data:`dss14_env.core.results.ERRORS`: the servo error at
+    the encoders, az / el, or the dish's pointing error, el / xel) of ``episodes`` over the
+    reference's, per axis, on the seeds both ran (paired bootstrap).
     """
+    axes = ERRORS[quantity]
     ref = {int(ep["seed"]): ep for ep in reference}
     common = [ep for ep in episodes if int(ep["seed"]) in ref]
-    num = {ax: [ep["servo_error_mdeg"][ax]["three_sigma"] for ep in common] for ax in AXES}
-    den = {ax: [ref[int(ep["seed"])]["servo_error_mdeg"][ax]["three_sigma"] for ep in common]
-           for ax in AXES}
-    r = stats.paired_ratios(num, den, {ax: "rms" for ax in AXES}, rng, n_resamples, level)
-    return {ax: _ratio_dict(r[ax]) for ax in AXES}
+    num = {ax: [episode_error(ep, quantity, ax) for ep in common] for ax in axes}
+    den = {ax: [episode_error(ref[int(ep["seed"])], quantity, ax) for ep in common] for ax in axes}
+    r = stats.paired_ratios(num, den, {ax: "rms" for ax in axes}, rng, n_resamples, level)
+    return {ax: _ratio_dict(r[ax]) for ax in axes}
 
 
-def yardstick_ratios(summary: Mapping[str, Any], ref: Mapping[str, Any]) -> dict[str, Any]:
-    """Pooled 3σ per axis over the yardstick's analytic (exact) expected 3σ; the interval is
-    the controller's, divided by the same number.
+def all_reference_ratios(episodes: Sequence[Mapping[str, Any]],
+                         reference: Sequence[Mapping[str, Any]], names: Sequence[str],
+                         seed: int = 0, n_resamples: int = N_RESAMPLES) -> dict[str, Any]:
+    """The ratios to the reference of every error quantity, keyed by
+    :func:`dss14_env.core.results.ratio_key` (``vs_reference``: the servo error;
+    ``vs_reference_pointing_error_mdeg``: the pointing error), each from its own generator
+    (:func:`cell_rng` of ``names``, plus the quantity for all but the servo error).
     """
     out = {}
-    for i, ax in enumerate(AXES):
-        c = summary["servo_error_mdeg"][ax]["three_sigma"]
-        y = float(ref["three_sigma_mdeg"][i])
+    for q in ERRORS:
+        extra = () if q == SERVO else (q,)
+        out[ratio_key("vs_reference", q)] = reference_ratios(
+            episodes, reference, cell_rng(*names, *extra, seed=seed), n_resamples, quantity=q)
+    return out
+
+
+def yardstick_ratios(summary: Mapping[str, Any], ref: Mapping[str, Any], pointing: bool = False
+                     ) -> dict[str, Any]:
+    """Pooled 3σ per axis over a yardstick's analytic (exact) expected 3σ; the interval is
+    the controller's, divided by the same number.  Default: the servo error (az, el) over the
+    encoder yardstick's; ``pointing``: the pointing error (el, xel) over the pointing
+    yardstick's (``ref["pointing"]``).
+    """
+    metric, key, axes = ("servo_error_mdeg", "three_sigma_mdeg", AXES)
+    if pointing:
+        metric, key, axes, ref = ("pointing_error_mdeg", "pointing_three_sigma_mdeg", POINTING_AXES,
+                                  ref["pointing"])
+    out = {}
+    for i, ax in enumerate(axes):
+        c = summary[metric][ax]["three_sigma"]
+        y = float(ref[key][i])
         r = stats.Ratio(c["value"] / y, c["ci95"][0] / y, c["ci95"][1] / y, c["n_episodes"], 1,
                         "the controller's interval over the analytic figure")
         out[ax] = _ratio_dict(r)
@@ -172,16 +198,18 @@ def yardstick_ratios(summary: Mapping[str, Any], ref: Mapping[str, Any]) -> dict
 
 
 def yardstick_reference(scenario: Scenario, env: Any) -> dict[str, Any] | None:
-    """The yardstick's expected performance for a scenario with one fixed wind, else None."""
+    """The yardsticks' expected performance for a scenario with one fixed wind, else None: the
+    encoder yardstick's, the pointing yardstick's under ``"pointing"``
+    (:func:`dss14_env.baselines.yardstick.references`).
+    """
     kw = scenario.env
     speed, direction = kw.get("wind_speed_kmh"), kw.get("wind_direction")
     if not isinstance(speed, (int, float)) or speed <= 0 or direction in (None, "random"):
         return None
-    from dss14_env.baselines.yardstick import expected_performance
-    return expected_performance(env, speed * KMH, direction)
-
+    from dss14_env.baselines.yardstick import references
+    return references(env, speed * KMH, direction)
 
 
 __all__ = ["ERROR_POOLING", "LEVEL", "N_RESAMPLES", "POOLING", "RATE_POOLING", "STEP_POOLING",
-           "TIME_POOLING", "cell_rng", "flatten", "reference_ratios", "summarise", "yardstick_ratios",
-           "yardstick_reference"]
+           "TIME_POOLING", "all_reference_ratios", "cell_rng", "flatten", "reference_ratios",
+           "summarise", "yardstick_ratios", "yardstick_reference"]

@@ -36,7 +36,6 @@ dss14_env.core.outdir.OutputDirError: output folder ... already holds results (r
 from __future__ import annotations
 
 import contextlib
-import glob as _glob
 import json
 import os
 import shutil
@@ -52,10 +51,6 @@ MANIFEST_FORMAT = "dss14-manifest-1"
 
 class OutputDirError(ValueError):
     """An output folder that cannot be used; the message is one line naming the path."""
-
-
-def _is_pattern(name: str) -> bool:
-    return _glob.has_magic(name)
 
 
 def _owned_entries(folder: Path, owned: Iterable[str]) -> list[Path]:
@@ -89,17 +84,26 @@ def _read_manifest(path: Path) -> dict | None:
     return data
 
 
-def _listed(folder: Path) -> set[Path]:
-    """The files of earlier runs in ``folder``: every file a manifest in ``folder`` (or below
-    it) lists, the manifests themselves, and every file inside a folder the run owns (its
+def _manifest_folders(folder: Path, owned: Iterable[str]) -> list[str]:
+    """``folder`` and the folders below its owned entries that hold a manifest (a run's own,
+    or a nested run's: a campaign's ``seed_<k>/``); nothing else of the folder is searched.
+    """
+    roots = [str(folder)] if (folder / MANIFEST).is_file() else []
+    for e in _owned_entries(folder, owned):
+        if e.is_dir() and not e.is_symlink():
+            roots += [root for root, _, files in os.walk(e, followlinks=False) if MANIFEST in files]
+    return roots
+
+
+def _listed(folder: Path, owned: Iterable[str]) -> set[Path]:
+    """The files of earlier runs under ``folder``'s owned names: every file a manifest there
+    lists, the manifests themselves, and every file inside a folder a run owns (its
     ``checkpoints/``, ``chunks/``, ...) written after the run claimed the folder -- what a run
     killed between two manifest updates left there.  Paths are normalised, relative to the
     same base as ``folder``.
     """
     out: set[str] = set()
-    for root, _, files in os.walk(folder, followlinks=False):
-        if MANIFEST not in files:
-            continue
+    for root in _manifest_folders(folder, owned):
         data = _read_manifest(Path(root) / MANIFEST)
         if data is None:
             continue
@@ -193,7 +197,7 @@ def prepare_output_dir(path: str | os.PathLike, owned: Iterable[str], overwrite:
     started_ns = _check_writable(p, option)
     owned = tuple(owned)
     entries = _owned_entries(p, owned)
-    listed = _listed(p)
+    listed = _listed(p, owned)
     ours: list[Path] = []
     theirs: list[Path] = []
     for e in entries:
@@ -254,9 +258,10 @@ def remove_run_files(path: str | os.PathLike, names: Iterable[str]) -> list[str]
     :return: the removed files, relative to ``path``
     """
     p = Path(path)
-    listed = _listed(p)
+    names = tuple(names)
+    listed = _listed(p, names)
     gone = []
-    for e in _owned_entries(p, tuple(names)):
+    for e in _owned_entries(p, names):
         for q in _files_under(e):
             if Path(os.path.normpath(q)) in listed:
                 q.unlink()

@@ -38,6 +38,22 @@ POINTING_AXES = ("el", "xel")
 #: the error quantities of an episode and their axes: the true servo error at the drive
 #: encoders (the report's Table 4 quantity) and the dish's true pointing error
 ERRORS: Mapping[str, tuple[str, ...]] = {"servo_error_mdeg": AXES, "pointing_error_mdeg": POINTING_AXES}
+#: the headline quantity: the dish's true pointing error; the servo error at the drive
+#: encoders stays beside it as the report's Table 4 quantity and the calibration anchor
+POINTING = "pointing_error_mdeg"
+SERVO = "servo_error_mdeg"
+#: the pointing axis a drive axis moves the beam on (azimuth: cross-elevation)
+POINTING_AXIS_OF: Mapping[str, str] = {"az": "xel", "el": "el"}
+
+
+def ratio_key(which: str, quantity: str = SERVO) -> str:
+    """The key of a summary cell's ratios of ``quantity`` (``vs_reference``, ``vs_yardstick``):
+    ``which`` itself for the servo error, ``which_<quantity>`` for the others.
+
+    >>> ratio_key("vs_reference"), ratio_key("vs_reference", POINTING)
+    ('vs_reference', 'vs_reference_pointing_error_mdeg')
+    """
+    return which if quantity == SERVO else f"{which}_{quantity}"
 
 
 def _float(x: Any) -> float:
@@ -195,13 +211,12 @@ def summary_cell(cell: Mapping[str, Any] | None, quantity: str, axis: str,
 
 
 def ratio_cell(cell: Mapping[str, Any] | None, which: str, axis: str,
-               quantity: str = "servo_error_mdeg") -> RatioCell | None:
+               quantity: str = SERVO) -> RatioCell | None:
     """The ratio ``which`` (``vs_reference``, ``vs_yardstick``) of ``quantity``'s 3σ on
     ``axis`` of one summary cell, or None.
     """
     try:
-        r = cell[which] if quantity == "servo_error_mdeg" else cell[f"{which}_{quantity}"]  # type: ignore[index]
-        return RatioCell.from_dict(r[axis])
+        return RatioCell.from_dict(cell[ratio_key(which, quantity)][axis])  # type: ignore[index]
     except (KeyError, TypeError):
         return None
 
@@ -225,5 +240,6 @@ def jsonable(x: Any) -> Any:
     return x
 
 
-__all__ = ["Cell", "ERRORS", "EpisodeFigures", "ErrorStats", "POINTING_AXES", "RatioCell",
-           "episode_error", "jsonable", "ratio_cell", "summary_cell"]
+__all__ = ["Cell", "ERRORS", "EpisodeFigures", "ErrorStats", "POINTING", "POINTING_AXES",
+           "POINTING_AXIS_OF", "RatioCell", "SERVO", "episode_error", "jsonable", "ratio_cell",
+           "ratio_key", "summary_cell"]

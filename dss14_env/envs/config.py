@@ -13,9 +13,13 @@ Bounds.  Besides sign and type, every key is bounded to the range the model is m
 that no accepted configuration can make the plant, the noise or the reward non-finite (see
 :data:`WIND_SPEED_MAX_KMH` and the ``spec`` of each field).
 
->>> cfg = load_env_config(dt="1e-2", wind_speed_kmh=30)
+>>> cfg = load_env_config(dt=1e-2, wind_speed_kmh=30)
 >>> cfg.dt, cfg.wind_speed_kmh
 (0.01, 30.0)
+>>> load_env_config(wind_speed_kmh="50")  # doctest: +ELLIPSIS
+Traceback (most recent call last):
+...
+dss14_env.core.schema.ConfigError: keyword arguments: field 'wind_speed_kmh': must be a number ... got '50'
 >>> load_env_config(wind_speed_kmh=1e5)  # doctest: +ELLIPSIS
 Traceback (most recent call last):
 ...
@@ -40,9 +44,16 @@ SCENARIOS = ("hold", "step", "track", "slew")
 AXES_CHOICES = ("az", "el", "both")
 #: named wind directions besides an angle in rad (``wind_direction``)
 DIRECTION_CHOICES = ("front", "side", "random")
+#: named start elevations besides an angle in deg (``start_el_deg``): the model's elevation
+#: (:func:`dss14_env.envs.scenarios.start_elevation`) or uniform over ``start_el_range_deg``
+START_EL_CHOICES = ("model", "random")
 #: what the reward scores (``reward``): the servo error at the drive encoders ([R] Table 4's
 #: quantity) or the dish's true pointing error (el and xel, deformation included)
 REWARD_CHOICES = ("servo", "pointing")
+#: what the encoders measure (``encoders``): the drive angles (the report's computer mode, the
+#: default) or the structure's pointing angles at the axes ([R]'s "encoders located close to
+#: the axes")
+ENCODER_CHOICES = ("drive", "axis")
 
 #: Largest mean wind speed, km/h (assumed).  The DSN antennas stop tracking and are stowed in
 #: high wind, so the model is meant for operating winds: the report's Table 4 is at 50 km/h and
@@ -90,6 +101,7 @@ class EnvConfig:
     rate_limit_deg_s: float = spec("deg/s", lo=RATE_MIN_DEG_S, hi=RATE_MAX_DEG_S)
     accel_limit_deg_s2: float = spec("deg/s^2", lo=RATE_MIN_DEG_S, hi=ACCEL_MAX_DEG_S2)
     error_scale_mdeg: float = spec("mdeg", lo=1.0e-3, hi=1.0e6)
+    encoders: str = spec(None, kind="str", choices=ENCODER_CHOICES)
     encoder_bits: int | None = spec("1", kind="integer", lo=8, hi=40, optional=True)
     encoder_noise_mdeg: float = spec("mdeg", lo=0.0, hi=1.0e3)
     reward: str = spec(None, kind="str", choices=REWARD_CHOICES)
@@ -101,7 +113,7 @@ class EnvConfig:
     az_wrap_half_range_deg: float = spec("deg", lo=0.0, lo_open=True, hi=360.0)
     start_az_deg: float | str = spec("deg", lo=-720.0, hi=720.0, choices=("random",))
     start_az_range_deg: tuple = _pair("deg", -720.0, 720.0)
-    start_el_deg: float | str = spec("deg", lo=0.0, hi=90.0, choices=("random",))
+    start_el_deg: float | str = spec("deg", lo=0.0, hi=90.0, choices=START_EL_CHOICES)
     start_el_range_deg: tuple = _pair("deg", 0.0, 90.0)
     wind_speed_kmh: float | str = spec("km/h", lo=0.0, hi=WIND_SPEED_MAX_KMH, choices=("random",))
     wind_speed_grid_kmh: tuple = spec("km/h", kind="list", lo=0.0, hi=WIND_SPEED_MAX_KMH)
@@ -158,8 +170,8 @@ class EnvConfig:
         if not (lo <= self.start_el_range_deg[0] and self.start_el_range_deg[1] <= hi):
             raise bad("start_el_range_deg", f"lie within el_limits_deg [{lo:g}, {hi:g}]",
                       list(self.start_el_range_deg))
-        if self.start_el_deg != "random" and not lo <= self.start_el_deg <= hi:
-            raise bad("start_el_deg", f"lie within el_limits_deg [{lo:g}, {hi:g}] or be 'random'",
+        if self.start_el_deg not in START_EL_CHOICES and not lo <= self.start_el_deg <= hi:
+            raise bad("start_el_deg", f"lie within el_limits_deg [{lo:g}, {hi:g}] or be 'model' or 'random'",
                       self.start_el_deg)
         w = 2.0 * math.pi / self.track_period_range_s[0]
         if self.track_rate_max_deg_s + self.track_amp_max_deg * w > self.rate_limit_deg_s:

@@ -19,6 +19,7 @@ from dss14_env.envs.config import EnvConfig, load_env_config
 from dss14_env.envs.core import (
     OBS_HIGH,
     OBS_NAMES,
+    EpisodeConstants,
     StepConstants,
     StepState,
     as_actions,
@@ -29,6 +30,7 @@ from dss14_env.envs.core import (
 )
 from dss14_env.envs.plant import (
     N_STEP_OUTPUTS,
+    OUTPUTS,
     PlantFactory,
     buffer_views,
     resolve_factory,
@@ -36,7 +38,7 @@ from dss14_env.envs.plant import (
 )
 from dss14_env.envs.presets import registered_ids_table
 from dss14_env.envs.render import Renderer
-from dss14_env.envs.scenarios import NOISE_BLOCK, Episode, block_rows, command, draw_episode, draw_noise_block
+from dss14_env.envs.scenarios import NOISE_BLOCK, Episode, block_rows, command, draw_noise_block, draw_reset
 
 __all__ = ["DSS14Env", "EnvState", "OBS_HIGH", "OBS_NAMES"]
 
@@ -44,31 +46,84 @@ __all__ = ["DSS14Env", "EnvState", "OBS_HIGH", "OBS_NAMES"]
 @dataclass(frozen=True)
 class EnvState:
     """A snapshot of an environment's dynamic state (:meth:`DSS14Env.get_state`): plant state,
-    limiter memory, noise stream and generator, counters.  Restore it with ``set_state`` into
-    the environment it came from or a copy of it, any number of times.
+    limiter memory, noise stream and generator, counters, and the states of what rides on the
+    environment (:meth:`DSS14Env.attach`).  Restore it with ``set_state`` into the environment
+    it came from or a copy of it (the same class, configuration, model and number of
+    sub-environments: checked), any number of times.
     """
 
     env_class: str
     data: dict
+    #: the configuration of the environment it came from
+    config: Any = None
+    #: its number of sub-environments (1: a single environment)
+    num_envs: int = 1
+    #: its model (:func:`model_name`)
+    model: str | None = None
+    #: the states of the objects attached to it, in order
+    riders: tuple = ()
 
 
-def snapshot(env: Any, attrs: dict[str, Any], names: tuple[str, ...], shared: tuple = ()) -> EnvState:
+def snapshot(env: Any, attrs: dict[str, Any], names: tuple[str, ...], shared: tuple = (),
+             riders: tuple = ()) -> EnvState:
     """An :class:`EnvState` of ``env``: deep copies of ``attrs[name]`` for ``names``, except the
-    objects in ``shared`` (never changed in place), which are kept by reference.
+    objects in ``shared`` (never changed in place), which are kept by reference, and the
+    states of ``riders`` (:meth:`DSS14Env.attach`).
     """
     memo = {id(x): x for x in shared}
-    return EnvState(type(env).__name__, copy.deepcopy({n: attrs[n] for n in names}, memo))
+    return EnvState(type(env).__name__, copy.deepcopy({n: attrs[n] for n in names}, memo), env.config,
+                    getattr(env, "num_envs", 1), model_name(env.plants), tuple(r.get_state() for r in riders))
 
 
-def restore(env: Any, state: Any, shared: tuple = ()) -> dict[str, Any]:
-    """The attributes of a snapshot of ``env``'s class, copied again (so that it can be restored
-    any number of times), the objects in ``shared`` by reference.
-
-    :raises ValueError: ``state`` is not an :class:`EnvState` of ``env``'s class
+def model_name(plants: PlantFactory) -> str:
+    """The model an environment runs on, in words: its file (or the shipped one) and whether its
+    wind loads were refitted to Table 4 on it.
     """
-    if not isinstance(state, EnvState) or state.env_class != type(env).__name__:
-        raise ValueError(f"state must be an EnvState of a {type(env).__name__} (from get_state()), got "
-                         f"{type(state).__name__}")
+    name = plants.source or "the shipped model"
+    return name + (" (wind loads refitted)" if plants.recalibrated else "")
+
+
+def check_snapshot(env: Any, state: Any, names: tuple[str, ...], riders: tuple = ()) -> None:
+    """That ``state`` is a whole snapshot of an environment like ``env``: an :class:`EnvState` of
+    its class, from an environment of the same number of sub-environments, configuration
+    (``dt``, ``scenario``, every key) and model, with every part present and as many riders.
+
+    :raises ValueError: one line naming what differs
+    """
+    cls = type(env).__name__
+    if not isinstance(state, EnvState) or state.env_class != cls:
+        got = f"an EnvState of a {state.env_class}" if isinstance(state, EnvState) else type(state).__name__
+        raise ValueError(f"state must be an EnvState of a {cls} (from get_state()), got {got}")
+    n = getattr(env, "num_envs", 1)
+    if state.num_envs != n:
+        raise ValueError(f"state must come from a {cls} with num_envs = {n}, got a snapshot of "
+                         f"num_envs = {state.num_envs}")
+    if state.config != env.config:
+        ours, theirs = env.config.as_dict(), state.config.as_dict() if isinstance(
+            state.config, EnvConfig) else {}
+        key = next((k for k in ours if theirs.get(k, ours[k]) != ours[k]), "config")
+        raise ValueError(f"state must come from an environment of this configuration: field {key!r} is "
+                         f"{theirs.get(key)!r} in the snapshot, {ours.get(key)!r} here")
+    if state.model != model_name(env.plants):
+        raise ValueError(f"state must come from an environment of this model ({model_name(env.plants)}), got "
+                         f"a snapshot of {state.model}")
+    data = state.data if isinstance(state.data, dict) else {}
+    missing = [k for k in names if k not in data]
+    if missing:
+        raise ValueError(f"state is incomplete: {len(missing)} of its {len(names)} parts are missing "
+                         f"({', '.join(missing[:3])}{', ...' if len(missing) > 3 else ''})")
+    if len(state.riders) != len(riders):
+        raise ValueError(f"state must hold the states of the {len(riders)} object(s) attached to this "
+                         f"environment, got {len(state.riders)}")
+
+
+def restore(env: Any, state: EnvState, shared: tuple = (), riders: tuple = ()) -> dict[str, Any]:
+    """The attributes of a checked snapshot (:func:`check_snapshot`), copied again (so that it
+    can be restored any number of times), the objects in ``shared`` by reference; the riders'
+    states are restored into ``riders``.
+    """
+    for r, s in zip(riders, state.riders, strict=True):
+        r.set_state(s)
     return copy.deepcopy(state.data, {id(x): x for x in shared})
 
 
@@ -117,6 +172,15 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
     antennas' encoders; ``None`` = exact) plus optional white Gaussian noise
     (``encoder_noise_mdeg``, default 0).  Servo error ``e = c - theta_measured`` in axis angle.
 
+    Where the encoders sit (``encoders``, also ``env.unwrapped.config.encoders`` for a
+    controller to read): ``"drive"`` (default) at the drives -- the azimuth ring and the
+    elevation wheel, the report's computer mode, whose Table 4 the model is calibrated to;
+    ``"axis"`` at the axes -- they read the structure's pointing angles (elevation
+    ``point_el``, azimuth ``point_xel / cos(E)``; [R]'s conclusion: "master equatorial or new
+    encoders located close to the axes"), quantised alike.  With axis encoders the servo error
+    is the pointing error (elevation; cross-elevation divided by ``cos(E)``), and the start
+    state holds the axis encoders at zero.
+
     | index  | observation                                              | unit |
     |--------|----------------------------------------------------------|------|
     | 0, 1   | servo error az, el                                       | ``error_scale_mdeg`` (10 mdeg) |
@@ -152,16 +216,30 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
 
     ## Starting state
 
-    The absolute start position is drawn (az uniform in [-200, 200] deg about the wrap centre,
-    el in [20, 70] deg) or set (``start_az_deg``, ``start_el_deg``); it sets the travel margins
-    and the phase of the encoder quantisation.  The antenna is already servoing: the rate loop
-    is in the steady motion that follows the command's initial rate under the wind torque at
-    t = 0 (mean plus the initial gust, held), the gust filter is in its stationary
-    distribution, and the previous applied rate command (observation 10, 11) is the one that
-    holds that motion.  A PI that starts bumplessly from it
+    The absolute start position is drawn (az uniform in [-200, 200] deg about the wrap centre;
+    el at the model's elevation, see below) or set (``start_az_deg``, ``start_el_deg``); it
+    sets the travel margins and the phase of the encoder quantisation.  The antenna is already
+    servoing: the rate loop is in the steady motion that follows the command's initial rate
+    under the wind torque at t = 0 (mean plus the initial gust, held), the gust filter is in
+    its stationary distribution, and the previous applied rate command (observation 10, 11) is
+    the one that holds that motion.  A PI that starts bumplessly from it
     (:class:`dss14_env.baselines.pi.PIController`) has no start transient from the mean load.
     (The dynamic part of the wind response is not in the start state: the error is stationary
     after about 1 s; skip the first 2 s for stationary statistics.)
+
+    ## Elevation
+
+    The model is linear about one elevation: the structure model's ``elevation_angle`` (45 deg
+    in the shipped model).  Its modes, its wind loads and its pointing outputs hold there --
+    in particular the cross-elevation pointing angle, whose rigid part is ``cos(E)`` times the
+    azimuth rotation.  Episodes therefore start at the model's elevation: ``start_el_deg:
+    model`` (the default) draws the start elevation uniformly within +-0.01 deg of it (29
+    encoder counts either side: the elevation encoder's quantisation phase is drawn, ``cos(E)``
+    stays within 2e-4 of the model's), so the pointing errors of the info and of
+    ``reward="pointing"`` are those of the episode's own elevation.  ``start_el_deg: random``
+    (uniform over ``start_el_range_deg``) or an angle move the start elsewhere, e.g. next to a
+    travel limit; the dynamics and the pointing outputs stay those of the model's elevation,
+    and only the travel margins and the quantisation phase follow the start.
 
     ## Episode end
 
@@ -175,7 +253,8 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
     Every step: ``servo_error_az_mdeg``, ``servo_error_el_mdeg`` (true: command minus encoder
     angle), ``measured_error_az_mdeg``, ``measured_error_el_mdeg`` (from the encoder readings),
     ``pointing_error_el_mdeg``, ``pointing_error_xel_mdeg`` (the dish's true pointing error:
-    the command less the structure model's pointing angle, deformation included --
+    the command less the structure model's pointing angle, deformation included, from the
+    project's lumped structure, not [R]'s finite-element model: docs/model.md --
     ``c_el - point_el`` in elevation and ``c_az cos(E) - point_xel`` in cross-elevation, ``E``
     the structure model's ``elevation_angle``, 45 deg), ``wind_speed_mps``,
     ``wind_direction_rad`` (the episode's mean wind), ``action_unclipped`` (the action as
@@ -227,7 +306,10 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
       ``wind_loads`` says which (``"shipped"`` or ``"refitted to Table 4"``).  Default: the
       shipped model.
     * ``randomize_params=True`` draws the hydraulic parameters over the model's ranges (stable
-      part) at every reset; ``params={name: SI value}`` fixes them (within the model's ranges).
+      part) at every reset; the reset info's ``params_rejected`` counts the draws rejected
+      before the episode's one, by reason (rate loop unstable, the report's kp 1 PI unstable or
+      within 0.01 1/s of it; about 2 % of the draws: docs/model.md section 9).
+      ``params={name: SI value}`` fixes them (within the model's ranges).
     * ``reset(seed=...)``: None or a non-negative integer (Python or numpy), else
       ``ValueError("seed must ...")``; ``self.np_random`` is the only source of randomness.
 
@@ -236,6 +318,13 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
     ``copy.deepcopy(env)``, a pickle round trip and :meth:`get_state` / :meth:`set_state` give
     environments that continue bit for bit as the original (same observations, rewards and
     noise for the same actions): for planning, tree search and branching rollouts.
+    ``set_state`` takes a snapshot of this environment or a copy of it only: one of another
+    class, number of sub-environments, configuration (``dt``, ``scenario``, any key) or model,
+    or one with a part missing or of another shape, is refused with a one-line ``ValueError``
+    naming what differs, before anything changes.  The wrapper ids (``DSS14-Residual-v0``,
+    ``DSS14-Plain-v0``, ...) attach their interface's state (base controller, history) to the
+    environment (:meth:`attach`), so ``env.unwrapped.get_state()`` / ``set_state`` restore what
+    the wrapper shows next, bit for bit.
 
     ## Registered variants
 
@@ -282,6 +371,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         self.episode: Episode | None = None
         self._st: StepState | None = None
         self._bufs: tuple = ()
+        self._riders: list = []
 
     # ------------------------------------------------------------------ reset
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
@@ -302,7 +392,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
             self.plants.check_params(cfg.params, cfg.source_of("params"))
         super().reset(seed=seed)
         k = self.constants
-        ep = draw_episode(cfg, self.np_random, self.plants)
+        ep, ne, normals = draw_reset(cfg, self.np_random, self.plants, k.encoder_sigma)
         p = ep.plant
         M, Tm, Pm = p.episode_map(ep.kappa, ep.t_mean)
         C = p.C @ Tm
@@ -313,9 +403,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         self._state_map, self._C_gust = Tm, C[N_STEP_OUTPUTS:]
         self._gust_az, self._gust_inv = gust_divisor(ep.kappa, p.g0)
         self.episode = ep
-        # encoder noise of the reading at t = 0, then the first noise block (this order)
-        ne = self.np_random.standard_normal(2) * k.encoder_sigma if k.encoder_sigma else np.zeros(2)
-        self._next_block(0)
+        self._next_block(0, normals)
         # the state, first observation and info through the batched core (N = 1)
         c, cd = command(ep.traj, np.zeros(1))
         st, obs, rinfo = reset_state(c, cd, y0[None], ep.start[None], ne[None], ep.r0[None],
@@ -330,7 +418,8 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         self._bufs = self._views(False)
         self._st = StepState(*(tuple(v[0].tolist()) for v in st[:4]), 0)
         info = {"scenario": cfg.scenario, "start_az_deg": s_az * R2D, "start_el_deg": s_el * R2D,
-                "params": dict(ep.params), "wind_loads": self.plants.wind_loads,
+                "params": dict(ep.params), "params_rejected": dict(ep.params_rejected),
+                "wind_loads": self.plants.wind_loads,
                 **{key: float(v[0]) for key, v in rinfo.items()}}
         rp0, rp1 = self._st.r_prev
         obs = obs[0]
@@ -351,13 +440,14 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         v0, v1 = (buffer_views(z, self._m) for z in self._z)
         return (v1, v0) if swapped else (v0, v1)
 
-    def _next_block(self, k0: int) -> None:
+    def _next_block(self, k0: int, normals: np.ndarray | None = None) -> None:
         """Per-step rows of steps ``k0 .. k0 + NOISE_BLOCK - 1`` (as lists of floats):
-        :func:`dss14_env.envs.scenarios.block_rows`.
+        :func:`dss14_env.envs.scenarios.block_rows`, from ``normals`` (drawn here if None).
         """
         k = self.constants
-        blk = block_rows(self.episode.traj, k0, k.dt, k.rate_limit,
-                         draw_noise_block(self.np_random, self._rank, k.encoder_sigma > 0.0), k.encoder_sigma)
+        if normals is None:
+            normals = draw_noise_block(self.np_random, self._rank, k.encoder_sigma > 0.0)
+        blk = block_rows(self.episode.traj, k0, k.dt, k.rate_limit, normals, k.encoder_sigma)
         self._rows = blk.tolist()
         self._k0 = k0
 
@@ -445,25 +535,59 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         if self._st is not None:
             self._bufs = self._views(self._bufs)
 
+    def attach(self, rider: Any) -> None:
+        """Make ``rider``'s state part of this environment's snapshots: :meth:`get_state` holds
+        ``rider.get_state()`` and :meth:`set_state` calls ``rider.set_state(...)`` with it.  A
+        wrapper that keeps state of its own (a base controller, an observation history) attaches
+        it, so that ``env.unwrapped.get_state()`` / ``set_state`` restore what the wrapper shows
+        next, bit for bit.
+        """
+        self._riders.append(rider)
+
     def get_state(self) -> EnvState:
-        """A snapshot of the dynamic state (plant, limiter, noise, generator, counters) that
-        :meth:`set_state` restores: the environment then continues bit for bit as from the
-        snapshot.  Rendering history is not part of it.
+        """A snapshot of the dynamic state (plant, limiter, noise, generator, counters, and the
+        attached riders' states, :meth:`attach`) that :meth:`set_state` restores: the
+        environment then continues bit for bit as from the snapshot.  Rendering history is not
+        part of it.
 
         :raises RuntimeError: before the first reset
         """
         if self._st is None:
             raise RuntimeError("call reset() before get_state()")
         state = self.__getstate__()
-        return snapshot(self, state, self._STATE, tuple(state[n] for n in self._SHARED))
+        return snapshot(self, state, self._STATE, tuple(state[n] for n in self._SHARED), tuple(self._riders))
 
     def set_state(self, state: EnvState) -> None:
         """Restore a snapshot of :meth:`get_state` (of this environment or a copy of it).
 
-        :raises ValueError: not such a snapshot
+        :raises ValueError: not such a snapshot (another class, number of environments,
+            configuration or model; a part missing or of the wrong shape), before anything
+            changes
         """
-        shared = tuple(state.data.get(n) for n in self._SHARED) if isinstance(state, EnvState) else ()
-        self.__setstate__(restore(self, state, shared))
+        check_snapshot(self, state, self._STATE, tuple(self._riders))
+        self._check_shapes(state.data)
+        shared = tuple(state.data[n] for n in self._SHARED)
+        self.__setstate__(restore(self, state, shared, tuple(self._riders)))
+
+    def _check_shapes(self, data: dict) -> None:
+        """The snapshot's plant buffers, map, step state and noise rows fit this environment's
+        model (:meth:`set_state`).
+        """
+        p = self.plants.plant(0.0, self.config.dt)  # sizes only
+        m, M, z, st, rows = data["_m"], data["_M"], data["_z"], data["_st"], data["_rows"]
+        width = 3 + p.noise_rank + m
+        ok = (m == p.n - p.n_wind and data["_rank"] == p.noise_rank and isinstance(M, np.ndarray)
+              and M.shape == (m + N_STEP_OUTPUTS, width) and isinstance(z, tuple) and len(z) == 2
+              and all(isinstance(b, np.ndarray) and b.shape == (width + N_STEP_OUTPUTS,) for b in z)
+              and isinstance(st, StepState) and all(len(v) == 2 for v in st[:4])
+              and isinstance(rows, list) and len(rows) == NOISE_BLOCK
+              and all(len(r) == 8 + p.noise_rank for r in rows)
+              and _shape(data["_state_map"]) == (p.n, m)
+              and _shape(data["_C_gust"]) == (len(OUTPUTS) - N_STEP_OUTPUTS, m)
+              and isinstance(data["episode"], Episode) and isinstance(data["_sc"], EpisodeConstants))
+        if not ok:
+            raise ValueError(f"state must hold the plant and step state of this model ({p.n - p.n_wind} "
+                             f"one-copy states, {p.noise_rank} noise inputs): its parts have other shapes")
 
     # ------------------------------------------------------------------ rendering
     def render(self) -> np.ndarray | None:
@@ -486,6 +610,11 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
 
 DSS14Env.__doc__ = DSS14Env.__doc__.replace("{registered_ids}",
                                             registered_ids_table().replace("\n", "\n    "))
+
+
+def _shape(x: Any) -> tuple | None:
+    """The shape of an array (None for anything else)."""
+    return x.shape if isinstance(x, np.ndarray) else None
 
 
 def gust_divisor(kappa: np.ndarray, g0: float) -> tuple[bool, float]:

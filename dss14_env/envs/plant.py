@@ -65,7 +65,7 @@ from dss14_env.core.threads import single_threaded
 from dss14_env.model.assembly import build_model, default_model
 from dss14_env.model.config import load_model_config
 from dss14_env.model.linsys import balance, discretize, noise_factor
-from dss14_env.model.uncertainty import SWEEP_PARAMS, draw_stable_params, perturbed_rate_loop
+from dss14_env.model.uncertainty import SWEEP_PARAMS, ParamDraw, draw_params, perturbed_rate_loop
 from dss14_env.wind.loads import calibrate_wind_loads, default_wind_loads
 
 if TYPE_CHECKING:  # annotations only
@@ -76,6 +76,11 @@ if TYPE_CHECKING:  # annotations only
 
 #: rows of :attr:`Plant.C`: encoder angles (rad), dish pointing angles (rad), gust torques (N*m)
 OUTPUTS = ("enc_az", "enc_el", "point_el", "point_xel", "gust_torque_az", "gust_torque_el")
+#: what the encoder rows (``enc_az``, ``enc_el``) of :attr:`Plant.C` measure: the rate loop's
+#: outputs and their factors (``"xel"``: divided by ``xel_scale``, the az axis angle of the
+#: structure's cross-elevation pointing angle)
+ENCODER_OUTPUTS = {"drive": (("enc_az", None), ("enc_el", None)),
+                   "axis": (("point_xel", "xel"), ("point_el", None))}
 #: rate-loop outputs used for the steady-motion start (not in :data:`OUTPUTS`)
 RATE_OUTPUTS = ("enc_rate_az", "enc_rate_el")
 #: largest dropped share of the noise-increment covariance trace before the plant refuses
@@ -112,19 +117,27 @@ class Plant:
     :param xel_scale: ``cos(E)`` of the structure model's elevation angle ``E``: the
         cross-elevation pointing output of a rigid azimuth rotation ``theta`` is
         ``xel_scale * theta`` (:meth:`dss14_env.model.structure.Structure.output_matrices`)
+    :param encoders: what the encoder outputs measure (:data:`ENCODER_OUTPUTS`): ``"drive"``
+        the drive angles, ``"axis"`` the structure's pointing angles as axis angles (az:
+        ``point_xel / xel_scale``, el: ``point_el``); the steady-motion start holds the
+        chosen encoders at zero
     :raises ValueError: on a bad speed or period, if ``dt`` is so long that the 4-direction
         noise factor would drop more than :data:`NOISE_TAIL_TOL` of the noise, or if the
         discretised plant is not finite
     """
 
     def __init__(self, rate_loop: ct.StateSpace, loads: WindLoads, wind_speed: float, dt: float,
-                 params: Mapping[str, float] | None = None, *, xel_scale: float) -> None:
+                 params: Mapping[str, float] | None = None, *, xel_scale: float, encoders: str = "drive"
+                 ) -> None:
         if not (math.isfinite(wind_speed) and wind_speed >= 0.0):
             raise ValueError(f"wind_speed must be a finite speed >= 0 m/s, got {wind_speed!r}")
         if not (math.isfinite(dt) and dt > 0.0):
             raise ValueError(f"dt must be a positive finite period in s, got {dt!r}")
         if not (math.isfinite(xel_scale) and 0.0 < xel_scale <= 1.0):
             raise ValueError(f"xel_scale must be cos(E) in (0, 1], got {xel_scale!r}")
+        if encoders not in ENCODER_OUTPUTS:
+            raise ValueError(f"encoders must be one of {', '.join(ENCODER_OUTPUTS)}, got {encoders!r}")
+        self.encoders = encoders
         self.wind_speed = float(wind_speed)
         self.dt = float(dt)
         self.params = dict(params or {})
@@ -159,6 +172,8 @@ class Plant:
         G[nr:nr + nw, 0], G[nr + nw:, 1] = G_f[:, 0], G_f[:, 0]
         C = np.zeros((len(OUTPUTS) + len(RATE_OUTPUTS), n))
         C[[0, 1, 2, 3, 6, 7], :nr] = C_r[rows]
+        for row, (out, factor) in enumerate(ENCODER_OUTPUTS[encoders]):
+            C[row, :nr] = C_r[ol.index(out)] / (self.xel_scale if factor == "xel" else 1.0)
         C[4, nr:nr + nw] = self.g0 * C_f[0]
         C[5, nr + nw:] = self.g0 * C_f[0]
         A, BG, C, scale = balance(A, np.hstack([B, G]), C)
@@ -345,7 +360,7 @@ class Plant:
 
     def __repr__(self) -> str:
         return (f"Plant(U={self.wind_speed:.3g} m/s, dt={self.dt:g} s, n={self.n}, "
-                f"params={self.params or 'nominal'})")
+                f"params={self.params or 'nominal'}, encoders={self.encoders})")
 
 
 @single_threaded
@@ -431,20 +446,24 @@ class PlantFactory:
         """
         return "refitted to Table 4" if self.recalibrated else "shipped"
 
-    def plant(self, wind_speed: float, dt: float, params: Mapping[str, float] | None = None) -> Plant:
-        """The plant for a mean wind speed, period and parameter set (built once per key).
+    def plant(self, wind_speed: float, dt: float, params: Mapping[str, float] | None = None,
+              encoders: str = "drive") -> Plant:
+        """The plant for a mean wind speed, period, parameter set and encoders (built once per
+        key).
 
         :param wind_speed: mean wind speed, m/s (0 = no wind)
         :param dt: control period, s
         :param params: hydraulic parameters (SI, names of
             :data:`dss14_env.model.uncertainty.SWEEP_PARAMS`) replacing the nominal ones
+        :param encoders: what the encoders measure (:data:`ENCODER_OUTPUTS`)
         """
-        key = (tuple(sorted((k, float(v)) for k, v in (params or {}).items())), float(wind_speed), float(dt))
+        key = (tuple(sorted((k, float(v)) for k, v in (params or {}).items())), float(wind_speed), float(dt),
+               encoders)
         plant = self._plants.get(key)
         if plant is not None:
             self._plants.move_to_end(key)
             return plant
-        plant = _build_plant(self, float(wind_speed), float(dt), params)
+        plant = _build_plant(self, float(wind_speed), float(dt), params, encoders)
         self._plants[key] = plant
         if len(self._plants) > self.cache_size:
             self._plants.popitem(last=False)
@@ -470,11 +489,11 @@ class PlantFactory:
             out[name] = v
         return out
 
-    def draw_params(self, rng: np.random.Generator) -> dict[str, float]:
-        """A stable draw of the uncertain parameters of this model
-        (:func:`dss14_env.model.uncertainty.draw_stable_params`).
+    def draw_params(self, rng: np.random.Generator) -> ParamDraw:
+        """A stable draw of the uncertain parameters of this model and the draws rejected
+        before it (:func:`dss14_env.model.uncertainty.draw_params`).
         """
-        return draw_stable_params(rng, model=self.model)
+        return draw_params(rng, model=self.model)
 
     def __len__(self) -> int:
         return len(self._plants)
@@ -537,12 +556,13 @@ class PlantFactories:
 
 
 @single_threaded
-def _build_plant(f: PlantFactory, wind_speed: float, dt: float, params: Mapping[str, float] | None) -> Plant:
+def _build_plant(f: PlantFactory, wind_speed: float, dt: float, params: Mapping[str, float] | None,
+                 encoders: str = "drive") -> Plant:
     """A plant of ``f``'s model, built with one BLAS thread (the same bits whatever the caller's
     threads, :mod:`dss14_env.core.threads`).
     """
     rl = perturbed_rate_loop(f.model, dict(params)) if params else f.model.rate_loop
-    return Plant(rl, f.loads, wind_speed, dt, params, xel_scale=f.xel_scale)
+    return Plant(rl, f.loads, wind_speed, dt, params, xel_scale=f.xel_scale, encoders=encoders)
 
 
 #: the plant factories of this process, per model configuration file

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -37,6 +37,10 @@ from dss14_env.envs.plant import Plant, PlantFactory
 
 #: steps per noise block: each episode draws its noise ``NOISE_BLOCK`` steps at a time
 NOISE_BLOCK = 256
+#: half-width of the start elevation about the model's elevation (``start_el_deg: model``),
+#: deg: 29 encoder counts either side, so that the elevation encoder's quantisation phase is
+#: drawn, while ``cos(E)`` stays within 2e-4 of the model's
+MODEL_EL_SPREAD_DEG = 0.01
 
 
 # ---------------------------------------------------------------------------- trajectories
@@ -139,6 +143,8 @@ class Episode:
     :param x0: initial joint plant state (balanced)
     :param r0: rate command holding the initial steady motion, rad/s
     :param params: hydraulic parameters of the plant (empty = nominal)
+    :param params_rejected: parameter draws rejected before ``params`` (``randomize_params``),
+        by reason (:data:`dss14_env.model.uncertainty.REJECT_REASONS`); empty otherwise
     """
 
     cfg: EnvConfig
@@ -152,6 +158,7 @@ class Episode:
     x0: np.ndarray
     r0: np.ndarray
     params: dict
+    params_rejected: dict = field(default_factory=dict)
 
 
 def draw_episode(cfg: EnvConfig, rng: np.random.Generator, plants: PlantFactory) -> Episode:
@@ -168,10 +175,12 @@ def draw_episode(cfg: EnvConfig, rng: np.random.Generator, plants: PlantFactory)
     :param plants: the factory of the environment's model (plants, parameter draws)
     :raises ValueError: fixed ``params`` outside the model's ranges
     """
+    rejected: dict[str, int] = {}
     if cfg.params is not None:
         params = plants.check_params(cfg.params, cfg.source_of("params"))
     elif cfg.randomize_params:
-        params = plants.draw_params(rng)
+        draw = plants.draw_params(rng)
+        params, rejected = draw.values, draw.rejected
     else:
         params = {}
     if cfg.wind_speed_kmh == "random":
@@ -186,18 +195,55 @@ def draw_episode(cfg: EnvConfig, rng: np.random.Generator, plants: PlantFactory)
     else:
         direction = WIND_DIRECTIONS.get(wd, wd)  # type: ignore[arg-type]
     start = np.empty(2)
-    for i, (val, rng_range) in enumerate(((cfg.start_az_deg, cfg.start_az_range_deg),
-                                          (cfg.start_el_deg, cfg.start_el_range_deg))):
-        start[i] = (rng.uniform(*rng_range) if val == "random" else float(val)) * DEG
+    az = cfg.start_az_deg
+    start[0] = (rng.uniform(*cfg.start_az_range_deg) if az == "random" else float(az)) * DEG
+    start[1] = start_elevation(cfg, rng, plants)
     tr = trajectory(cfg, rng)
-    plant = plants.plant(speed, cfg.dt, params)  # no draws
+    plant = plants.plant(speed, cfg.dt, params, cfg.encoders)  # no draws
     xi = rng.standard_normal(plant.n_wind)
     kappa = plant.kappa(direction)
     t_mean = plant.mean_torque(direction)
     x_wind = plant.filter_state(kappa, xi)
     _, cd0 = command(tr, np.zeros(1))
     x0, r0 = plant.steady_start(x_wind, t_mean, cd0[0])
-    return Episode(cfg, plant, speed, float(direction), kappa, t_mean, start, tr, x0, r0, params)
+    return Episode(cfg, plant, speed, float(direction), kappa, t_mean, start, tr, x0, r0, params, rejected)
+
+
+def draw_reset(cfg: EnvConfig, rng: np.random.Generator, plants: PlantFactory, encoder_sigma: float
+               ) -> tuple[Episode, np.ndarray, np.ndarray]:
+    """Every draw of a reset, in their order, for both environments: the episode
+    (:func:`draw_episode`), the encoder noise of the reading at t = 0 (rad; zeros without
+    noise) and the standard normals of the first noise block (:func:`draw_noise_block`).
+
+    :param encoder_sigma: encoder noise std, rad
+    """
+    ep = draw_episode(cfg, rng, plants)
+    ne = rng.standard_normal(2) * encoder_sigma if encoder_sigma else np.zeros(2)
+    return ep, ne, draw_noise_block(rng, ep.plant.noise_rank, encoder_sigma > 0.0)
+
+
+def start_elevation(cfg: EnvConfig, rng: np.random.Generator, plants: PlantFactory) -> float:
+    """The episode's absolute start elevation, rad (one draw, unless fixed).
+
+    ``start_el_deg``: ``"model"`` (the default) the model's elevation -- the structure model's
+    ``elevation_angle``, at which its pointing outputs, modes and the cross-elevation scale
+    ``cos(E)`` hold -- plus a uniform offset within +-:data:`MODEL_EL_SPREAD_DEG`;
+    ``"random"`` uniform over ``start_el_range_deg``; or a fixed angle in deg.
+
+    :raises ValueError: ``"model"`` with the model's elevation outside ``el_limits_deg``
+    """
+    val = cfg.start_el_deg
+    if val == "random":
+        return rng.uniform(*cfg.start_el_range_deg) * DEG
+    if val != "model":
+        return float(val) * DEG
+    e = plants.model.cfg.structure.elevation_angle * R2D
+    lo, hi = cfg.el_limits_deg
+    if not lo <= e - MODEL_EL_SPREAD_DEG and e + MODEL_EL_SPREAD_DEG <= hi:
+        raise ValueError(f"{cfg.source_of('start_el_deg')}: field 'start_el_deg': 'model' starts at the "
+                         f"model's elevation {e:g} deg, outside el_limits_deg [{lo:g}, {hi:g}]; set an angle "
+                         "or 'random'")
+    return (e + rng.uniform(-MODEL_EL_SPREAD_DEG, MODEL_EL_SPREAD_DEG)) * DEG
 
 
 def block_rows(tr: Mapping[str, np.ndarray], k0: int, dt: float, rate_limit: float,

@@ -62,9 +62,9 @@ from dss14_env.envs.core import (
     step_info,
     terminated,
 )
-from dss14_env.envs.env import EnvState, restore, snapshot
+from dss14_env.envs.env import EnvState, check_snapshot, restore, snapshot
 from dss14_env.envs.plant import N_STEP_OUTPUTS, Plant, PlantFactory, resolve_factory
-from dss14_env.envs.scenarios import NOISE_BLOCK, block_rows, command, draw_episode, draw_noise_block
+from dss14_env.envs.scenarios import NOISE_BLOCK, block_rows, command, draw_noise_block, draw_reset
 
 _TRAJ_KEYS = ("v", "amp", "omega", "phase", "sin_phase", "step", "t_step", "slew_acc", "slew_t0",
               "slew_ta", "slew_T")
@@ -193,11 +193,8 @@ class DSS14VectorEnv(VectorEnv):
         inv_old = self._inv
         for i in idx.tolist():
             rng = self._rngs[i]
-            ep = draw_episode(cfg, rng, self.plants)
-            ne = rng.standard_normal(2) * k.encoder_sigma if k.encoder_sigma else np.zeros(2)
-            block_rows(ep.traj, 0, k.dt, k.rate_limit,
-                       draw_noise_block(rng, self._k_rank, k.encoder_sigma > 0.0), k.encoder_sigma,
-                       out=self._blocks[:, i])
+            ep, ne, normals = draw_reset(cfg, rng, self.plants, k.encoder_sigma)
+            block_rows(ep.traj, 0, k.dt, k.rate_limit, normals, k.encoder_sigma, out=self._blocks[:, i])
             p = ep.plant
             self._pid[i] = self._plant_id(p)
             slot = i if inv_old is None else inv_old[i]
@@ -411,12 +408,36 @@ class DSS14VectorEnv(VectorEnv):
     def set_state(self, state: EnvState) -> None:
         """Restore a snapshot of :meth:`get_state` (of this environment or a copy of it).
 
-        :raises ValueError: not such a snapshot
+        :raises ValueError: not such a snapshot (another class, number of sub-environments,
+            configuration or model; a part missing or of the wrong shape), before anything
+            changes
         """
-        shared = ()
-        if isinstance(state, EnvState) and "_plants" in state.data:
-            shared = tuple(state.data["_plants"]) + tuple(g[0] for g in state.data["_groups"])
+        check_snapshot(self, state, tuple(n for n in self._STATE if not n.startswith("_np_random")))
+        self._check_shapes(state.data)
+        shared = tuple(state.data["_plants"]) + tuple(g[0] for g in state.data["_groups"])
         self.__dict__.update(restore(self, state, shared))
+
+    def _check_shapes(self, data: dict) -> None:
+        """Every per-sub-environment part of the snapshot has ``num_envs`` rows of this model's
+        sizes (:meth:`set_state`).
+        """
+        N, p = self.num_envs, self.plants.plant(0.0, self.config.dt)
+        n, k = p.n, p.noise_rank
+        s = data["_s"]
+        shapes = {"_Zs": (N, n + 4 + 2 * k), "_Os": (N, n + N_STEP_OUTPUTS), "_Y": (N, N_STEP_OUTPUTS),
+                  "_blocks": (NOISE_BLOCK, N, 8 + k), "_start": (N, 2), "_k": (N,), "_wind": (N, 2),
+                  "_max_e": (N,), "_r0": (N, 2), "_ne0": (N, 2), "_prev_done": (N,), "_pid": (N,),
+                  "_kappa": (N, 2), "_kappa_s": (N, 2)}
+        bad = [name for name, shape in shapes.items()
+               if not isinstance(data[name], np.ndarray) or data[name].shape != shape]
+        if not isinstance(s, StepState) or any(np.shape(v)[:1] != (N,) for v in s):
+            bad.append("_s")
+        if not isinstance(data["_rngs"], list) or len(data["_rngs"]) != N:
+            bad.append("_rngs")
+        bad += [name for name in ("_perm", "_inv") if data[name] is not None and np.shape(data[name]) != (N,)]
+        if bad:
+            raise ValueError(f"state must hold {N} sub-environments of this model ({n} states, {k} noise "
+                             f"inputs): its part(s) {', '.join(bad)} have other shapes")
 
     def close_extras(self, **kwargs: Any) -> None:
         """Nothing to release."""
