@@ -55,6 +55,7 @@ from dss14_env.baselines.base import Controller
 from dss14_env.core.results import POINTING_AXES, EpisodeFigures, ErrorStats
 from dss14_env.core.units import AXES
 from dss14_env.envs.core import OBS, OBS_SIZE
+from dss14_env.envs.scenarios import axes_mask
 
 
 def step_response(t: np.ndarray, theta: np.ndarray, size: float, t_step: float,
@@ -194,8 +195,8 @@ def batch_driver(ctrl: Controller) -> BatchDriver | None:
 def _step_spec(cfg: Any) -> dict[str, Any] | None:
     if cfg.scenario != "step":
         return None
-    mask = {"az": (1.0, 0.0), "el": (0.0, 1.0), "both": (1.0, 1.0)}[cfg.step_axes]
-    return {"size_deg": [cfg.step_deg * m for m in mask], "time_s": cfg.step_time_s}
+    return {"size_deg": [cfg.step_deg * m for m in axes_mask(cfg.step_axes).tolist()],
+            "time_s": cfg.step_time_s}
 
 
 def _fallback_record(info: Mapping[str, Any]) -> dict[str, Any]:
