@@ -1,8 +1,9 @@
 """The one episode loop: a controller on an environment, one episode or many rows at once,
 and the figures of every episode (:class:`dss14_env.core.results.EpisodeFigures`).
 
-The bench's runner (:mod:`dss14_env.bench.runner`), the robustness campaign and the agents'
-evaluation all run their episodes through :func:`run_rows` (or :func:`run_episode`).
+The bench's runner (:mod:`dss14_env.bench.runner`) and the robustness campaign run their
+episodes through :func:`run_rows` (or :func:`run_episode`); the agents' evaluation
+(:func:`dss14_env.agents.evaluation.run_task`) still steps its own loop.
 
 **Episodes.**  Episode ``seed`` of a scenario is the environment reset with that seed, so every
 controller sees the same start, wind direction, trajectory and gust realisation for the same
