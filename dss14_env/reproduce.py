@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from dss14_env.core.outdir import atomic_write_text
+from dss14_env.core.results import ErrorStats
 from dss14_env.core.schema import default_config_path
 from dss14_env.core.text import fill_blocks, find_blocks  # noqa: F401 - the block helpers, re-exported
 from dss14_env.core.units import AXES, rad_to_mdeg, to_si
@@ -719,7 +720,7 @@ def wind_error_histories(records: dict, dt: float, seconds: float = 600.0):
         for k, (axp, name, colour) in enumerate(zip(row, ("azimuth", "elevation"), ("C0", "C1"),
                                                      strict=True)):
             axp.plot(t, y[:n, k], lw=0.6, color=colour)
-            axp.set_title(f"{d} wind, {name}: 3σ {3 * np.std(y[:, k]):.2g} mdeg", fontsize=9)
+            axp.set_title(f"{d} wind, {name}: 3σ {ErrorStats.of(y[:, k]).three_sigma:.2g} mdeg", fontsize=9)
             axp.set_ylabel("servo error, mdeg")
             axp.set_xlabel("time, s")
             axp.grid(True, alpha=0.3)
