@@ -45,7 +45,9 @@ _POINTING_SALT = 10
 #: seed of every bootstrap resampling here
 BOOTSTRAP_SEED = 0
 #: the references every agent is divided by
-RATIO_REFERENCES = ("pi_kp1", "lqg")
+RATIO_REFERENCES = ("pi_kp1", "lqg", "lqg_pointing")
+#: the column heads of the ratios (a reference the results do not have gets no column)
+RATIO_HEADS = {"pi_kp1": "÷ PI", "lqg": "÷ LQG", "lqg_pointing": "÷ pointing LQG"}
 #: how the numbers are computed (stored in the results file; the module doc says the same)
 STATISTICS = (
     "agent: per training seed the mean 3-sigma over the test seeds; over the training seeds the "
@@ -355,27 +357,29 @@ def _label(row: Mapping[str, Any]) -> str:
 
 def _error_table(results: Mapping[str, Any], error: str) -> str:
     """Markdown: every row's score of one error per hold with its interval and its ratios to
-    PI and LQG ("–": not measured).
+    the references of :data:`RATIO_REFERENCES` the results have ("–": not measured).
     """
     n_test = len(results["test_seeds"])
     axes = results["holds"] if error == "servo" else results.get("pointing_axes", POINTING_AXES)
     what = "servo" if error == "servo" else "pointing"
+    refs = [r for r in RATIO_REFERENCES if r in results["rows"]]
     head = ["controller", "seeds"]
     for hold, axis in axes.items():
-        head += [f"{hold.replace('hold_', '')} wind: {axis} {what} 3σ (mdeg)", "÷ PI", "÷ LQG"]
+        head += [f"{hold.replace('hold_', '')} wind: {axis} {what} 3σ (mdeg)"]
+        head += [RATIO_HEADS[r] for r in refs]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for key, row in results["rows"].items():
         cells = [_label(row), _seeds_cell(row, n_test)]
         for hold in axes:
             cells += [_score(row, hold, error)] + [_ratio_cell(row, key, hold, error, ref)
-                                                   for ref in ("pi_kp1", "lqg")]
+                                                   for ref in refs]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
 
 def main_table(results: Mapping[str, Any]) -> str:
     """Markdown: the pointing-error table, then the servo-error table (the same rows: every
-    score per hold with its interval and its ratios to PI and LQG), under a caption that says
+    score per hold with its interval and its ratios to PI, LQG and pointing LQG), under a caption that says
     how they were computed.
     """
     n_test = len(results["test_seeds"])
@@ -435,6 +439,7 @@ def rl_tables(results: Mapping[str, Any]) -> dict[str, str]:
     return {"rl-table": main_table(results), "rl-seeds": seeds_table(results)}
 
 
-__all__ = ["BOOTSTRAP_SEED", "HOLDS", "POINTING_AXES", "RATIO_REFERENCES", "STATISTICS", "agent_entry",
+__all__ = ["BOOTSTRAP_SEED", "HOLDS", "POINTING_AXES", "RATIO_HEADS", "RATIO_REFERENCES", "STATISTICS",
+           "agent_entry",
            "agent_ratio", "analytic_entry", "build_results", "has_pointing", "main_table",
            "reference_entry", "rl_tables", "seeds_table"]

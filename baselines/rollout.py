@@ -1,8 +1,9 @@
 """The one episode loop: a controller on an environment, one episode or many rows at once,
 and the figures of every episode (:class:`dss14_env.core.results.EpisodeFigures`).
 
-The bench's runner (:mod:`dss14_env.bench.runner`), the robustness campaign and the agents'
-evaluation all run their episodes through :func:`run_rows` (or :func:`run_episode`).
+The bench's runner (:mod:`dss14_env.bench.runner`) and the robustness campaign run their
+episodes through :func:`run_rows` (or :func:`run_episode`); the agents' evaluation
+(:func:`dss14_env.agents.evaluation.run_task`) still steps its own loop.
 
 **Episodes.**  Episode ``seed`` of a scenario is the environment reset with that seed, so every
 controller sees the same start, wind direction, trajectory and gust realisation for the same
@@ -55,6 +56,7 @@ from dss14_env.baselines.base import Controller
 from dss14_env.core.results import POINTING_AXES, EpisodeFigures, ErrorStats
 from dss14_env.core.units import AXES
 from dss14_env.envs.core import OBS, OBS_SIZE
+from dss14_env.envs.scenarios import axes_mask
 
 
 def step_response(t: np.ndarray, theta: np.ndarray, size: float, t_step: float,
@@ -194,8 +196,8 @@ def batch_driver(ctrl: Controller) -> BatchDriver | None:
 def _step_spec(cfg: Any) -> dict[str, Any] | None:
     if cfg.scenario != "step":
         return None
-    mask = {"az": (1.0, 0.0), "el": (0.0, 1.0), "both": (1.0, 1.0)}[cfg.step_axes]
-    return {"size_deg": [cfg.step_deg * m for m in mask], "time_s": cfg.step_time_s}
+    return {"size_deg": [cfg.step_deg * m for m in axes_mask(cfg.step_axes).tolist()],
+            "time_s": cfg.step_time_s}
 
 
 def _fallback_record(info: Mapping[str, Any]) -> dict[str, Any]:

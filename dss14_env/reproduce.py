@@ -26,15 +26,17 @@ from __future__ import annotations
 
 import json
 import math
-import re
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from dss14_env.core.outdir import atomic_write_text
+from dss14_env.core.results import ErrorStats
 from dss14_env.core.schema import default_config_path
+from dss14_env.core.text import fill_blocks, find_blocks  # noqa: F401 - the block helpers, re-exported
 from dss14_env.core.units import AXES, rad_to_mdeg, to_si
+from dss14_env.envs.plant import ENCODER_OUTPUTS
 from dss14_env.model.analysis import (
     bandwidth_hz,
     channel_poles,
@@ -99,9 +101,6 @@ RATE_CHANNELS = {"az": ("enc_rate_az", "r_a"), "el": ("enc_rate_el", "r_e")}
 #: [R]'s conclusion: the drive encoders limit the PI loop's bandwidth to 0.1 Hz; "master
 #: equatorial or new encoders located close to the axes" would allow 0.7-1.0 Hz
 ENCODER_BANDWIDTH_REPORT = {"drive": "0.1", "axis": "0.7-1.0"}
-#: the rate-loop outputs each kind of encoder reads (az, el), and whether the az output is a
-#: cross-elevation angle (read as the axis angle: divided by cos(E))
-ENCODER_CHANNELS = {"drive": (("enc_az", "enc_el"), False), "axis": (("point_xel", "point_el"), True)}
 #: the phase margin the highest-gain PI loops keep, deg
 MIN_PHASE_MARGIN_DEG = 45.0
 _LOOP_CHANNELS = (("az", "c_a", "enc_az", "enc_el"), ("el", "c_e", "enc_el", "enc_az"))
@@ -163,6 +162,15 @@ def loop_rows(m: DSS14Model, gain_set: str) -> dict:
     return out
 
 
+def encoder_channels(encoders: str) -> tuple[tuple[str, str], bool]:
+    """The rate-loop outputs an environment's ``encoders`` read (az, el;
+    :data:`dss14_env.envs.plant.ENCODER_OUTPUTS`), and whether the az output is a
+    cross-elevation angle (read as the axis angle: divided by cos(E)).
+    """
+    (az, factor), (el, _) = ENCODER_OUTPUTS[encoders]
+    return (az, el), factor == "xel"
+
+
 def highest_gain_loop(m: DSS14Model, encoders: str, ax: str, pm_min: float = MIN_PHASE_MARGIN_DEG
                       ) -> dict[str, float]:
     """The PI position loop of one axis at the highest gain that keeps ``pm_min``.
@@ -180,7 +188,7 @@ def highest_gain_loop(m: DSS14Model, encoders: str, ax: str, pm_min: float = MIN
         ``bandwidth_hz`` (-3 dB of command -> measured angle); all NaN when the loop fails at
         ``g = 1`` already or still holds at ``g = 40``
     """
-    (outs, xel), k = ENCODER_CHANNELS[encoders], AXES.index(ax)
+    (outs, xel), k = encoder_channels(encoders), AXES.index(ax)
     scale = [1.0 / math.cos(m.cfg.structure.elevation_angle) if xel else 1.0, 1.0]
     kp, ki = m.gains(next(iter(m.cfg.gain_sets)))
     rl, c_in = m.rate_loop, ("c_a", "c_e")[k]
@@ -220,7 +228,7 @@ def encoder_rows(m: DSS14Model) -> dict:
     lumped structure (docs/model.md).
     """
     out: dict[str, dict] = {}
-    for enc in ENCODER_CHANNELS:
+    for enc in ENCODER_OUTPUTS:
         rep = ENCODER_BANDWIDTH_REPORT[enc]
         what = f"{enc} encoders, PI at the highest gain with >= {MIN_PHASE_MARGIN_DEG:g} deg phase margin"
         for ax in AXES:
@@ -615,7 +623,7 @@ def readme_table(results: dict) -> str:
     model, keys = both("cross_coupling_{ax}_step_{g}", ".2e")
     rows.append(("step cross-coupling az→el / el→az, kp 1; kp 0.7", "~1e-3", model, keys, ".0e",
                  "az→el kp 1 only"))
-    for enc in ENCODER_CHANNELS:
+    for enc in ENCODER_OUTPUTS:
         keys = [f"pi_pm45_{q}_{enc}_{ax}" for q in ("crossover_hz", "bandwidth_hz") for ax in AXES]
         model = "; ".join(" / ".join(_v(mt, f"pi_pm45_{q}_{enc}_{ax}", ".2f") for ax in AXES)
                           for q in ("crossover_hz", "bandwidth_hz"))
@@ -689,19 +697,6 @@ def doc_blocks(results: dict) -> dict[str, str]:
             "reproduce-viscosity": viscosity_markdown(results["viscosity_sensitivity"])}
 
 
-_BLOCK = re.compile(r"(<!-- (?P<name>[\w-]+):start -->\n)(?P<body>.*?)(<!-- (?P=name):end -->)", re.S)
-
-
-def find_blocks(text: str) -> dict[str, str]:
-    """The generated blocks of a document: ``{name: body}``."""
-    return {m["name"]: m["body"] for m in _BLOCK.finditer(text)}
-
-
-def fill_blocks(text: str, blocks: dict[str, str]) -> str:
-    """``text`` with every marked block whose name is in ``blocks`` replaced by its rendering."""
-    return _BLOCK.sub(lambda m: m.group(1) + blocks.get(m["name"], m["body"]) + m.group(4), text)
-
-
 # ------------------------------------------------------------------------------ figures
 def _figure(nrows: int = 1, figsize=(7, 4), ncols: int = 1):
     """A figure on an off-screen Agg canvas (no pyplot, no backend switch) and its axes."""
@@ -725,7 +720,7 @@ def wind_error_histories(records: dict, dt: float, seconds: float = 600.0):
         for k, (axp, name, colour) in enumerate(zip(row, ("azimuth", "elevation"), ("C0", "C1"),
                                                      strict=True)):
             axp.plot(t, y[:n, k], lw=0.6, color=colour)
-            axp.set_title(f"{d} wind, {name}: 3σ {3 * np.std(y[:, k]):.2g} mdeg", fontsize=9)
+            axp.set_title(f"{d} wind, {name}: 3σ {ErrorStats.of(y[:, k]).three_sigma:.2g} mdeg", fontsize=9)
             axp.set_ylabel("servo error, mdeg")
             axp.set_xlabel("time, s")
             axp.grid(True, alpha=0.3)

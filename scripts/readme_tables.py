@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import re
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -25,6 +24,7 @@ from typing import Any
 
 from dss14_env.bench.catalog import controllers_table, scenarios_table
 from dss14_env.bench.report import pointing_summary, readme_table
+from dss14_env.core.text import fill_blocks, find_blocks
 
 ROOT = Path(__file__).resolve().parents[1]
 #: the generated regions by name: their renderer (given the default results)
@@ -38,25 +38,17 @@ REGIONS: dict[str, Callable[[Any], str]] = {
 README_REGION = "bench-table"
 
 
-def _markers(name: str) -> tuple[str, str]:
-    return f"<!-- {name}:start -->", f"<!-- {name}:end -->"
-
-
 def render(text: str, results: Any, required: tuple[str, ...] = ()) -> str:
-    """``text`` with every region of :data:`REGIONS` it has rendered anew.
+    """``text`` with every region of :data:`REGIONS` it has rendered anew
+    (:func:`dss14_env.core.text.fill_blocks`).
 
     :raises ValueError: a region of ``required`` is missing
     """
-    for name, fn in REGIONS.items():
-        start, end = _markers(name)
-        pattern = re.compile(re.escape(start) + r"\n.*?" + re.escape(end), re.S)
-        if not pattern.search(text):
-            if name in required:
-                raise ValueError(f"no {start} ... {end} region")
-            continue
-        table = fn(results)
-        text = pattern.sub(lambda _, t=table, s=start, e=end: f"{s}\n{t}{e}", text, count=1)
-    return text
+    present = find_blocks(text)
+    for name in required:
+        if name not in present:
+            raise ValueError(f"no <!-- {name}:start --> ... <!-- {name}:end --> region")
+    return fill_blocks(text, {name: fn(results) for name, fn in REGIONS.items() if name in present})
 
 
 def main(argv: list[str] | None = None) -> int:

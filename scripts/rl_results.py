@@ -109,17 +109,36 @@ def references(out: Path) -> None:
             h, i = e["scenario"], TEST_SEEDS.index(e["seed"])
             values[e["controller"]][h][i] = e["servo_error_mdeg"][HOLDS[h]]["three_sigma"]
             pointing[e["controller"]][h][i] = e["pointing_error_mdeg"][POINTING_AXES[h]]["three_sigma"]
-    analytic = {h: res["yardstick"][h]["three_sigma_mdeg"][0 if a == "az" else 1]
-                for h, a in HOLDS.items() if h in res.get("yardstick", {})}
+    yard = {h: y for h, y in (res.get("yardstick") or {}).items() if h in HOLDS and y}
+    analytic = {h: y["three_sigma_mdeg"][0 if HOLDS[h] == "az" else 1] for h, y in yard.items()}
+    # the yardstick's expected pointing 3σ ([el, xel]) and the pointing yardstick's expected
+    # servo and pointing 3σ (its design scores the pointing error), where the runner has them
+    analytic_p = _pointing_values(yard)
+    pyard = {h: y["pointing"] for h, y in yard.items() if isinstance(y.get("pointing"), dict)}
+    pointing_yardstick = None
+    if len(pyard) == len(HOLDS) and len(_pointing_values(pyard)) == len(HOLDS):
+        pointing_yardstick = {
+            "three_sigma_mdeg": {h: y["three_sigma_mdeg"][0 if HOLDS[h] == "az" else 1]
+                                 for h, y in pyard.items()},
+            "pointing_three_sigma_mdeg": _pointing_values(pyard)}
     doc = {"what": "3-sigma servo error (mdeg) of the loaded axis and 3-sigma pointing error (mdeg) "
                    "of the swung axis (front: el, side: xel) per test seed, the benchmark's "
                    "runner (dss14_env.bench.runner.run), hold scenarios, 3000 steps, 5-s warm-up",
            "date_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
            "machine": _machine(), "test_seeds": TEST_SEEDS, "wall_time_s": res["meta"]["wall_time_s"],
            "labels": labels, "three_sigma_mdeg": values, "pointing_three_sigma_mdeg": pointing,
-           "yardstick_analytic_three_sigma_mdeg": analytic}
+           "yardstick_analytic_three_sigma_mdeg": analytic,
+           "yardstick_analytic_pointing_three_sigma_mdeg": analytic_p if len(analytic_p) == len(HOLDS)
+           else None,
+           "pointing_yardstick_analytic": pointing_yardstick}
     out.write_text(json.dumps(doc, indent=1) + "\n")
     print(f"wrote {out}")
+
+
+def _pointing_values(yard: dict) -> dict:
+    """hold -> the expected 3σ pointing error of the hold's swung axis (``[el, xel]`` entries)."""
+    return {h: y["pointing_three_sigma_mdeg"][0 if POINTING_AXES[h] == "el" else 1]
+            for h, y in yard.items() if y.get("pointing_three_sigma_mdeg") is not None}
 
 
 def _selected_at(run: Path) -> int | None:
@@ -224,7 +243,13 @@ def build(runs: Path, out: Path, refs: Path, figures: Path, keep_from: Path = RE
         if key in ref["labels"]:
             references_[key] = _reference(ref, key)
     analytic = {"yardstick_analytic": ("yardstick, expected value (H2 analysis)",
-                                       ref["yardstick_analytic_three_sigma_mdeg"])}
+                                       ref["yardstick_analytic_three_sigma_mdeg"],
+                                       ref.get("yardstick_analytic_pointing_three_sigma_mdeg"))}
+    if ref.get("pointing_yardstick_analytic"):
+        py = ref["pointing_yardstick_analytic"]
+        analytic["pointing_yardstick_analytic"] = (
+            "pointing yardstick, expected value (H2 analysis of the pointing cost)",
+            py["three_sigma_mdeg"], py["pointing_three_sigma_mdeg"])
     results = build_results(agents, references_, ref["test_seeds"], meta, analytic)
     rows = results["rows"]
     results["rows"] = {**{k: v for k, v in rows.items() if v["kind"] != "agent"},

@@ -26,6 +26,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from dss14_env.core.text import fill_blocks, find_blocks
+
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "docs" / "results" / "wind_range_ends.json"
 DOC = ROOT / "docs" / "wind.md"
@@ -121,10 +123,13 @@ def render(res: dict) -> str:
 
 
 def fill(text: str, body: str) -> str:
-    """``text`` with the block's body replaced."""
-    start, end = f"<!-- {BLOCK}:start -->\n", f"<!-- {BLOCK}:end -->"
-    i, j = text.index(start) + len(start), text.index(end)
-    return text[:i] + body + text[j:]
+    """``text`` with the block's body replaced (:func:`dss14_env.core.text.fill_blocks`).
+
+    :raises ValueError: ``text`` has no such block
+    """
+    if BLOCK not in find_blocks(text):
+        raise ValueError(f"no <!-- {BLOCK}:start --> ... <!-- {BLOCK}:end --> block")
+    return fill_blocks(text, {BLOCK: body})
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -127,3 +127,13 @@ def test_the_pi_takes_its_gains_from_the_environments_model() -> None:
     assert shipped.kp.tolist() == [1.0, 1.0] and shipped.ki.tolist() == [0.3, 0.3]
     with pytest.raises(ValueError, match="unknown gain set 'kp0.7'"):
         PIController(env, "kp0.7")
+
+
+def test_the_campaigns_pi_gain_sets_come_from_the_rows() -> None:
+    """A controller's PI gain set (the exact PI-loop stability column) is its row's argument,
+    not read from its name."""
+    from dss14_env.bench.campaign_report import pi_gain_set
+
+    pis = {r.name: r.args[0] for r in catalog.CONTROLLER_ROWS if r.cls == "PIController"}
+    assert pis == {"pi_kp1": "kp1", "pi_kp0.7": "kp0.7"}
+    assert all(pi_gain_set(n) == g for n, g in pis.items()) and pi_gain_set("lqg") is None

@@ -40,10 +40,14 @@ def test_random_and_fixed_start_elevations_remain_available() -> None:
     assert DSS14Env(start_el_deg=30.0).reset(seed=0)[1]["start_el_deg"] == pytest.approx(30.0)
 
 
-def test_model_elevation_outside_the_travel_is_one_line_naming_the_key() -> None:
-    env = DSS14Env(el_limits_deg=[50.0, 88.0], start_el_range_deg=[55.0, 60.0])
+@pytest.mark.parametrize("limits, inside", [([50.0, 88.0], 60.0), ([6.0, 40.0], 30.0)],
+                         ids=["below", "above"])
+def test_model_elevation_outside_the_travel_is_one_line_naming_the_key(limits: list[float],
+                                                                       inside: float) -> None:
+    env = DSS14Env(el_limits_deg=limits, start_el_range_deg=[inside - 2.0, inside + 2.0])
+    shown = rf"\[{limits[0]:g}, {limits[1]:g}\]"
     with pytest.raises(ValueError, match=r"env.yaml: field 'start_el_deg': 'model' starts at the model's "
-                                         r"elevation 45 deg, outside el_limits_deg \[50, 88\]") as err:
+                                         rf"elevation 45 deg, outside el_limits_deg {shown}") as err:
         env.reset(seed=0)
     assert "\n" not in str(err.value)
-    assert math.isfinite(env.reset(seed=0, options={"start_el_deg": 60.0})[1]["start_el_deg"])
+    assert math.isfinite(env.reset(seed=0, options={"start_el_deg": inside})[1]["start_el_deg"])

@@ -107,12 +107,14 @@ def test_wrapper_ids_restore_their_next_observation_bit_for_bit(env_id: str) -> 
 
 
 # ---------------------------------------------------------------------------- hypothesis
-_ENV = DSS14Env(**KW)
-_ENV.reset(seed=5)
-_GOOD = _ENV.get_state()
-_VENV = DSS14VectorEnv(num_envs=2, **{**KW, "wind_speed_kmh": "random"})  # two plants: a permutation
-_VENV.reset(seed=5)
-_VGOOD = _VENV.get_state()
+@pytest.fixture(scope="module")
+def snapshots() -> list[tuple]:
+    """A single and a vector environment (two plants: a permutation), each with a good snapshot."""
+    out = []
+    for env in (DSS14Env(**KW), DSS14VectorEnv(num_envs=2, **{**KW, "wind_speed_kmh": "random"})):
+        env.reset(seed=5)
+        out.append((env, env.get_state()))
+    return out
 
 
 @st.composite
@@ -143,8 +145,8 @@ def damaged(draw, good: EnvState) -> EnvState:
 
 @settings(max_examples=40, deadline=None)
 @given(st.data())
-def test_every_damaged_snapshot_is_refused_in_one_line(data) -> None:
-    for env, good in ((_ENV, _GOOD), (_VENV, _VGOOD)):
+def test_every_damaged_snapshot_is_refused_in_one_line(snapshots: list[tuple], data) -> None:
+    for env, good in snapshots:
         bad = data.draw(damaged(good))
         with pytest.raises(ValueError) as err:
             env.set_state(bad)

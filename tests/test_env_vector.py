@@ -129,3 +129,23 @@ def test_vector_env_info_arrays_and_counters() -> None:
     assert np.all(info["accel_limited"]) and np.all(venv.n_accel_limited == 1)
     assert np.all(info["n_accel_limited"] == 1)
     assert np.allclose(info["wind_speed_mps"], 50 / 3.6)
+
+
+@pytest.mark.parametrize("kw", [
+    dict(),
+    dict(scenario="slew", randomize_params=True, wind_speed_kmh="random", start_el_deg="random"),
+], ids=["defaults", "drawn-params-and-starts"])
+def test_vector_reset_info_has_the_single_env_reset_info_per_sub_env(kw: dict) -> None:
+    N, seed = 3, 4
+    _, v_info = DSS14VectorEnv(num_envs=N, **kw).reset(seed=seed)
+    for i in range(N):
+        _, s_info = DSS14Env(**kw).reset(seed=seed + i)
+        assert list(v_info) == list(s_info)
+        for key, value in s_info.items():
+            assert v_info[key].shape == (N,)
+            if isinstance(value, float):
+                assert v_info[key][i] == pytest.approx(value, rel=1e-7, abs=1e-9), key
+            else:
+                assert v_info[key][i] == value, key
+    if kw.get("randomize_params"):
+        assert all(len(p) > 0 for p in v_info["params"]) and len({str(p) for p in v_info["params"]}) == N

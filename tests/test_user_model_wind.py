@@ -100,12 +100,26 @@ def test_user_model_at_every_range_end(tmp_path, name: str, end: int) -> None:
     check_user_model(tmp_path, {name: RANGES[name][end]})
 
 
-@pytest.mark.slow
-@settings(max_examples=8, deadline=None)
-@given(corner=st.tuples(*[st.sampled_from([0, 1]) for _ in RANGES]))
-def test_user_model_at_corners_of_the_box(tmp_path_factory, corner) -> None:
+CORNERS = st.tuples(*[st.sampled_from([0, 1]) for _ in RANGES])
+
+
+def _check_corner(tmp_path_factory, corner: tuple[int, ...]) -> None:
     values = {name: RANGES[name][end] for name, end in zip(sorted(RANGES), corner, strict=True)}
     check_user_model(tmp_path_factory.mktemp("corner"), values)
+
+
+@settings(max_examples=2, deadline=None)
+@given(corner=CORNERS)
+def test_user_model_at_corners_of_the_box(tmp_path_factory, corner) -> None:
+    """Two of the 32 corners per run (a few seconds each); the slow suite draws 16."""
+    _check_corner(tmp_path_factory, corner)
+
+
+@pytest.mark.slow
+@settings(max_examples=16, deadline=None)
+@given(corner=CORNERS)
+def test_user_model_at_many_corners_of_the_box(tmp_path_factory, corner) -> None:
+    _check_corner(tmp_path_factory, corner)
 
 
 def test_refit_is_an_opt_in_that_says_so(tmp_path) -> None:

@@ -36,6 +36,7 @@ from typing import Any
 
 import numpy as np
 
+from dss14_env.bench import catalog
 from dss14_env.bench.campaign_spec import CampaignSpec
 from dss14_env.bench.plan import control_period
 from dss14_env.bench.report import fmt, package_versions
@@ -197,6 +198,14 @@ def draw_summary(spec: Any, plants: Sequence[Mapping[str, Any]],
     return out
 
 
+def pi_gain_set(name: str) -> str | None:
+    """The report's PI gain set a controller row runs (its catalog row's argument), or None."""
+    row = catalog.CONTROLLERS.get(name)
+    if row is None or row.cls != "PIController" or not row.args:
+        return None
+    return str(row.args[0])
+
+
 def draws_markdown(d: Mapping[str, Any]) -> str:
     """:func:`draw_summary` as a paragraph and a table."""
     def pct(x: Mapping[str, Any]) -> str:
@@ -211,8 +220,7 @@ def draws_markdown(d: Mapping[str, Any]) -> str:
              + (pct(d["rejected_share"]) if d["rejected_share"] else "—") + f" ({why}).", "",
              "| controller | plants with a terminated episode | PI loop unstable (exact) |", "|---|---|---|"]
     for c, x in d["terminated_share"].items():
-        g = c.replace("pi_", "") if c.startswith("pi_") else None
-        exact = d["pi_unstable_share"].get(g)
+        exact = d["pi_unstable_share"].get(pi_gain_set(c))
         lines.append(f"| {c} | {pct(x)} | {pct(exact) if exact else '—'} |")
     return "\n".join(lines) + "\n"
 
@@ -420,6 +428,6 @@ def draw_cdfs(results: Mapping[str, Any], out: str | Path) -> list[str]:
 
 
 __all__ = ["DEFAULT_REQUIREMENTS", "LEGEND", "REQUIREMENT_QUANTITY", "STAT_FIELDS", "THREE_SIGMA_KEYS",
-           "cell_statistics", "check_requirements",
+           "cell_statistics", "pi_gain_set", "check_requirements",
            "compact_results", "completed", "docs_section", "draw_cdfs", "episode_three_sigma", "main_table",
            "package_versions", "parse_requirements", "results_markdown", "share_ci", "summarise"]

@@ -10,7 +10,6 @@ The campaign (:mod:`dss14_env.bench.campaign`) and its report
 
 from __future__ import annotations
 
-import difflib
 import hashlib
 import json
 import math
@@ -22,7 +21,7 @@ import numpy as np
 
 from dss14_env.bench import catalog
 from dss14_env.bench.catalog import ControllerRow
-from dss14_env.bench.plan import control_period
+from dss14_env.bench.plan import check_names, control_period
 from dss14_env.core.units import DEG, WIND_DIRECTIONS
 
 #: the controllers of a campaign by default (the catalog's campaign rows)
@@ -180,18 +179,7 @@ def _positive_int(v: Any, option: str, lo: int = 1) -> int:
 
 
 def _check_controllers(names: Sequence[str]) -> None:
-    if not names:
-        raise CampaignOptionError("--controllers: give at least one controller")
-    known = known_controllers()
-    for n in names:
-        if n not in known:
-            near = difflib.get_close_matches(str(n), known, n=1)
-            hint = f" (did you mean {near[0]!r}?)" if near else ""
-            raise CampaignOptionError(f"--controllers: unknown controller {n!r}{hint}; known: "
-                                      f"{', '.join(known)}")
-    dup = sorted({n for n in names if list(names).count(n) > 1})
-    if dup:
-        raise CampaignOptionError(f"--controllers: controller named twice: {', '.join(dup)}")
+    check_names(names, known_controllers(), "--controllers", "controller", CampaignOptionError)
 
 
 def check_policy(spec: CampaignSpec) -> None:

@@ -158,23 +158,34 @@ class BenchPlan:
 
 
 # ------------------------------------------------------------------------------ options
-def _names(values: Sequence[str] | None, known: Sequence[str], option: str, what: str
-           ) -> list[str] | None:
-    """Validate a list of names: known, unique, not empty."""
-    if values is None:
-        return None
-    names = [str(v) for v in values]
+def check_names(names: Sequence[Any], known: Sequence[str], option: str, what: str,
+                error: type[ValueError] = BenchOptionError) -> list[Any]:
+    """A list of names checked: not empty, every one known, none repeated.
+
+    :param option: the option's name, first in every message; ``what`` the kind of name
+    :param error: the exception class raised (a :class:`ValueError`)
+    :raises error: one line naming the option and the first problem (with a near name)
+    """
+    names = list(names)
     if not names:
-        raise BenchOptionError(f"{option}: give at least one {what}")
+        raise error(f"{option}: give at least one {what}")
     for n in names:
         if n not in known:
-            near = difflib.get_close_matches(n, known, n=1)
+            near = difflib.get_close_matches(str(n), known, n=1)
             hint = f" (did you mean {near[0]!r}?)" if near else ""
-            raise BenchOptionError(f"{option}: unknown {what} {n!r}{hint}; known: {', '.join(known)}")
+            raise error(f"{option}: unknown {what} {n!r}{hint}; known: {', '.join(known)}")
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
-        raise BenchOptionError(f"{option}: {what} named twice: {', '.join(dup)}")
+        raise error(f"{option}: {what} named twice: {', '.join(dup)}")
     return names
+
+
+def _names(values: Sequence[str] | None, known: Sequence[str], option: str, what: str
+           ) -> list[str] | None:
+    """Validate a list of names: known, unique, not empty (:func:`check_names`)."""
+    if values is None:
+        return None
+    return check_names([str(v) for v in values], known, option, what)
 
 
 def _check_seeds(seeds: Sequence[int]) -> list[int]:
@@ -446,5 +457,5 @@ def sweep_name(direction: str, speed_kmh: float) -> str:
 __all__ = ["BenchOptionError", "BenchPlan", "Budget", "DEFAULT_BUDGETS", "DEFAULT_CONTROLLERS",
            "DEFAULT_SCENARIOS", "DEFAULT_SWEEP", "DEFAULT_WIND_SPEEDS_KMH", "LOADED_AXES",
            "QUICK_BUDGETS", "QUICK_SWEEP", "ScenarioRun", "SWEEP_DIRECTIONS", "build_plan",
-           "control_period", "controller_rows", "parse_episodes", "parse_seeds", "parse_wind_speeds",
-           "sweep_name", "sweep_scenario"]
+           "check_names", "control_period", "controller_rows", "parse_episodes", "parse_seeds",
+           "parse_wind_speeds", "sweep_name", "sweep_scenario"]

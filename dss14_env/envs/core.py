@@ -453,8 +453,8 @@ def step_info(e: np.ndarray, em: np.ndarray, pe: np.ndarray, wind: np.ndarray, a
 
 
 # ------------------------------------------------------------------------------ state and reset
-#: the keys of the reset info of both environments (the single one adds ``scenario``, the start
-#: position and ``params``)
+#: the reset-info keys of the first state, for both environments (both add the episode's:
+#: :data:`dss14_env.envs.scenarios.EPISODE_INFO_KEYS`)
 RESET_INFO_KEYS = ("servo_error_az_mdeg", "servo_error_el_mdeg", "measured_error_az_mdeg",
                    "measured_error_el_mdeg", "pointing_error_el_mdeg", "pointing_error_xel_mdeg",
                    "wind_speed_mps", "wind_direction_rad", "rate_command_az_deg_s", "rate_command_el_deg_s")

@@ -38,7 +38,15 @@ from dss14_env.envs.plant import (
 )
 from dss14_env.envs.presets import registered_ids_table
 from dss14_env.envs.render import Renderer
-from dss14_env.envs.scenarios import NOISE_BLOCK, Episode, block_rows, command, draw_noise_block, draw_reset
+from dss14_env.envs.scenarios import (
+    NOISE_BLOCK,
+    Episode,
+    block_rows,
+    command,
+    draw_noise_block,
+    draw_reset,
+    episode_info,
+)
 
 __all__ = ["DSS14Env", "EnvState", "OBS_HIGH", "OBS_NAMES"]
 
@@ -263,8 +271,9 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
     ``n_accel_limited`` (the episode's limit-hit counts, also attributes of the unwrapped
     environment); with ``info_state=True`` also ``plant_state`` (balanced coordinates of the
     68-state joint plant).  The reset info has the errors, pointing errors, wind and start
-    command plus ``scenario``, ``start_az_deg``, ``start_el_deg`` and ``params`` (the hydraulic
-    parameters, ``{}`` = nominal).  The instantaneous gust: :meth:`wind_gust`.
+    command plus ``scenario``, ``start_az_deg``, ``start_el_deg``, ``params`` (the hydraulic
+    parameters, ``{}`` = nominal), ``params_rejected`` and ``wind_loads`` (see the keys
+    below).  The instantaneous gust: :meth:`wind_gust`.
 
     ## Scenarios (``scenario``)
 
@@ -417,10 +426,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         self._info_state = cfg.info_state
         self._bufs = self._views(False)
         self._st = StepState(*(tuple(v[0].tolist()) for v in st[:4]), 0)
-        info = {"scenario": cfg.scenario, "start_az_deg": s_az * R2D, "start_el_deg": s_el * R2D,
-                "params": dict(ep.params), "params_rejected": dict(ep.params_rejected),
-                "wind_loads": self.plants.wind_loads,
-                **{key: float(v[0]) for key, v in rinfo.items()}}
+        info = {**episode_info(ep, self.plants.wind_loads), **{key: float(v[0]) for key, v in rinfo.items()}}
         rp0, rp1 = self._st.r_prev
         obs = obs[0]
         if cfg.info_state:

@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -44,7 +45,10 @@ MODEL_EL_SPREAD_DEG = 0.01
 
 
 # ---------------------------------------------------------------------------- trajectories
-def _axes_mask(axes: str) -> np.ndarray:
+def axes_mask(axes: str) -> np.ndarray:
+    """``[az, el]`` as 1.0 for the axes an axis selection (``step_axes``, ``slew_axes``:
+    ``"az"``, ``"el"``, ``"both"``) moves, 0.0 for the other.
+    """
     return np.array([axes in ("az", "both"), axes in ("el", "both")], float)
 
 
@@ -65,7 +69,7 @@ def trajectory(cfg: EnvConfig, rng: np.random.Generator) -> dict[str, np.ndarray
         tr["omega"] = 2.0 * math.pi / rng.uniform(lo, hi, 2)
         tr["phase"] = rng.uniform(0.0, 2.0 * math.pi, 2)
     elif s == "step":
-        tr["step"] = _axes_mask(cfg.step_axes) * cfg.step_deg * DEG
+        tr["step"] = axes_mask(cfg.step_axes) * cfg.step_deg * DEG
         tr["t_step"] = np.full(2, cfg.step_time_s)
     elif s == "slew":
         sign = 2.0 * rng.integers(0, 2, 2) - 1.0
@@ -76,7 +80,7 @@ def trajectory(cfg: EnvConfig, rng: np.random.Generator) -> dict[str, np.ndarray
             ta = math.sqrt(dist / acc)
             rate = acc * ta
         T = dist / rate + ta if dist > 0 else 0.0
-        tr["slew_acc"] = sign * acc * _axes_mask(cfg.slew_axes) * (dist > 0)
+        tr["slew_acc"] = sign * acc * axes_mask(cfg.slew_axes) * (dist > 0)
         tr["slew_t0"] = np.full(2, cfg.slew_time_s)
         tr["slew_ta"] = np.full(2, ta)
         tr["slew_T"] = np.full(2, T)
@@ -161,6 +165,23 @@ class Episode:
     params_rejected: dict = field(default_factory=dict)
 
 
+#: the reset-info keys that describe the episode drawn (:func:`episode_info`), beside the
+#: first state's (:data:`dss14_env.envs.core.RESET_INFO_KEYS`)
+EPISODE_INFO_KEYS = ("scenario", "start_az_deg", "start_el_deg", "params", "params_rejected", "wind_loads")
+
+
+def episode_info(ep: Episode, wind_loads: str) -> dict[str, Any]:
+    """The reset-info entries of one drawn episode (keys :data:`EPISODE_INFO_KEYS`), for both
+    environments: scenario, start position (deg), hydraulic parameters (``{}`` = nominal), the
+    parameter draws rejected before them, and where the wind loads come from.
+
+    :param wind_loads: the plant factory's ``wind_loads``
+    """
+    return {"scenario": ep.cfg.scenario, "start_az_deg": float(ep.start[0]) * R2D,
+            "start_el_deg": float(ep.start[1]) * R2D, "params": dict(ep.params),
+            "params_rejected": dict(ep.params_rejected), "wind_loads": wind_loads}
+
+
 def draw_episode(cfg: EnvConfig, rng: np.random.Generator, plants: PlantFactory) -> Episode:
     """Draw one episode (see the module docstring for the order of the draws).
 
@@ -239,7 +260,7 @@ def start_elevation(cfg: EnvConfig, rng: np.random.Generator, plants: PlantFacto
         return float(val) * DEG
     e = plants.model.cfg.structure.elevation_angle * R2D
     lo, hi = cfg.el_limits_deg
-    if not lo <= e - MODEL_EL_SPREAD_DEG and e + MODEL_EL_SPREAD_DEG <= hi:
+    if not (lo <= e - MODEL_EL_SPREAD_DEG and e + MODEL_EL_SPREAD_DEG <= hi):
         raise ValueError(f"{cfg.source_of('start_el_deg')}: field 'start_el_deg': 'model' starts at the "
                          f"model's elevation {e:g} deg, outside el_limits_deg [{lo:g}, {hi:g}]; set an angle "
                          "or 'random'")

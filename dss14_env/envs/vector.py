@@ -28,7 +28,9 @@ steps (from the registration, via ``make_vec``).
 
 ``info`` holds arrays of shape ``(N,)`` (``action_unclipped``: ``(N, 2)``) with the keys of the
 single environment's step info (values of a sub-environment that was just reset describe its
-first state); there are no ``_key`` masks.  Rendering is not supported.  ``copy.deepcopy``, a
+first state); there are no ``_key`` masks.  The reset info has the keys of the single
+environment's reset info, one entry per sub-environment (``scenario``, ``params``,
+``params_rejected`` and ``wind_loads`` as object arrays).  Rendering is not supported.  ``copy.deepcopy``, a
 pickle round trip and :meth:`DSS14VectorEnv.get_state` / ``set_state`` continue bit for bit.
 """
 
@@ -43,7 +45,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from dss14_env.core.units import DEG, R2D, R2MD
+from dss14_env.core.units import DEG, R2MD
 from dss14_env.envs.config import EnvConfig, load_env_config
 from dss14_env.envs.core import (
     OBS_HIGH,
@@ -64,10 +66,33 @@ from dss14_env.envs.core import (
 )
 from dss14_env.envs.env import EnvState, check_snapshot, restore, snapshot
 from dss14_env.envs.plant import N_STEP_OUTPUTS, Plant, PlantFactory, resolve_factory
-from dss14_env.envs.scenarios import NOISE_BLOCK, block_rows, command, draw_noise_block, draw_reset
+from dss14_env.envs.scenarios import (
+    NOISE_BLOCK,
+    Episode,
+    block_rows,
+    command,
+    draw_noise_block,
+    draw_reset,
+    episode_info,
+)
 
 _TRAJ_KEYS = ("v", "amp", "omega", "phase", "sin_phase", "step", "t_step", "slew_acc", "slew_t0",
               "slew_ta", "slew_T")
+
+
+def _stacked(rows: list[dict[str, Any]]) -> dict[str, np.ndarray]:
+    """One array of shape ``(N,)`` per key of the per-sub-environment dicts ``rows``: floats
+    as a float array, anything else (names, dicts) as an object array.
+    """
+    out = {}
+    for key in rows[0]:
+        values = [row[key] for row in rows]
+        if all(isinstance(v, float) for v in values):
+            out[key] = np.array(values)
+        else:
+            out[key] = np.empty(len(values), object)
+            out[key][:] = values
+    return out
 
 
 class DSS14VectorEnv(VectorEnv):
@@ -137,10 +162,9 @@ class DSS14VectorEnv(VectorEnv):
                 self._rngs[i] = seeding.np_random(s)[0]
         self._allocate()
         idx = np.arange(N)
-        self._reset_envs(idx, cfg)
+        episodes = self._reset_envs(idx, cfg)
         obs, info = self._reset_rows(idx)
-        info["start_az_deg"], info["start_el_deg"] = self._start[:, 0] * R2D, self._start[:, 1] * R2D
-        return obs, info
+        return obs, {**_stacked([episode_info(ep, self.plants.wind_loads) for ep in episodes]), **info}
 
     def _allocate(self) -> None:
         """Per-sub-environment arrays (sized from the nominal plant)."""
@@ -187,13 +211,17 @@ class DSS14VectorEnv(VectorEnv):
         self._plants.append(plant)
         return len(self._plants) - 1
 
-    def _reset_envs(self, idx: np.ndarray, cfg: EnvConfig) -> None:
-        """Draw new episodes for the sub-environments ``idx`` (same draws as DSS14Env.reset)."""
+    def _reset_envs(self, idx: np.ndarray, cfg: EnvConfig) -> list[Episode]:
+        """Draw new episodes for the sub-environments ``idx`` (same draws as DSS14Env.reset);
+        returns them in the order of ``idx``.
+        """
         n, k = self._n, self.constants
         inv_old = self._inv
+        episodes = []
         for i in idx.tolist():
             rng = self._rngs[i]
             ep, ne, normals = draw_reset(cfg, rng, self.plants, k.encoder_sigma)
+            episodes.append(ep)
             block_rows(ep.traj, 0, k.dt, k.rate_limit, normals, k.encoder_sigma, out=self._blocks[:, i])
             p = ep.plant
             self._pid[i] = self._plant_id(p)
@@ -213,6 +241,7 @@ class DSS14VectorEnv(VectorEnv):
         self._s.j[idx] = 0
         self._regroup(inv_old)
         self._clamp_always = any(k.clamp_always(me) for me in np.unique(self._max_e).tolist())
+        return episodes
 
     def _regroup(self, inv_old: np.ndarray | None) -> None:
         """Drop plants no sub-environment uses, then group the sub-environments by plant."""
