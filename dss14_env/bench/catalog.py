@@ -111,12 +111,11 @@ CONTROLLER_ROWS: tuple[ControllerRow, ...] = (
     ControllerRow("lqg_pointing", "dss14_env.baselines.lqg", "PointingLQGController",
                   "LQG designed for the dish's true pointing error: Kalman filter on the drive "
                   "encoders, the LQR scores the structure's pointing (deformation included) "
-                  "(`baselines/lqg.py`, docs/controllers.md)", config="pointing", bench=False,
-                  campaign=True),
+                  "(`baselines/lqg.py`, docs/controllers.md)", config="pointing", campaign=True),
     ControllerRow("mpc_pointing", "dss14_env.baselines.mpc", "PointingMPCController",
                   "MPC on the pointing LQG's design and estimator, its soft error bound on the "
                   "predicted pointing error (`baselines/mpc.py`)", batchable=False,
-                  config="pointing", bench=False),
+                  config="pointing"),
     _policy_row("ppo", "residual_pi", "PPO residual on the report's PI, the policy shipped with the "
                 "package (`agents/policies/residual_pi`); `--ppo-model PATH` replaces it by a "
                 "trained policy, scored under its own name"),
@@ -257,22 +256,20 @@ class ScenarioRow:
 #: 3σ for the batched controllers (60-s episodes scatter about 15 % (1 σ) from seed to seed, so
 #: 128 of them give about 2-3 %); the MPC gets what fits the 5-minute budget
 SCENARIO_ROWS: tuple[ScenarioRow, ...] = (
-    ScenarioRow("hold_front", Budget(60.0, 128, 16), Budget(15.0, 8, 1), traced=True, sweep="front"),
-    ScenarioRow("hold_side", Budget(60.0, 128, 16), Budget(15.0, 8, 1), traced=True, sweep="side"),
+    ScenarioRow("hold_front", Budget(60.0, 128, 8), Budget(15.0, 8, 1), traced=True, sweep="front"),
+    ScenarioRow("hold_side", Budget(60.0, 128, 8), Budget(15.0, 8, 1), traced=True, sweep="side"),
     # no wind: episodes differ only in start and quantisation
     ScenarioRow("step", Budget(20.0, 16, 2), Budget(15.0, 4, 1), steps=1000, group="move", traced=True),
     # random 30-70 km/h wind and direction: wide by design
-    ScenarioRow("track", Budget(40.0, 128, 6), Budget(10.0, 8, 1)),
+    ScenarioRow("track", Budget(40.0, 128, 4), Budget(10.0, 8, 1)),
     # the commanded move dominates
-    ScenarioRow("slew", Budget(50.0, 32, 3), Budget(10.0, 4, 1), steps=2500, group="move"),
+    ScenarioRow("slew", Budget(50.0, 32, 2), Budget(10.0, 4, 1), steps=2500, group="move"),
     # the report's encoders close to the axes: the batched controllers only (the MPCs' budget is
     # the drive-encoder holds')
     ScenarioRow("hold_front_axis", Budget(60.0, 64, 0), Budget(15.0, 4, 0), preset="hold_front",
-                env={"encoders": "axis"}, note="axis encoders (the structure's angles at the axes)",
-                bench=False),
+                env={"encoders": "axis"}, note="axis encoders (the structure's angles at the axes)"),
     ScenarioRow("hold_side_axis", Budget(60.0, 64, 0), Budget(15.0, 4, 0), preset="hold_side",
-                env={"encoders": "axis"}, note="axis encoders (the structure's angles at the axes)",
-                bench=False),
+                env={"encoders": "axis"}, note="axis encoders (the structure's angles at the axes)"),
 )
 
 #: scenario rows by name
