@@ -107,6 +107,7 @@ class CommonSettings:
     env_id: str = spec(None, kind="str", default="DSS14-v0")
     env_kwargs: dict = spec(None, kind="mapping", default_factory=dict)
     env_module: str | None = spec(None, kind="str", optional=True, default=None)
+    mixture: Any = spec(None, kind="any", default_factory=list)
     frame_stack: int = _int(0, 0, hi=1000)
     n_envs: int = _int(1, 8, hi=MAX_ENVS)
     vec_env: str = spec(None, kind="str", choices=VEC_ENVS, default="auto")
@@ -114,6 +115,7 @@ class CommonSettings:
     seed: int = _int(0, 10_000, hi=MAX_SEED)
     normalize_obs: bool = _flag(True)
     normalize_reward: bool = _flag(True)
+    reward_log_scale: float | None = _num(None, lo=0.0, lo_open=True, hi=1.0e6, optional=True)
     learning_rate: float = _num(3e-4, lo=0.0, lo_open=True)
     gamma: float = _num(0.99, lo=0.0, hi=1.0, lo_open=True)
     net_arch: Any = spec(None, kind="any", default_factory=lambda: [64, 64])
@@ -193,6 +195,50 @@ def _layers(v: Any, where: str) -> list[int]:
         raise ConfigError(f"{where}: must be a list of 1 to {MAX_LAYERS} layer sizes (integers "
                           f">= 1 and <= {MAX_LAYER}), got {v!r}")
     return [int(n) for n in v]
+
+
+#: the keys of one part of a ``mixture``
+MIXTURE_KEYS = ("preset", "n_envs", "env_kwargs", "max_episode_steps")
+
+
+def _mixture(v: Any, n_envs: int, source: str) -> list[dict[str, Any]]:
+    """A checked ``mixture``: a list of parts ``{preset, n_envs, env_kwargs?,
+    max_episode_steps?}`` (a preset of :data:`dss14_env.envs.presets.PRESETS`) whose
+    sub-environment counts sum to ``n_envs``; empty: no mixture.
+    """
+    from dss14_env.envs.presets import PRESETS
+
+    where = f"{source}: field 'mixture'"
+    if v is None or v == []:
+        return []
+    if not isinstance(v, (list, tuple)) or len(v) > len(PRESETS) * 4:
+        raise ConfigError(f"{where}: must be a list of parts {{preset, n_envs, env_kwargs, "
+                          f"max_episode_steps}}, got {v!r}"[:300])
+    parts = []
+    for k, part in enumerate(v):
+        at = f"{source}: field 'mixture[{k}]'"
+        if not isinstance(part, Mapping) or set(part) - set(MIXTURE_KEYS) or "preset" not in part:
+            raise ConfigError(f"{at}: must be a mapping with 'preset' and 'n_envs' (keys "
+                              f"{', '.join(MIXTURE_KEYS)}), got {part!r}"[:300])
+        if part["preset"] not in PRESETS:
+            raise ConfigError(f"{at}: 'preset' must be one of {', '.join(PRESETS)}, got "
+                              f"{part['preset']!r}")
+        n = part.get("n_envs")
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 1 <= n <= MAX_ENVS:
+            raise ConfigError(f"{at}: 'n_envs' must be an integer 1-{MAX_ENVS}, got {n!r}")
+        steps = part.get("max_episode_steps")
+        if steps is not None and (isinstance(steps, bool) or not isinstance(steps, (int, np.integer))
+                                  or not 1 <= steps <= 1_000_000):
+            raise ConfigError(f"{at}: 'max_episode_steps' must be an integer 1-1000000, got {steps!r}")
+        kw = part.get("env_kwargs", {})
+        if not isinstance(kw, Mapping) or not all(isinstance(x, str) for x in kw):
+            raise ConfigError(f"{at}: 'env_kwargs' must be a mapping of environment keys, got {kw!r}"[:300])
+        parts.append({"preset": str(part["preset"]), "n_envs": int(n), "env_kwargs": dict(kw),
+                      "max_episode_steps": None if steps is None else int(steps)})
+    total = sum(p["n_envs"] for p in parts)
+    if total != n_envs:
+        raise ConfigError(f"{where}: the parts' n_envs must sum to n_envs = {n_envs}, got {total}")
+    return parts
 
 
 def _net_arch(v: Any, algo: str, source: str) -> Any:
@@ -389,6 +435,7 @@ class TrainConfig:
         settings = load_section(SETTINGS[algo], values, source)
         out = {f.name: getattr(settings, f.name) for f in dataclasses.fields(settings)}
         out["net_arch"] = _net_arch(out["net_arch"], algo, source)
+        out["mixture"] = _mixture(out["mixture"], out["n_envs"], source)
         out["eval_seeds"] = list(out["eval_seeds"])
         out = json.loads(json.dumps(out, default=_plain))  # plain YAML types
         if algo in ("ppo", "recurrent_ppo"):

@@ -40,7 +40,7 @@ import gymnasium as gym
 
 from dss14_env.agents.config import TrainConfig
 from dss14_env.agents.interface import NO_ABSOLUTE_ANGLES, InterfaceSpec, InterfaceWrapper, spec_from_kwargs
-from dss14_env.agents.vec_env import is_dss14_id, make_sb3_vec_env
+from dss14_env.agents.vec_env import LogRewardVecEnv, MixtureVecEnv, is_dss14_id, make_sb3_vec_env
 
 #: modules imported (when present) before ``gymnasium.make`` if ``env_id`` is not registered and
 #: the config names no ``env_module``
@@ -208,6 +208,46 @@ def _interface_env(base_id: str, base_kwargs: dict, spec: InterfaceSpec) -> Any:
     return InterfaceWrapper(gym.make(base_id, **base_kwargs), spec)
 
 
+#: the configuration keys every part of a mixture must share with the interface's environment
+MIXTURE_SHARED_KEYS = ("dt", "action_scale_deg_s", "rate_limit_deg_s", "error_scale_mdeg")
+
+
+def make_mixture_vec_env(mixture: list[dict[str, Any]], common: Mapping[str, Any], seed: int | None,
+                         env_config: Any, source: str = "<config>") -> MixtureVecEnv:
+    """The batched VecEnv of a ``mixture`` (:func:`dss14_env.agents.config`'s checked parts):
+    one :class:`~dss14_env.agents.vec_env.SB3VecEnv` per part -- its preset's registration, the
+    ``common`` keys laid over, then the part's own ``env_kwargs`` -- side by side
+    (:class:`~dss14_env.agents.vec_env.MixtureVecEnv`); sub-environment ``i`` seeded ``seed + i``.
+
+    :param env_config: the configuration the policy interface is built for: every part must
+        share its :data:`MIXTURE_SHARED_KEYS`
+    :raises ValueError: a part whose environment differs in those keys, naming it
+    """
+    from dss14_env.envs.presets import PRESETS
+
+    kw = dict(common)
+    default_steps = kw.pop("max_episode_steps", None)
+    parts, names = [], []
+    for k, part in enumerate(mixture):
+        preset = PRESETS[part["preset"]]
+        steps = part["max_episode_steps"] or default_steps or preset.max_episode_steps
+        venv = make_sb3_vec_env(preset.env_id, part["n_envs"], max_episode_steps=steps,
+                                **{**kw, **part["env_kwargs"]})
+        cfg = venv.venv.config
+        bad = [key for key in MIXTURE_SHARED_KEYS
+               if env_config is not None and getattr(cfg, key) != getattr(env_config, key)]
+        if bad:
+            raise ValueError(f"{source}: key 'mixture[{k}]': {bad[0]} is {getattr(cfg, bad[0])!r} in "
+                             f"{part['preset']}, {getattr(env_config, bad[0])!r} in the policy's "
+                             f"environment: the parts must share {', '.join(MIXTURE_SHARED_KEYS)}")
+        parts.append(venv)
+        names.append(part["preset"])
+    mix = MixtureVecEnv(parts, names)
+    if seed is not None:
+        mix.seed(seed)
+    return mix
+
+
 def vec_env_kind(cfg: TrainConfig, plan: EnvPlan) -> str:
     """``batched``, ``dummy`` or ``subproc`` (``auto``: batched for DSS14 environments)."""
     if cfg.vec_env == "auto":
@@ -232,6 +272,17 @@ def make_train_vec_env(cfg: TrainConfig, plan: EnvPlan, env_config: Any,
     from dss14_env.agents.interface import InterfaceVecEnv
 
     kind = vec_env_kind(cfg, plan)
+    if cfg.mixture:
+        if kind != "batched":
+            raise ValueError(f"{cfg.source}: key 'mixture': needs the batched VecEnv (vec_env: auto "
+                             f"or batched on a DSS14 environment)")
+        venv = make_mixture_vec_env(cfg.mixture, plan.base_kwargs, cfg.seed, env_config, cfg.source)
+        if monitor_dir is not None:
+            monitor_dir.mkdir(parents=True, exist_ok=True)
+        venv = VecMonitor(venv, None if monitor_dir is None else str(monitor_dir / "monitor.csv"))
+        if cfg.reward_log_scale is not None:
+            venv = LogRewardVecEnv(venv, cfg.reward_log_scale, env_config, cfg.gamma)
+        return venv if plan.interface is None else InterfaceVecEnv(venv, plan.interface, env_config)
     if kind == "batched":
         kw = dict(plan.base_kwargs)
         steps = kw.pop("max_episode_steps", None)
@@ -240,6 +291,8 @@ def make_train_vec_env(cfg: TrainConfig, plan: EnvPlan, env_config: Any,
         if monitor_dir is not None:
             monitor_dir.mkdir(parents=True, exist_ok=True)
         venv = VecMonitor(venv, None if monitor_dir is None else str(monitor_dir / "monitor.csv"))
+        if cfg.reward_log_scale is not None:
+            venv = LogRewardVecEnv(venv, cfg.reward_log_scale, env_config, cfg.gamma)
         return venv if plan.interface is None else InterfaceVecEnv(venv, plan.interface, env_config)
     if plan.interface is not None and cfg.env_id not in WRAPPER_IDS:
         factory = functools.partial(_interface_env, plan.base_id, dict(plan.base_kwargs),
@@ -254,5 +307,6 @@ def make_train_vec_env(cfg: TrainConfig, plan: EnvPlan, env_config: Any,
 __all__ = ["DEFAULT_BASE_ID", "DEFAULT_ENV_MODULES", "EnvPlan", "WRAPPER_IDS", "check_env",
            "check_registered",
            "import_env_module", "make_env", "make_plan_env", "make_train_vec_env",
-           "make_kalman_obs_env", "make_plain_env", "make_residual_lqg_env", "make_wrapped_env",
+           "make_kalman_obs_env", "make_mixture_vec_env", "make_plain_env", "make_residual_lqg_env",
+           "make_wrapped_env",
            "resolve_env", "vec_env_kind"]

@@ -18,10 +18,19 @@ a batched vector env) and for scoring (:class:`dss14_env.agents.policy.PolicyCon
   ``"residual"`` -- ``a = a_base + residual_scale * u`` (residual policy learning: Johannink et
   al., *Residual Reinforcement Learning for Robot Control*, ICRA 2019; Silver et al.,
   *Residual Policy Learning*, arXiv:1812.06298, 2018); at ``u = 0`` the loop is the base
-  controller's exactly.
+  controller's exactly; ``"feedforward"`` -- ``a = feedforward_gain * c_dot + residual_scale *
+  g(u)``: the commanded trajectory's rate ``c_dot`` (the observation's ``command_rate``, in
+  action units) fed forward, no controller underneath: the policy closes the loop alone.
+  ``g(u) = sinh(action_curve u) / sinh(action_curve)`` (``action_curve`` 0: ``g(u) = u``) gives
+  fine commands near ``u = 0`` and the full scale at ``|u| = 1``: its slope at 0 is
+  ``action_curve / sinh(action_curve)`` (0.147 at 4).
 * observation: the environment's entries ``obs_entries`` (default all 12; e.g.
   :data:`NO_ABSOLUTE_ANGLES` leaves out the absolute command and encoder angles 4, 5, 8, 9,
-  which in a hold are constants that only tell the random start position), then the base
+  which in a hold are constants that only tell the random start position; with ``obs_symlog``
+  the entries and their history as ``sign(x) log(1 + |x|)`` of their values in mdeg and mdeg/s
+  -- :func:`symlog_observation`: a 1-mdeg hold error and a 100-mdeg step both well inside the
+  network's range, as the symlog inputs of Hafner et al., *Mastering Diverse Domains through
+  World Models*, arXiv:2301.04104, 2023), then the base
   controller's features -- PI: its integral term ``ki I`` in action units (2; controller state
   a memoryless network cannot rebuild); LQG (``estimate=True``; which ones: ``lqg_features``,
   default all, 12): ``"command"`` its command (2), ``"disturbance"`` its input-disturbance
@@ -63,6 +72,8 @@ HISTORY_ENTRIES = OBS.entries("error", "prev_rate")
 NO_ABSOLUTE_ANGLES = OBS.entries("error", "error_rate", "command_rate", "prev_rate")
 #: the LQG features and their widths, in the order they appear (module doc)
 LQG_FEATURE_WIDTHS = {"command": 2, "disturbance": 2, "output": 2, "law": 6}
+#: the action maps (:class:`InterfaceSpec`)
+ACTIONS = ("absolute", "residual", "feedforward")
 #: the base controllers: None, the PI, and the LQG designs (encoder or pointing error)
 BASES = (None, "pi", "lqg", "lqg_pointing")
 LQG_BASES = ("lqg", "lqg_pointing")
@@ -91,6 +102,11 @@ class InterfaceSpec:
     :param lqg_features: which LQG features (:data:`LQG_FEATURE_WIDTHS`), default all four
     :param obs_entries: the environment's observation entries the policy sees, default None:
         all 12
+    :param feedforward_gain: ``"feedforward"`` action: the commanded rate's gain, default 1.0
+    :param action_curve: ``"feedforward"`` action: the curvature ``b`` of
+        ``g(u) = sinh(b u) / sinh(b)``, 0 <= b <= 10, default 0: linear
+    :param obs_symlog: the environment's entries (and their history) as symlog of mdeg and
+        mdeg/s (:func:`symlog_observation`), default False: as the environment gives them
     """
 
     base: str | None = None
@@ -102,12 +118,15 @@ class InterfaceSpec:
     estimate: bool = True
     lqg_features: tuple[str, ...] = tuple(LQG_FEATURE_WIDTHS)
     obs_entries: tuple[int, ...] | None = None
+    feedforward_gain: float = 1.0
+    action_curve: float = 0.0
+    obs_symlog: bool = False
 
     def __post_init__(self) -> None:
         if self.base not in BASES:
             raise ValueError(f"base must be null, 'pi', 'lqg' or 'lqg_pointing', got {self.base!r}")
-        if self.action not in ("absolute", "residual"):
-            raise ValueError(f"action must be 'absolute' or 'residual', got {self.action!r}")
+        if self.action not in ACTIONS:
+            raise ValueError(f"action must be 'absolute', 'residual' or 'feedforward', got {self.action!r}")
         if self.action == "residual" and self.base is None:
             raise ValueError("a residual action needs a base controller (base: pi, lqg or "
                              "lqg_pointing)")
@@ -127,9 +146,16 @@ class InterfaceSpec:
             raise ValueError(f"lqg_features must be distinct names of {list(LQG_FEATURE_WIDTHS)}, "
                              f"got {feats!r}")
         object.__setattr__(self, "lqg_features", tuple(feats))
+        if not isinstance(self.obs_symlog, bool):
+            raise ValueError(f"obs_symlog must be true or false, got {self.obs_symlog!r}")
         if not isinstance(self.estimate, bool):
             raise ValueError(f"estimate must be true or false, got {self.estimate!r}")
         object.__setattr__(self, "residual_scale", float(scale))
+        for name, lo, hi in (("feedforward_gain", 0.0, 10.0), ("action_curve", 0.0, 10.0)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not lo <= v <= hi:
+                raise ValueError(f"{name} must be a number in [{lo:g}, {hi:g}], got {v!r}")
+            object.__setattr__(self, name, float(v))
         object.__setattr__(self, "history", int(h))
         if isinstance(self.gains, list):
             object.__setattr__(self, "gains", tuple(self.gains))
@@ -169,6 +195,10 @@ class PolicyInterface:
     def __init__(self, spec: InterfaceSpec, env_config: Any, n: int = 1) -> None:
         self.spec, self.env_config, self.n = spec, env_config, int(n)
         self._inv_scale = 1.0 / (env_config.action_scale_deg_s * DEG)
+        #: the observation's command rate (rate-limit units) in action units, times the gain
+        self._ff = spec.feedforward_gain * env_config.rate_limit_deg_s / env_config.action_scale_deg_s
+        self.command_rate = np.zeros((self.n, 2))
+        self._symlog_units = symlog_units(env_config) if spec.obs_symlog else None
         self._err = env_config.error_scale_mdeg * MDEG
         self.pi: PIController | None = None
         self.lqg: list[_RecordingLQG] = []
@@ -216,7 +246,7 @@ class PolicyInterface:
                 self.lqg[i].reset()
 
     #: the attributes of the dynamic state (:meth:`get_state`)
-    _STATE = ("pi", "lqg", "lqg_batch", "base_action", "_past", "_fresh")
+    _STATE = ("pi", "lqg", "lqg_batch", "base_action", "command_rate", "_past", "_fresh")
 
     def get_state(self) -> dict[str, Any]:
         """A copy of the dynamic state (base controllers, last base action, history) that
@@ -239,7 +269,9 @@ class PolicyInterface:
         o = np.asarray(obs, np.float32)
         if o.shape != (self.n, OBS_SIZE):
             raise ValueError(f"observation must have shape ({self.n}, {OBS_SIZE}), got {o.shape}")
-        parts = [o[:, self.entries]]
+        seen = self._seen(o)
+        parts = [seen[:, self.entries]]
+        self.command_rate = o[:, OBS.command_rate].astype(np.float64)
         if self.pi is not None:
             self.base_action = self.pi.act(o).astype(np.float64)
             parts.append(self._pi_features(self.pi))
@@ -258,7 +290,7 @@ class PolicyInterface:
                 parts.append(self._lqg_batch_features(self.lqg_batch, self.base_action,
                                                       np.arange(self.n)))
         if self.spec.history:
-            now = o[:, list(self.spec.history_entries)]
+            now = seen[:, list(self.spec.history_entries)]
             parts.append(self._history(self._past, self._fresh, now))
             self._past = np.roll(self._past, 1, axis=1)
             self._past[:, 0] = now
@@ -272,7 +304,8 @@ class PolicyInterface:
         """
         rows = np.asarray(rows)
         o = np.asarray(obs, np.float32).reshape(rows.size, OBS_SIZE)
-        parts = [o[:, self.entries]]
+        seen = self._seen(o)
+        parts = [seen[:, self.entries]]
         if self.pi is not None:
             pi = copy.deepcopy(self.pi)
             full = np.zeros((self.n, 12), np.float32)
@@ -293,9 +326,13 @@ class PolicyInterface:
             action = c.act_batch(full).astype(np.float64)
             parts.append(self._lqg_batch_features(c, action[rows], rows))
         if self.spec.history:
-            now = o[:, list(self.spec.history_entries)]
+            now = seen[:, list(self.spec.history_entries)]
             parts.append(self._history(self._past[rows].copy(), self._fresh[rows], now))
         return np.concatenate(parts, axis=1)
+
+    def _seen(self, o: np.ndarray) -> np.ndarray:
+        """The environment's entries as the policy sees them (symlog or as given)."""
+        return o if self._symlog_units is None else symlog_observation(o, self._symlog_units)
 
     @staticmethod
     def _history(past: np.ndarray, fresh: np.ndarray, now: np.ndarray) -> np.ndarray:
@@ -357,9 +394,44 @@ class PolicyInterface:
         u = np.clip(u, -1.0, 1.0)
         if self.spec.action == "absolute":
             a = u
-        else:
+        elif self.spec.action == "residual":
             a = self.base_action + self.spec.residual_scale * u
+        else:
+            a = self._ff * self.command_rate + self.spec.residual_scale * action_curve(
+                u, self.spec.action_curve)
         return np.clip(a, -1.0, 1.0).astype(np.float32)
+
+
+def symlog_units(env_config: Any) -> np.ndarray:
+    """Millidegrees (or per second) per unit of each of the 12 observation entries: errors and error rates
+    in ``error_scale_mdeg``, command and encoder angles in deg, rates in ``rate_limit_deg_s``.
+    """
+    u = np.empty(OBS_SIZE, np.float32)
+    u[OBS.error] = u[OBS.error_rate] = env_config.error_scale_mdeg
+    u[OBS.command] = u[OBS.encoder] = 1.0e3
+    u[OBS.command_rate] = u[OBS.prev_rate] = env_config.rate_limit_deg_s * 1.0e3
+    return u
+
+
+def symlog_observation(obs: np.ndarray, units: np.ndarray) -> np.ndarray:
+    """``sign(x) log(1 + |x|)`` of the observation in mdeg and mdeg/s (``units``:
+    :func:`symlog_units`), float32: linear below about 1 mdeg, logarithmic above.
+
+    >>> symlog_observation(np.array([[0.1, -10.0]], np.float32), np.array([10.0, 10.0], np.float32)).round(3)
+    array([[ 0.693, -4.615]], dtype=float32)
+    """
+    x = obs * units
+    return (np.sign(x) * np.log1p(np.abs(x))).astype(np.float32)
+
+
+def action_curve(u: np.ndarray, b: float) -> np.ndarray:
+    """``sinh(b u) / sinh(b)`` (``u`` itself for ``b = 0``): odd, 0 at 0, +-1 at +-1, slope
+    ``b / sinh(b)`` at 0.
+
+    >>> action_curve(np.array([-1.0, 0.0, 0.5, 1.0]), 4.0).round(4).tolist()
+    [-1.0, 0.0, 0.1331, 1.0]
+    """
+    return u if b == 0.0 else np.sinh(b * u) / math.sinh(b)
 
 
 # ---------------------------------------------------------------------------- Gymnasium face
@@ -396,9 +468,11 @@ class InterfaceWrapper(gym.Wrapper):
 def interface_observation_space(interface: PolicyInterface) -> spaces.Box:
     """The policy's observation space (bounds of the environment's entries, then features)."""
     s = interface.spec
-    high = np.concatenate([OBS_HIGH[interface.entries],
+    env_high = OBS_HIGH if not s.obs_symlog else symlog_observation(
+        OBS_HIGH[None], symlog_units(interface.env_config))[0]
+    high = np.concatenate([env_high[interface.entries],
                            np.full(interface.n_features, FEATURE_BOUND, np.float32),
-                           np.tile(OBS_HIGH[list(s.history_entries)], s.history)]).astype(np.float32)
+                           np.tile(env_high[list(s.history_entries)], s.history)]).astype(np.float32)
     return spaces.Box(-high, high, dtype=np.float32)
 
 
@@ -451,14 +525,17 @@ def spec_from_kwargs(kwargs: dict[str, Any], defaults: InterfaceSpec) -> tuple[I
     """``(spec, remaining env kwargs)``: interface keys taken out of wrapper-id kwargs."""
     kw = dict(kwargs)
     fields = {"base", "action", "gains", "residual_scale", "history", "history_entries",
-              "estimate", "lqg_features", "obs_entries"}
+              "estimate", "lqg_features", "obs_entries", "feedforward_gain", "action_curve",
+              "obs_symlog"}
     given = {k: kw.pop(k) for k in list(kw) if k in fields}
     d = defaults.to_dict()
     d.update(given)
     return InterfaceSpec(**d), kw
 
 
-__all__ = ["BASES", "FEATURE_BOUND", "HISTORY_ENTRIES", "LQG_BASES", "InterfaceSpec", "InterfaceVecEnv",
+__all__ = ["ACTIONS", "BASES", "FEATURE_BOUND", "HISTORY_ENTRIES", "LQG_BASES", "InterfaceSpec",
+           "InterfaceVecEnv",
            "InterfaceWrapper", "LQG_FEATURES", "LQG_FEATURE_WIDTHS", "NO_ABSOLUTE_ANGLES",
-           "PolicyInterface", "interface_observation_space", "spec_from_kwargs"]
+           "PolicyInterface", "action_curve", "interface_observation_space", "spec_from_kwargs",
+           "symlog_observation", "symlog_units"]
 

@@ -135,6 +135,129 @@ class SB3VecEnv(_vec_env_base()):
         return [None] * self.num_envs
 
 
+class MixtureVecEnv(_vec_env_base()):
+    """One SB3 ``VecEnv`` over several (a mixture of scenarios: tracks, holds, steps, slews in
+    one rollout): their sub-environments side by side, in the order given.
+
+    Seeding keeps SB3's convention over the whole: sub-environment ``i`` of the mixture is seeded
+    ``seed + i`` (part ``j`` gets ``seed + offset_j``), so no two sub-environments share a seed.
+    The parts must have the same observation and action spaces.
+
+    :param parts: the VecEnvs (e.g. :class:`SB3VecEnv` of different DSS14 presets)
+    :param names: a label per part (attribute ``part_names``; ``get_attr("scenario_name")``)
+    :raises ValueError: no parts, or parts with different spaces
+    """
+
+    def __init__(self, parts: Sequence[Any], names: Sequence[str] | None = None) -> None:
+        if not parts:
+            raise ValueError("a mixture needs at least one VecEnv")
+        first = parts[0]
+        for p in parts[1:]:
+            if p.observation_space != first.observation_space or p.action_space != first.action_space:
+                raise ValueError("the parts of a mixture must have the same observation and action spaces")
+        self.parts = list(parts)
+        self.part_names = list(names) if names is not None else [str(i) for i in range(len(parts))]
+        self._bounds = np.cumsum([0] + [p.num_envs for p in self.parts])
+        super().__init__(int(self._bounds[-1]), first.observation_space, first.action_space)
+
+    def _slices(self) -> list[slice]:
+        return [slice(int(a), int(b)) for a, b in zip(self._bounds[:-1], self._bounds[1:], strict=True)]
+
+    def reset(self) -> np.ndarray:
+        for p, sl in zip(self.parts, self._slices(), strict=True):
+            seeds = self._seeds[sl]
+            if all(s is not None for s in seeds):
+                p.seed(int(seeds[0]))
+        self._reset_seeds()
+        self._reset_options()
+        return np.concatenate([p.reset() for p in self.parts])
+
+    def step_async(self, actions: np.ndarray) -> None:
+        a = np.asarray(actions)
+        for p, sl in zip(self.parts, self._slices(), strict=True):
+            p.step_async(a[sl])
+
+    def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict]]:
+        out = [p.step_wait() for p in self.parts]
+        return (np.concatenate([o[0] for o in out]), np.concatenate([o[1] for o in out]),
+                np.concatenate([o[2] for o in out]), [i for o in out for i in o[3]])
+
+    def close(self) -> None:
+        for p in self.parts:
+            p.close()
+
+    def _part_indices(self, indices: Any) -> list[tuple[int, int]]:
+        """``(part, index within the part)`` of each global index."""
+        idx = self._get_indices(indices)
+        return [(int(np.searchsorted(self._bounds, i, side="right") - 1),
+                 int(i - self._bounds[np.searchsorted(self._bounds, i, side="right") - 1])) for i in idx]
+
+    def get_attr(self, attr_name: str, indices: Any = None) -> list[Any]:
+        if attr_name == "scenario_name":
+            return [self.part_names[j] for j, _ in self._part_indices(indices)]
+        return [self.parts[j].get_attr(attr_name, [k])[0] for j, k in self._part_indices(indices)]
+
+    def set_attr(self, attr_name: str, value: Any, indices: Any = None) -> None:
+        for j, k in self._part_indices(indices):
+            self.parts[j].set_attr(attr_name, value, [k])
+
+    def env_method(self, method_name: str, *method_args: Any, indices: Any = None,
+                   **method_kwargs: Any) -> list[Any]:
+        return [self.parts[j].env_method(method_name, *method_args, indices=[k], **method_kwargs)[0]
+                for j, k in self._part_indices(indices)]
+
+    def env_is_wrapped(self, wrapper_class: type, indices: Any = None) -> list[bool]:
+        return [False] * len(self._get_indices(indices))
+
+    def get_images(self) -> Sequence[np.ndarray | None]:
+        return [None] * self.num_envs
+
+
+def _vec_env_wrapper() -> type:
+    from stable_baselines3.common.vec_env import VecEnvWrapper
+
+    return VecEnvWrapper
+
+
+class LogRewardVecEnv(_vec_env_wrapper()):
+    """Training rewards ``-log(1 + c / scale)`` of the environment's per-step cost ``c`` (its
+    reward's negative without the termination penalty), and on a terminating step minus a
+    penalty no episode can gain by: ``log(1 + c_max / scale) / (1 - gamma)``, the discounted
+    sum of the largest per-step value before termination.
+
+    On a mixture the errors of steps and slews (100 mdeg: cost 100) and of holds (1 mdeg: cost
+    0.01) differ by four decades; the logarithm keeps every scenario's errors in the gradient
+    (a hold's 1-mdeg improvement moves the reward as much as a step's 30 %).  Episode returns
+    logged by a ``VecMonitor`` below it stay the environment's.
+
+    :param venv: the VecEnv (DSS14 rewards)
+    :param scale: the cost at which the logarithm bends (e.g. 0.01: 1 mdeg of error at
+        ``error_scale_mdeg`` 10)
+    :param env_config: the environment's configuration (termination penalty, error bound,
+        action-change weight)
+    :param gamma: the discount of the learner
+    """
+
+    def __init__(self, venv: Any, scale: float, env_config: Any, gamma: float) -> None:
+        super().__init__(venv)
+        self.scale = float(scale)
+        self.penalty = float(env_config.termination_penalty)
+        err = env_config.max_error_deg * 1.0e3 / env_config.error_scale_mdeg
+        c_max = 2.0 * err * err + 8.0 * env_config.action_change_weight
+        self.terminal = float(np.log1p(c_max / self.scale) / (1.0 - gamma))
+
+    def reset(self) -> np.ndarray:
+        return self.venv.reset()
+
+    def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict]]:
+        obs, rew, dones, infos = self.venv.step_wait()
+        term = np.array([bool(d and not i.get("TimeLimit.truncated", False))
+                         for d, i in zip(dones, infos, strict=True)])
+        cost = np.maximum(-np.asarray(rew, np.float64) - self.penalty * term, 0.0)
+        out = -np.log1p(cost / self.scale) - self.terminal * term
+        return obs, out.astype(np.float32), dones, infos
+
+
 def is_dss14_id(env_id: str) -> bool:
     """Whether ``env_id`` is registered with the DSS14 vector entry point."""
     import dss14_env  # noqa: F401  (registers the ids)
@@ -174,4 +297,5 @@ def make_sb3_vec_env(env_id: str = "DSS14-Hold-v0", n_envs: int = 8, seed: int |
     return venv
 
 
-__all__ = ["SB3VecEnv", "SameStepDSS14VectorEnv", "is_dss14_id", "make_sb3_vec_env"]
+__all__ = ["LogRewardVecEnv", "MixtureVecEnv", "SB3VecEnv", "SameStepDSS14VectorEnv", "is_dss14_id",
+           "make_sb3_vec_env"]

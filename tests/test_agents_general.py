@@ -1,0 +1,184 @@
+"""The pieces of the general recipe: the feed-forward action map and its curve, symlog
+observations, the mixture of scenarios in one VecEnv and the logarithmic training reward."""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import dss14_env  # noqa: F401
+from dss14_env.agents.config import ConfigError, TrainConfig
+from dss14_env.agents.envs import make_mixture_vec_env
+from dss14_env.agents.interface import (
+    InterfaceSpec,
+    InterfaceWrapper,
+    PolicyInterface,
+    action_curve,
+    symlog_observation,
+    symlog_units,
+)
+from dss14_env.agents.vec_env import LogRewardVecEnv, make_sb3_vec_env
+from dss14_env.envs.config import load_env_config
+from dss14_env.envs.core import OBS
+
+CFG = load_env_config()
+
+
+# ------------------------------------------------------------------------------ action map
+@pytest.mark.parametrize("b", [0.0, 1.0, 4.0, 8.0])
+def test_action_curve_is_odd_monotone_and_reaches_the_full_scale(b: float) -> None:
+    u = np.linspace(-1.0, 1.0, 201)
+    g = action_curve(u, b)
+    np.testing.assert_allclose(g, -g[::-1], atol=1e-15)
+    assert np.all(np.diff(g) > 0)
+    assert g[0] == pytest.approx(-1.0) and g[-1] == pytest.approx(1.0) and g[100] == 0.0
+    h = 1e-6
+    slope = (action_curve(np.array([h]), b)[0] - action_curve(np.array([-h]), b)[0]) / (2 * h)
+    assert slope == pytest.approx(1.0 if b == 0 else b / math.sinh(b), rel=1e-6)
+
+
+@pytest.mark.parametrize("gain, scale, curve", [(1.0, 1.0, 0.0), (1.35, 0.5, 4.0), (0.0, 0.2, 2.0)])
+def test_feedforward_action_is_the_command_rate_plus_the_curved_output(gain: float, scale: float,
+                                                                        curve: float) -> None:
+    cfg = load_env_config(action_scale_deg_s=0.5)  # action units differ from rate-limit units
+    spec = InterfaceSpec(action="feedforward", feedforward_gain=gain, residual_scale=scale,
+                         action_curve=curve)
+    itf = PolicyInterface(spec, cfg, 3)
+    obs = np.zeros((3, 12), np.float32)
+    obs[:, OBS.command_rate] = [[0.1, -0.2], [0.0, 0.0], [0.3, 0.05]]  # rate-limit units
+    itf.observe(obs)
+    u = np.array([[0.0, 0.0], [0.5, -0.25], [1.0, -1.0]])
+    expected_ff = gain * obs[:, OBS.command_rate].astype(float) * 0.25 / 0.5  # to action units
+    g = np.sinh(curve * u) / math.sinh(curve) if curve else u
+    np.testing.assert_allclose(itf.action(u), np.clip(expected_ff + scale * g, -1, 1), rtol=1e-6)
+
+
+def _slew_error(gain: float) -> float:
+    """Largest |servo error| (mdeg) of a windless 1-deg slew with the policy output held at 0."""
+    env = InterfaceWrapper(gym.make("DSS14-Slew-v0", wind_speed_kmh=0.0, slew_deg=1.0),
+                           InterfaceSpec(action="feedforward", feedforward_gain=gain))
+    env.reset(seed=0)
+    worst = 0.0
+    for _ in range(1000):  # 20 s: the move (7.7 s) and after
+        _, _, term, trunc, info = env.step(np.zeros(2, np.float32))
+        assert not term
+        worst = max(worst, abs(info["servo_error_az_mdeg"]), abs(info["servo_error_el_mdeg"]))
+    return worst
+
+
+def test_feedforward_gain_of_the_inverse_dc_gain_follows_a_slew_closely() -> None:
+    """Consequence: with gain 1 the rate loop's DC gain (about 0.74) leaves a quarter of the
+    move behind; with 1.35 the feed-forward alone follows within a few percent of it."""
+    lagging, matched = _slew_error(1.0), _slew_error(1.35)
+    assert lagging > 150.0          # mdeg of a 1000-mdeg move
+    assert matched < 0.25 * lagging
+
+
+# ------------------------------------------------------------------------------ symlog
+def test_symlog_observation_in_mdeg() -> None:
+    units = symlog_units(CFG)
+    obs = np.zeros((1, 12), np.float32)
+    obs[0, OBS.error] = [0.1, -10.0]               # 1 mdeg, -100 mdeg at error_scale 10
+    obs[0, OBS.prev_rate] = [0.004, 0.0]           # 0.001 deg/s = 1 mdeg/s
+    out = symlog_observation(obs, units)[0]
+    np.testing.assert_allclose(out[OBS.error], [math.log(2.0), -math.log(101.0)], rtol=1e-6)
+    np.testing.assert_allclose(out[OBS.prev_rate], [math.log(2.0), 0.0], rtol=1e-5)
+
+
+def test_symlog_policy_observations_stay_in_their_space_and_peek_equals_observe() -> None:
+    spec = InterfaceSpec(obs_symlog=True, history=3, obs_entries=(0, 1, 2, 3, 6, 7, 10, 11))
+    env = InterfaceWrapper(gym.make("DSS14-Step-v0"), spec)
+    obs, _ = env.reset(seed=1)
+    rng = np.random.default_rng(0)
+    for _ in range(120):
+        assert env.observation_space.contains(obs)
+        obs, *_ = env.step(rng.uniform(-0.3, 0.3, 2).astype(np.float32))
+    assert np.all(np.isfinite(obs))
+    itf2 = PolicyInterface(spec, CFG, 2)
+    o = np.zeros((2, 12), np.float32)
+    o[:, OBS.error] = [[3.0, -2.0], [0.01, 0.5]]
+    peeked = itf2.peek(o[[1]], np.array([1]))
+    np.testing.assert_array_equal(peeked[0], itf2.observe(o)[1])
+
+
+# ------------------------------------------------------------------------------ mixture
+MIX = [{"preset": "hold", "n_envs": 2, "env_kwargs": {}, "max_episode_steps": None},
+       {"preset": "step", "n_envs": 1, "env_kwargs": {}, "max_episode_steps": 40},
+       {"preset": "track", "n_envs": 2, "env_kwargs": {"wind_speed_kmh": 30.0}, "max_episode_steps": None}]
+
+
+def test_mixture_rows_are_their_presets_seeded_in_sequence() -> None:
+    mix = make_mixture_vec_env(MIX, {"max_episode_steps": 60}, 10_000, CFG)
+    assert mix.num_envs == 5
+    assert mix.get_attr("scenario_name") == ["hold", "hold", "step", "track", "track"]
+    parts = [make_sb3_vec_env("DSS14-Hold-v0", 2, seed=10_000, max_episode_steps=60),
+             make_sb3_vec_env("DSS14-Step-v0", 1, seed=10_002, max_episode_steps=40),
+             make_sb3_vec_env("DSS14-v0", 2, seed=10_003, max_episode_steps=60, wind_speed_kmh=30.0)]
+    obs = mix.reset()
+    np.testing.assert_array_equal(obs, np.concatenate([p.reset() for p in parts]))
+    rng = np.random.default_rng(1)
+    for k in range(70):  # through the step's end (40) and the others' (60)
+        a = rng.uniform(-0.1, 0.1, (5, 2)).astype(np.float32)
+        o, r, d, infos = mix.step(a)
+        sep = [p.step(a[s]) for p, s in zip(parts, (slice(0, 2), slice(2, 3), slice(3, 5)), strict=True)]
+        np.testing.assert_array_equal(o, np.concatenate([x[0] for x in sep]))
+        np.testing.assert_array_equal(r, np.concatenate([x[1] for x in sep]))
+        np.testing.assert_array_equal(d, np.concatenate([x[2] for x in sep]))
+        if k == 39:
+            assert d.tolist() == [False, False, True, False, False]
+
+
+@pytest.mark.parametrize("mixture, match", [
+    ([{"preset": "nope", "n_envs": 4}], "'preset' must be one of"),
+    ([{"preset": "hold", "n_envs": 3}], "must sum to n_envs = 4"),
+    ([{"preset": "hold", "n_envs": 4, "speed": 3}], r"mixture\[0\]': must be a mapping"),
+    ([{"preset": "hold", "n_envs": 0}, {"preset": "step", "n_envs": 4}], "'n_envs' must be an integer"),
+    ([{"preset": "hold", "n_envs": 4, "max_episode_steps": 2.5}], "'max_episode_steps'"),
+    ("hold", "must be a list of parts"),
+])
+def test_bad_mixtures_are_named_in_one_line(mixture: object, match: str) -> None:
+    with pytest.raises(ConfigError, match=match) as err:
+        TrainConfig.from_dict({"env_id": "DSS14-Plain-v0", "n_envs": 4, "mixture": mixture}, "cfg.yaml")
+    assert "\n" not in str(err.value) and "field 'mixture" in str(err.value)
+
+
+def test_a_mixture_part_of_another_action_scale_is_refused() -> None:
+    mix = [{"preset": "hold", "n_envs": 1, "env_kwargs": {"action_scale_deg_s": 0.02},
+            "max_episode_steps": None}]
+    with pytest.raises(ValueError, match="action_scale_deg_s is 0.02 in hold"):
+        make_mixture_vec_env(mix, {}, 10_000, CFG)
+
+
+# ------------------------------------------------------------------------------ log reward
+def test_log_reward_is_the_log_of_the_cost_from_the_servo_errors() -> None:
+    venv = make_sb3_vec_env("DSS14-Step-v0", 2, seed=10_000, max_episode_steps=200,
+                            info_keys=("servo_error_az_mdeg", "servo_error_el_mdeg"))
+    wrapped = LogRewardVecEnv(venv, 0.01, CFG, 0.99)
+    wrapped.reset()
+    a = np.zeros((2, 2), np.float32)
+    for _ in range(100):
+        _, r, _, infos = wrapped.step(a)
+        e = np.array([[i["servo_error_az_mdeg"], i["servo_error_el_mdeg"]] for i in infos])
+        cost = (e ** 2).sum(axis=1) / CFG.error_scale_mdeg ** 2  # no action change: a held at 0
+        np.testing.assert_allclose(r, -np.log1p(cost / 0.01), rtol=2e-6, atol=1e-6)
+
+
+def test_log_reward_never_pays_for_terminating() -> None:
+    """The terminal penalty exceeds the discounted sum of the worst per-step value before it."""
+    venv = make_sb3_vec_env("DSS14-Slew-v0", 1, seed=10_000, max_episode_steps=3000)
+    wrapped = LogRewardVecEnv(venv, 0.01, CFG, 0.99)
+    err_units = CFG.max_error_deg * 1e3 / CFG.error_scale_mdeg
+    worst = math.log1p((2 * err_units ** 2 + 8 * CFG.action_change_weight) / 0.01)
+    assert wrapped.terminal == pytest.approx(worst / 0.01)
+    wrapped.reset()
+    for k in range(3000):  # full reverse rate: the error passes 1 deg and the episode terminates
+        _, r, d, infos = wrapped.step(np.array([[-1.0, -1.0]], np.float32) * np.sign(k + 1))
+        if d[0]:
+            assert not infos[0]["TimeLimit.truncated"]
+            assert r[0] <= -wrapped.terminal
+            break
+    else:
+        pytest.fail("the slew never terminated")
