@@ -113,23 +113,29 @@ def command(tr: Mapping[str, np.ndarray], t: np.ndarray, parts: tuple[bool, bool
     """
     track, step, slew = command_parts(tr) if parts is None else parts
     t = np.asarray(t, float)[..., None]
-    if track:
-        wt = tr["omega"] * t + tr["phase"]
-        c = tr["v"] * t + tr["amp"] * (np.sin(wt) - tr["sin_phase"])
-        cd = tr["v"] + tr["amp"] * tr["omega"] * np.cos(wt)
+    if track:  # c = v t + A (sin(w t + phi) - sin(phi)), c_dot = v + A w cos(w t + phi), in place
+        wt = tr["omega"] * t
+        wt += tr["phase"]
+        c = np.sin(wt)
+        c -= tr["sin_phase"]
+        c *= tr["amp"]
+        c += tr["v"] * t
+        cd = np.cos(wt, out=wt)
+        cd *= tr["amp"] * tr["omega"]
+        cd += tr["v"]
     else:
         c = np.zeros(np.broadcast_shapes(t.shape, tr["v"].shape))
         cd = np.zeros_like(c)
     if step:
-        c = c + tr["step"] * (t >= tr["t_step"])
+        c += tr["step"] * (t >= tr["t_step"])
     if slew:
         acc = tr["slew_acc"]
         tau = t - tr["slew_t0"]
         ta, T = tr["slew_ta"], tr["slew_T"]
         r1, r2 = np.maximum(tau, 0.0), np.maximum(tau - ta, 0.0)
         r3, r4 = np.maximum(tau - (T - ta), 0.0), np.maximum(tau - T, 0.0)
-        c = c + 0.5 * acc * (r1 * r1 - r2 * r2 - r3 * r3 + r4 * r4)
-        cd = cd + acc * (r1 - r2 - r3 + r4)
+        c += 0.5 * acc * (r1 * r1 - r2 * r2 - r3 * r3 + r4 * r4)
+        cd += acc * (r1 - r2 - r3 + r4)
     return c, cd
 
 
