@@ -179,7 +179,7 @@ class DSS14VectorEnv(VectorEnv):
         self._Z = np.zeros((2, n + 4 + 2 * k, N))
         self._cur = 0
         self._t_mean_s = np.zeros((2, N))
-        self._Y = np.zeros((N, N_STEP_OUTPUTS))
+        self._Y = np.zeros((N, N_STEP_OUTPUTS))  # the step outputs at each episode's start
         self._kappa = np.zeros((N, 2))
         self._kappa_s = np.zeros((2, N))
         self._start = np.zeros((N, 2))
@@ -351,9 +351,10 @@ class DSS14VectorEnv(VectorEnv):
         """
         return command(self._traj, (self._k + 1) * self.constants.dt, self._parts)
 
-    def _advance(self, R: np.ndarray, Xi: np.ndarray) -> np.ndarray:
+    def _advance(self, R: np.ndarray, Xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The plant map of every sub-environment (one matrix product per plant, from this
-        step's buffer into the other): the outputs ``(N, 4)`` at the step's end.
+        step's buffer into the other): the encoder and the pointing angles ``(N, 2)`` each at
+        the step's end (outputs 0-1 and 2-3).
         """
         n, k, perm = self._n, self._k_rank, self._perm
         Z, nxt = self._Z[self._cur], self._Z[1 - self._cur]
@@ -366,8 +367,19 @@ class DSS14VectorEnv(VectorEnv):
         for MT, a, b in self._groups:
             np.matmul(MT, Z[:, a:b], out=nxt[:n + N_STEP_OUTPUTS, a:b])
         self._cur = 1 - self._cur
-        Y = nxt[n:n + N_STEP_OUTPUTS]
-        return (Y if perm is None else np.take(Y, self._inv, axis=1)).T.copy()
+        return self._unslot(nxt[n:n + 2]), self._unslot(nxt[n + 2:n + 4])
+
+    def _unslot(self, rows: np.ndarray) -> np.ndarray:
+        """Two rows of slot-ordered values as a new ``(N, 2)`` array in sub-environment order
+        (column by column: contiguous pairs, which later steps read fastest).
+        """
+        out = np.empty((self.num_envs, 2))
+        for col, row in zip(out.T, rows, strict=True):
+            if self._perm is None:
+                col[:] = row
+            else:
+                row.take(self._inv, out=col, mode="clip")  # clip: no bounds buffer; inv is in range
+        return out
 
     def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
         """Step every sub-environment (autoreset the ones that ended on the previous step).
@@ -384,16 +396,15 @@ class DSS14VectorEnv(VectorEnv):
         a, R, rate_hit, acc_hit = limit_commands(A, s.r_prev, kc)
         normals = self._normals(done)
         c, cd = self._commands()
-        self._Y = Y = self._advance(R, normals[:, :self._k_rank])
+        theta, point = self._advance(R, normals[:, :self._k_rank])
         self._k += 1
         # encoders, errors, episode end, reward, observation and info at t[k+1]
-        theta = Y[:, 0:2]
         noise = normals[:, self._k_rank:] * kc.encoder_sigma if kc.encoder_sigma else None
         rel = read_encoders(theta, self._start, noise, kc)
         em, e = servo_errors(c, rel), servo_errors(c, theta)
         term = terminated(e, theta, self._start, self._max_e, kc)
         any_term = bool(term.any())
-        pe = pointing_errors(c, Y[:, 2:4], self.plants.xel_scale)
+        pe = pointing_errors(c, point, self.plants.xel_scale)
         rew = reward(scored_errors(e, pe, kc), a, s.a_prev, term, kc)
         obs = observation(em, s.em_prev, c * R2D, cd * (1.0 / kc.rate_limit), rel, R,
                           any_term or self._clamp_always, kc)
