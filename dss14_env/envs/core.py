@@ -570,7 +570,7 @@ def _clamp(x: float, b: float) -> float:
     return b if x > b else (-b if x < -b else x)
 
 
-_dot, _array, _f32, _floor = np.dot, np.array, np.float32, math.floor  # the hot path's names
+_array, _f32, _floor = np.array, np.float32, math.floor  # the hot path's names
 _tuple_new = tuple.__new__  # a StepState without the NamedTuple constructor's call overhead
 
 
@@ -647,7 +647,7 @@ def step_1(action: Any, bufs: tuple, st: StepState, M: np.ndarray, row: list, sc
     except ValueError:
         c_az, c_el, c_deg_az, c_deg_el, cd_az, cd_el, n_az, n_el = row[:8]
         z[3:len(row) - 5] = row[8:]
-    _dot(M, cur[1], nxt[2])
+    M.dot(cur[1], nxt[2])  # the method: no dispatch of np.dot
     th_az, th_el, p_el, p_xel = nxt[3].tolist()
     # encoders (absolute angle, quantised) and servo errors
     if n_az or n_el:
