@@ -457,13 +457,16 @@ def write_curves(folder: Path, runs: Sequence[Path], tasks: Sequence[EvalTask],
 
     :param references: name -> task -> ``three_sigma``, ``pointing``
         (:func:`~dss14_env.agents.campaign_report.validation_references`); None: no lines
+    :return: the files written (none when a run has no validation history: ``eval_freq`` 0)
     """
     import io
 
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    written = []
+    written: list[Path] = []
+    if not all((r / "eval" / "evaluations.npz").is_file() for r in runs):  # eval_freq 0: no curves
+        return written
     for t in tasks:
         c = learning_curves(runs, t.name)
         if c["steps"].size == 0:

@@ -229,3 +229,22 @@ def test_a_campaign_scores_every_scenario_and_writes_summary_md(tmp_path: Path) 
     md = (out / "summary.md").read_text()
     assert "IQM over 2 training seeds" in md and "LQG, same test seeds" in md
     assert (out / "curves_hold_front.png").is_file() and not (out / "curves_track.png").exists()
+
+
+def test_dss14_train_seeds_prints_summary_md(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """``dss14 train --seeds`` ends by printing the campaign's summary.md (any environment: a
+    return column without references)."""
+    import yaml
+
+    from dss14_env.cli import main
+
+    path = tmp_path / "c.yaml"
+    path.write_text(yaml.safe_dump({"algo": "ppo", "env_id": "Pendulum-v1", "n_envs": 1, "n_steps": 32,
+                                    "batch_size": 32, "n_epochs": 1, "net_arch": [8],
+                                    "total_timesteps": 32, "eval_freq": 0, "checkpoint_freq": 0,
+                                    "progress_bar": False, "verbose": 0}))
+    assert main(["train", "ppo", "--config", str(path), "--seeds", "0", "--out", str(tmp_path / "c")]) == 0
+    out = capsys.readouterr().out
+    md = (tmp_path / "c" / "summary.md").read_text()
+    assert md in out and "| seed 0 (10000) |" in md and "eval return" in md
+    assert "IQM over 1 training seed" in md and "same test seeds" not in md

@@ -111,7 +111,7 @@ def test_returns_are_the_episodes_summed_rewards() -> None:
         total += r
         if term:
             break
-    assert res["returns"][1] == pytest.approx(total, rel=1e-9)
+    assert res["returns"][1] == pytest.approx(total, rel=1e-6)  # vector vs single env: rounding
     assert res["returns"][0] != pytest.approx(res["returns"][1], rel=1e-3)
 
 
