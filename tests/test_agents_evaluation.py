@@ -148,3 +148,28 @@ def test_bench_scenario_budgets_are_the_catalogs() -> None:
     assert SCENARIOS["slew"].scenario().steps == SCENARIO_TASKS["slew"][2] == 2500
     assert SCENARIO_TASKS["track"][2] == 2000
     assert TEST_STEPS == round(SCENARIOS["hold_front"].default.seconds / 0.02)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("row", ["ppo", "ppo_residual_lqg"])
+@pytest.mark.parametrize("scenario", ["track", "step", "slew"])
+def test_shipped_residual_policies_score_their_committed_bench_figures(row: str, scenario: str) -> None:
+    """A shipped residual policy scored by run_task in the track, step and slew (the default
+    bench lengths, first 8 seeds) gives the committed bench run's episodes (stored to 6
+    significant digits; a residual policy's small output keeps float32 rounding far below
+    that, whatever the batch)."""
+    import json
+    from pathlib import Path
+
+    from dss14_env.bench.catalog import CONTROLLERS
+
+    bench = json.loads((Path(__file__).resolve().parents[1] / "docs" / "results"
+                        / "bench_default.json").read_text())
+    col = bench["episodes"][row][scenario]
+    seeds = list(col["seed"])[:8]
+    (task,) = dss14_tasks(scenarios=[scenario])
+    res = run_task(CONTROLLERS[row].make(DSS14Env(**PRESETS[task.preset].kwargs)), task, seeds)
+    for ax in ("az", "el"):
+        want = np.asarray(col[f"servo_error_mdeg.{ax}.three_sigma"][:8], float)
+        np.testing.assert_allclose(res[f"servo_three_sigma_mdeg_{ax}"], want, rtol=2e-5, err_msg=ax)
+    assert not res["terminated"].any()
