@@ -8,16 +8,23 @@ Seed protocol of the DSS14 runs (checked when training starts):
 * **training** seeds 10 000 and up: sub-environment ``i`` of a run with ``seed`` s starts
   from ``s + i``.
 
-The tasks of a DSS14 run are the benchmark's hold scenarios (:data:`DSS14_TASKS`): 50 km/h
-front wind scored on elevation, side wind on azimuth (the axis the wind loads), 3σ of the
-servo error after the 5-s warm-up, in mdeg, the report's Table 4 figure; beside it the 3σ of
-the dish's true pointing error on the axis the wind swings (front: elevation, side:
-cross-elevation; the environment's ``pointing_error_*_mdeg``, as the benchmark's runner
-scores it).  For any other environment the one task is the configured environment and the
-score its return.
+The tasks of a DSS14 run are by default the benchmark's hold scenarios (:data:`DSS14_TASKS`):
+50 km/h front wind scored on elevation, side wind on azimuth (the axis the wind loads), 3σ of
+the servo error after the 5-s warm-up, in mdeg, the report's Table 4 figure; beside it the 3σ
+of the dish's true pointing error on the axis the wind swings (front: elevation, side:
+cross-elevation; the environment's ``pointing_error_*_mdeg``).  Every other bench scenario is
+a task too (:data:`SCENARIO_TASKS`, :func:`dss14_tasks` with ``scenarios``: the track, the
+0.1° step, the 5° slew, the axis-encoder holds), in the default bench run's episode length.
+For any other environment the one task is the configured environment and the score its
+return.
 
-Episodes of all seeds run in lockstep through one controller's batched API
-(:meth:`dss14_env.agents.policy.PolicyController.act_batch`), one environment per seed.
+A DSS14 task's episodes run through the benchmark's one episode loop
+(:func:`dss14_env.baselines.rollout.run_rows`): the seeds as rows of the vector environment
+for a batchable controller (:meth:`dss14_env.agents.policy.PolicyController.act_batch`), as the
+bench's runner runs them, and every episode's figures are the bench's
+(:func:`~dss14_env.baselines.rollout.episode_metrics`, :data:`FIGURES`): a policy's figure here
+is its bench figure on the same seed and length.  Any other environment's episodes run in
+lockstep, one environment per seed.
 """
 
 from __future__ import annotations
