@@ -9,12 +9,20 @@ of different runs never share a seed), then scores every run's final and best
 
     summary.json        per training seed: training wall time and environment steps, the 3σ
                         servo and pointing errors (DSS14) or return of every test episode and
-                        their mean per task; over the training seeds: the interquartile mean
-                        with its 95 % bootstrap interval (dss14_env.core.stats.iqm_ci), the
-                        mean, min and max
-    curves_<task>.png   validation 3σ (servo and pointing) and return vs environment steps: IQM over training
-                        seeds with its 95 % bootstrap band, and every seed's curve
+                        their mean per task, and (DSS14) every test episode's figures of the
+                        bench; over the training seeds: the interquartile mean with its 95 %
+                        bootstrap interval (dss14_env.core.stats.iqm_ci), the mean, min and
+                        max; the references (PI, LQG) on the same test and validation episodes
+    summary.md          the test figures per training seed, their IQM and the references
+                        (dss14_env.agents.campaign_report; ``dss14 train --seeds`` prints it)
+    curves_<task>.png   validation 3σ (servo and pointing) and return vs environment steps: IQM
+                        over training seeds with its 95 % bootstrap band, every seed's curve
+                        and the references' validation 3σ as lines
     config.yaml         the configuration the runs share (seed: the base seed)
+
+The test tasks are the DSS14 scenarios of the configuration's ``test_scenarios`` (default the
+two holds; any of :data:`dss14_env.agents.evaluation.SCENARIO_TASKS`: holds, track, step, slew),
+each scored with the bench's figures on the bench's episodes.
 
 An interrupted campaign continues with ``resume=True`` (``dss14 train ... --seeds ...
 --resume``): the seeds whose run finished with the campaign's configuration are scored
@@ -40,11 +48,19 @@ from typing import Any
 import numpy as np
 import yaml
 
+from dss14_env.agents.campaign_report import (
+    REFERENCES,
+    reference_scores,
+    summary_markdown,
+    task_scores,
+    validation_references,
+)
 from dss14_env.agents.config import MAX_SEED, TrainConfig, as_config
 from dss14_env.agents.envs import check_env, resolve_env
-from dss14_env.agents.evaluation import DSS14_TASKS, TEST_SEEDS, TEST_STEPS, EvalTask, run_task
+from dss14_env.agents.evaluation import DEFAULT_SCENARIOS, TEST_SEEDS, TEST_STEPS, EvalTask, dss14_tasks
 from dss14_env.agents.policy import load_policy
-from dss14_env.agents.train import train
+from dss14_env.agents.results import SCENARIO_COLUMNS, column_summary, column_values
+from dss14_env.agents.train import train, validation_tasks
 from dss14_env.core.outdir import (
     atomic_write_bytes,
     atomic_write_text,
@@ -63,7 +79,8 @@ from dss14_env.core.text import counted
 SEED_STRIDE = 1000
 #: what a campaign or a sweep (:mod:`dss14_env.agents.sweep`) owns in its folder: either one
 #: replaces the other's files (with ``overwrite``), so the results of the two never mix
-CAMPAIGN_FILES = ("seed_*", "summary.json", "curves_*.png", "config.yaml", "sweep.json", "sweep.md")
+CAMPAIGN_FILES = ("seed_*", "summary.json", "summary.md", "curves_*.png", "config.yaml", "sweep.json",
+                  "sweep.md")
 #: seed of the bootstrap resampling (reproducible intervals)
 BOOTSTRAP_SEED = 0
 
@@ -97,31 +114,24 @@ def check_training_seeds(cfg: TrainConfig, seeds: Sequence[int]) -> None:
 
 
 def campaign_tasks(cfg: TrainConfig) -> list[EvalTask]:
-    """The test tasks of a configuration: the DSS14 holds, or the configured environment."""
+    """The test tasks of a configuration: the DSS14 scenarios of ``test_scenarios`` (default
+    the two holds), or the configured environment.
+
+    :raises ValueError: ``test_scenarios`` other than the default for an environment that is
+        not DSS14
+    """
     plan = resolve_env(cfg)
     if plan.dss14:
-        return list(DSS14_TASKS)
+        return dss14_tasks(scenarios=cfg.test_scenarios)
+    if tuple(cfg.test_scenarios) != DEFAULT_SCENARIOS:
+        raise ValueError(f"{cfg.source}: key 'test_scenarios': the benchmark's scenarios are "
+                         f"DSS14 tasks, {cfg.env_id!r} is not a DSS14 environment")
     return [EvalTask("eval", cfg.env_id, {**cfg.env_kwargs, **cfg.eval_env_kwargs})]
 
 
 def _score(policy_dir: Path, tasks: list[EvalTask], seeds: Sequence[int],
            steps: int | None) -> dict[str, Any]:
-    ctrl = load_policy(policy_dir)
-    out = {}
-    for t in tasks:
-        r = run_task(ctrl, t, seeds, steps if t.axis is not None else None)
-        d = {"returns": r["returns"].tolist(), "mean_return": float(np.mean(r["returns"])),
-             "terminated": int(r["terminated"].sum())}
-        if t.axis is not None:
-            d["axis"] = t.axis
-            d["three_sigma_mdeg"] = r["three_sigma_mdeg"].tolist()
-            d["mean_three_sigma_mdeg"] = float(np.mean(r["three_sigma_mdeg"]))
-        if t.pointing_axis is not None:
-            d["pointing_axis"] = t.pointing_axis
-            d["pointing_three_sigma_mdeg"] = r["pointing_three_sigma_mdeg"].tolist()
-            d["mean_pointing_three_sigma_mdeg"] = float(np.mean(r["pointing_three_sigma_mdeg"]))
-        out[t.name] = d
-    return out
+    return task_scores(load_policy(policy_dir), tasks, seeds, steps)
 
 
 def _aggregate(values: list[float]) -> dict[str, Any]:
@@ -169,7 +179,7 @@ def _continue_campaign(cfg: TrainConfig, out: str | Path, seeds: Sequence[int]) 
     folder = Path(out)
     check_saved_config(cfg, folder)
     reopen_output_dir(folder, owned_files(folder), "--out")
-    remove_run_files(folder, ("summary.json", "curves_*.png"))
+    remove_run_files(folder, ("summary.json", "summary.md", "curves_*.png"))
     finished = set()
     for k in seeds:
         run = folder / f"seed_{k}"
@@ -250,10 +260,14 @@ def train_one_seed(item: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def write_summary(cfg: TrainConfig, folder: Path, seeds: Sequence[int], per_seed: list[dict[str, Any]],
-                  test_seeds: Sequence[int], test_steps: int, figures: bool = True) -> dict[str, Any]:
-    """Write a campaign's ``summary.json`` (and learning curves) from its seeds' entries.
+                  test_seeds: Sequence[int], test_steps: int, figures: bool = True,
+                  references: bool = True) -> dict[str, Any]:
+    """Write a campaign's ``summary.json``, ``summary.md`` (and learning curves) from its
+    seeds' entries.
 
     :param per_seed: :func:`train_one_seed`'s entries, in the order of ``seeds``
+    :param references: score the reference controllers (PI, LQG) on the same test episodes
+        and validation episodes (DSS14; the summary's and the curves' references)
     :return: the summary
     """
     tasks = campaign_tasks(cfg)
@@ -271,21 +285,38 @@ def write_summary(cfg: TrainConfig, folder: Path, seeds: Sequence[int], per_seed
                 aggregate[which][t.name]["pointing"] = {
                     "metric": "mean_pointing_three_sigma_mdeg",
                     **_aggregate([r[t.name]["mean_pointing_three_sigma_mdeg"] for r in rows])}
+            if t.name in SCENARIO_COLUMNS and all("figures" in r[t.name] for r in rows):
+                aggregate[which][t.name]["figures"] = {
+                    col: column_summary(np.array([column_values(t.name, col, r[t.name]["figures"])
+                                                  for r in rows]), col,
+                                        np.random.default_rng(BOOTSTRAP_SEED))
+                    for col, _ in SCENARIO_COLUMNS[t.name]}
+    val_tasks = validation_tasks(cfg)
+    refs: dict[str, Any] = {}
+    if references and any(t.preset is not None for t in tasks):
+        refs = {"controllers": {k: v[0] for k, v in REFERENCES.items()},
+                "test": reference_scores(tasks, test_seeds, test_steps),
+                "validation": validation_references(val_tasks, cfg.eval_seeds, cfg.eval_episode_steps,
+                                                    cfg.n_eval_episodes)}
     summary = {
         "algo": cfg.algo, "env_id": cfg.env_id, "config": cfg.source,
         "seed_indices": list(seeds), "training_seeds": [training_seed(cfg, k) for k in seeds],
         "protocol": {"test_seeds": [int(s) for s in test_seeds], "test_steps": int(test_steps),
                      "tasks": [{"name": t.name, "env_id": t.env_id, "axis": t.axis,
                                 "pointing_axis": t.pointing_axis,
-                                "warmup_steps": t.warmup_steps} for t in tasks],
+                                "warmup_steps": t.warmup_steps,
+                                "steps": test_steps if t.axis is not None else t.steps} for t in tasks],
                      "validation_seeds": cfg.eval_seeds,
                      "interval": "95 % percentile bootstrap over training seeds of the IQM "
                                  "(dss14_env.core.stats.iqm_ci)"},
         "per_seed": per_seed, "aggregate": aggregate,
     }
+    if refs:
+        summary["references"] = refs
     atomic_write_text(folder / "summary.json", json.dumps(summary, indent=2) + "\n")
+    atomic_write_text(folder / "summary.md", summary_markdown(summary))
     if figures:
-        write_curves(folder, [folder / f"seed_{k}" for k in seeds], tasks)
+        write_curves(folder, [folder / f"seed_{k}" for k in seeds], val_tasks, refs.get("validation"))
     update_manifest(folder)
     return summary
 
@@ -402,17 +433,40 @@ def _band(values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return np.array(mid), np.array(lo), np.array(hi)
 
 
-def write_curves(folder: Path, runs: Sequence[Path], tasks: Sequence[EvalTask]) -> list[Path]:
-    """One PNG per task: validation 3σ servo error (DSS14), 3σ pointing error (where the runs
-    recorded it) and return vs environment steps (IQM over the runs with its 95 % bootstrap
-    band, each run thin).
+#: line styles of the reference controllers in the learning curves
+_REFERENCE_STYLES = {"pi_kp1": ("k", "--"), "lqg": ("tab:red", ":")}
+
+
+def _reference_lines(ax: Any, references: Mapping[str, Any] | None, task: str, key: str) -> None:
+    """The references' mean validation 3σ of one panel as horizontal lines."""
+    for name, by_task in (references or {}).items():
+        v = by_task.get(task, {}).get(key)
+        if v is not None and np.isfinite(v):
+            color, style = _REFERENCE_STYLES.get(name, ("0.3", "-."))
+            ax.axhline(v, color=color, ls=style, lw=1.2,
+                       label=f"{REFERENCES[name][0] if name in REFERENCES else name}: {v:.3g}")
+
+
+def write_curves(folder: Path, runs: Sequence[Path], tasks: Sequence[EvalTask],
+                 references: Mapping[str, Mapping[str, Mapping[str, float | None]]] | None = None
+                 ) -> list[Path]:
+    """One PNG per validation task: validation 3σ servo error (DSS14), 3σ pointing error (where
+    the runs recorded it) and return vs environment steps (IQM over the runs with its 95 %
+    bootstrap band, each run thin), with the reference controllers' mean 3σ on the same
+    validation episodes as horizontal lines.
+
+    :param references: name -> task -> ``three_sigma``, ``pointing``
+        (:func:`~dss14_env.agents.campaign_report.validation_references`); None: no lines
+    :return: the files written (none when a run has no validation history: ``eval_freq`` 0)
     """
     import io
 
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    written = []
+    written: list[Path] = []
+    if not all((r / "eval" / "evaluations.npz").is_file() for r in runs):  # eval_freq 0: no curves
+        return written
     for t in tasks:
         c = learning_curves(runs, t.name)
         if c["steps"].size == 0:
@@ -432,6 +486,7 @@ def write_curves(folder: Path, runs: Sequence[Path], tasks: Sequence[EvalTask]) 
             mid, lo, hi = _band(v)
             ax.fill_between(c["steps"], lo, hi, alpha=0.3, label="95 % bootstrap CI")
             ax.plot(c["steps"], mid, lw=2, label=f"IQM over {counted(len(runs), 'seed')}")
+            _reference_lines(ax, references, t.name, key)
             ax.set_xlabel("environment steps")
             ax.set_ylabel(label)
             ax.grid(alpha=0.3)

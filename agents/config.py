@@ -46,6 +46,7 @@ from typing import Any
 
 import numpy as np
 
+from dss14_env.agents.evaluation import DEFAULT_SCENARIOS, SCENARIO_TASKS
 from dss14_env.core.schema import (
     ConfigError,
     Spec,
@@ -95,6 +96,14 @@ def _num(default: float | None, lo: float | None = None, hi: float | None = None
     return spec("1", lo=lo, hi=hi, lo_open=lo_open, default=default, **kw)
 
 
+def _test_scenarios(names: Any, source: str) -> list[str]:
+    """The final test's scenarios, each once (the schema checked each name)."""
+    names = list(names)
+    if len(set(names)) != len(names):
+        raise ConfigError(f"{source}: field 'test_scenarios': each scenario once, got {names}")
+    return names
+
+
 def _flag(default: bool) -> Any:
     return spec(None, kind="bool", default=default)
 
@@ -128,6 +137,8 @@ class CommonSettings:
     eval_env_kwargs: dict = spec(None, kind="mapping", default_factory=dict)
     eval_episode_steps: int = _int(1, 1000, hi=1_000_000)
     select_by: str = spec(None, kind="str", choices=SELECT_BY, default="return")
+    test_scenarios: tuple = spec(None, kind="list", items=Spec(None, "str", choices=tuple(SCENARIO_TASKS)),
+                                 default=DEFAULT_SCENARIOS)
     checkpoint_freq: int = _int(0, 200_000, hi=MAX_TIMESTEPS)
     torch_threads: int = _int(1, 1, hi=MAX_THREADS)
     progress_bar: bool = _flag(True)
@@ -437,6 +448,7 @@ class TrainConfig:
         out["net_arch"] = _net_arch(out["net_arch"], algo, source)
         out["mixture"] = _mixture(out["mixture"], out["n_envs"], source)
         out["eval_seeds"] = list(out["eval_seeds"])
+        out["test_scenarios"] = _test_scenarios(out["test_scenarios"], source)
         out = json.loads(json.dumps(out, default=_plain))  # plain YAML types
         if algo in ("ppo", "recurrent_ppo"):
             rollout = out["n_steps"] * out["n_envs"]

@@ -60,6 +60,109 @@ STATISTICS = (
     "ratio divides by the reference's pointing error.")
 
 
+#: the columns of the tracking, step and slew table: scenario -> ((column, head), ...); an
+#: episode's value of each from its task's figures (:func:`column_values`)
+SCENARIO_COLUMNS = {
+    "track": (("servo_el", "track: el servo 3σ (mdeg)"), ("servo_az", "track: az servo 3σ (mdeg)")),
+    "step": (("overshoot", "step: overshoot (%)"), ("settling", "step: 2 % settling (s)")),
+    "slew": (("servo", "slew: servo 3σ (mdeg)"), ("terminated", "slew: terminated")),
+}
+#: salt offset of the scenario columns' resampling streams
+_SCENARIO_SALT = 20
+
+
+def column_values(scenario: str, column: str, figures: Mapping[str, Sequence[Any]]) -> np.ndarray:
+    """Per test episode, one column of :data:`SCENARIO_COLUMNS` from a task's figures (the
+    keys of :data:`dss14_env.agents.evaluation.FIGURES` and ``terminated``): the track's 3σ
+    servo error per axis; the step's overshoot and 2 % settling time and the slew's 3σ servo
+    error on the worse axis; the slew's terminations (1 per terminated episode).
+    """
+    def f(key: str) -> np.ndarray:
+        return np.asarray([math.nan if v is None else float(v) for v in figures[key]], float)
+
+    if column == "terminated":
+        return np.asarray(figures["terminated"], float)
+    if scenario == "track":
+        return f(f"servo_three_sigma_mdeg_{column[-2:]}")
+    key = {"overshoot": "overshoot_pct", "settling": "settling_time_s",
+           "servo": "servo_three_sigma_mdeg"}[column]
+    az, el = f(f"{key}_az"), f(f"{key}_el")
+    return np.where(np.isnan(az), el, np.where(np.isnan(el), az, np.maximum(az, el)))
+
+
+def column_summary(x: np.ndarray, column: str, rng: np.random.Generator) -> dict[str, Any]:
+    """Statistics of one column: ``x`` ``(training seeds, test seeds)`` (an agent: IQM over
+    training seeds of the mean over test seeds) or ``(test seeds,)`` (a reference: the mean
+    with its interval over test seeds); terminations are counted (``count`` of ``episodes``);
+    a column with non-finite values (a step that never settles: inf) has no statistic, only
+    ``non_finite`` (how many) and ``infinite`` (how many of them are +inf).
+    """
+    x = np.asarray(x, float)
+    d: dict[str, Any] = {"per_test_seed": x.tolist(), "episodes": int(x.size)}
+    if column == "terminated":
+        d["count"] = int(np.nansum(x))
+        if x.ndim == 2:
+            d["per_seed"] = [int(v) for v in np.nansum(x, axis=1)]
+        return d
+    bad = ~np.isfinite(x)
+    if x.ndim == 2:
+        d["per_seed"] = [float(v) for v in x.mean(axis=1)]
+    if bad.any():
+        d.update(non_finite=int(bad.sum()), infinite=int(np.isposinf(x).sum()))
+    elif x.ndim == 2:
+        d["iqm"] = iqm_ci(x.mean(axis=1), rng).as_dict()
+    else:
+        d["mean"] = bootstrap_ci(x, np.mean, rng).as_dict()
+    return d
+
+
+def _scenario_figures(summary: Mapping[str, Any], which: str,
+                      scenario: str) -> list[Mapping[str, Any]] | None:
+    """Every training seed's figures of one scenario, or None when a seed has none."""
+    rows = []
+    for e in summary["per_seed"]:
+        res = e.get(which) or {}
+        figs = res.get(scenario, {}).get("figures")
+        if figs is None:
+            return None
+        rows.append(figs)
+    return rows
+
+
+def agent_scenarios(summary: Mapping[str, Any], which: str, salt: int) -> dict[str, Any]:
+    """An agent's columns of the tracking, step and slew table: per scenario of
+    :data:`SCENARIO_COLUMNS` its campaign scored (the ``figures`` of every seed), per column
+    :func:`column_summary` over training x test seeds (and ``per_seed_final``).
+    """
+    out: dict[str, Any] = {}
+    for i, (scen, cols) in enumerate(SCENARIO_COLUMNS.items()):
+        best, final = _scenario_figures(summary, which, scen), _scenario_figures(summary, "final", scen)
+        if best is None:
+            continue
+        out[scen] = {}
+        for j, (col, _) in enumerate(cols):
+            x = np.array([column_values(scen, col, f) for f in best])
+            d = column_summary(x, col, _rng(salt, _SCENARIO_SALT, i, j))
+            if final is not None:
+                xf = np.array([column_values(scen, col, f) for f in final])
+                d["per_seed_final"] = column_summary(xf, col, _rng(0)).get("per_seed")
+            out[scen][col] = d
+    return out
+
+
+def reference_scenarios(figures: Mapping[str, Mapping[str, Sequence[Any]]], salt: int) -> dict[str, Any]:
+    """A reference controller's columns: scenario -> its figures on the test seeds (as in a
+    campaign's summary) -> per column :func:`column_summary` over the test seeds.
+    """
+    out: dict[str, Any] = {}
+    for i, (scen, cols) in enumerate(SCENARIO_COLUMNS.items()):
+        if scen in figures:
+            out[scen] = {col: column_summary(column_values(scen, col, figures[scen]), col,
+                                             _rng(salt, _SCENARIO_SALT, i, j))
+                         for j, (col, _) in enumerate(cols)}
+    return out
+
+
 def _rng(*salt: int) -> np.random.Generator:
     return np.random.default_rng([BOOTSTRAP_SEED, *salt])
 
@@ -166,6 +269,9 @@ def agent_entry(summary: Mapping[str, Any], references: Mapping[str, Mapping[str
                                         "pointing_three_sigma_mdeg", pointing_references or {},
                                         (salt, h, _POINTING_SALT))
         out["holds"][hold] = d
+    scenarios = agent_scenarios(summary, which, salt)
+    if scenarios:
+        out["scenarios"] = scenarios
     out.update(dict(extra or {}))
     return out
 
@@ -186,7 +292,8 @@ def reference_entry(values: Mapping[str, Sequence[float]] | None,
                     references: Mapping[str, Mapping[str, Sequence[float]]], label: str,
                     salt: int = 0, extra: Mapping[str, Any] | None = None,
                     pointing: Mapping[str, Sequence[float]] | None = None,
-                    pointing_references: Mapping[str, Mapping[str, Sequence[float]]] | None = None
+                    pointing_references: Mapping[str, Mapping[str, Sequence[float]]] | None = None,
+                    scenarios: Mapping[str, Mapping[str, Sequence[Any]]] | None = None
                     ) -> dict[str, Any]:
     """A reference controller's row: mean over the test seeds with its interval, ratios.
 
@@ -195,6 +302,8 @@ def reference_entry(values: Mapping[str, Sequence[float]] | None,
     :param references: as in :func:`agent_entry`
     :param pointing: hold -> 3σ pointing error per test seed (None: no ``pointing`` entries)
     :param pointing_references: as ``references``, of the pointing error
+    :param scenarios: scenario -> its figures per test seed (track, step, slew:
+        :func:`reference_scenarios`; None: none)
     """
     out: dict[str, Any] = {"label": label, "kind": "reference", "holds": {}}
     for h, (hold, axis) in enumerate(HOLDS.items()):
@@ -206,6 +315,8 @@ def reference_entry(values: Mapping[str, Sequence[float]] | None,
                                             pointing_references or {}, hold,
                                             (salt, h, _POINTING_SALT))
         out["holds"][hold] = d
+    if scenarios:
+        out["scenarios"] = reference_scenarios(scenarios, salt)
     out.update(dict(extra or {}))
     return out
 
@@ -264,7 +375,8 @@ def _split(entry: tuple) -> tuple[str, Any, Any]:
 def build_results(agents: Mapping[str, tuple[str, Mapping[str, Any], Mapping[str, Any]]],
                   references: Mapping[str, tuple],
                   test_seeds: Sequence[int], meta: Mapping[str, Any] | None = None,
-                  analytic: Mapping[str, tuple] | None = None) -> dict[str, Any]:
+                  analytic: Mapping[str, tuple] | None = None,
+                  scenario_references: Mapping[str, Mapping[str, Any]] | None = None) -> dict[str, Any]:
     """The results mapping (JSON-ready).
 
     :param agents: key -> ``(label, campaign summary, extra keys)``
@@ -275,6 +387,8 @@ def build_results(agents: Mapping[str, tuple[str, Mapping[str, Any], Mapping[str
     :param meta: stored as is (how the results were made)
     :param analytic: key -> ``(label, hold -> exact expected 3σ)`` or ``(label, servo, hold ->
         exact pointing 3σ)`` (either None: none) (rows after the references)
+    :param scenario_references: reference key -> scenario -> its figures per test seed (the
+        tracking, step and slew columns of the references; None: none)
     :raises ValueError: a campaign scored on other test seeds than the references
     """
     seeds = [int(s) for s in test_seeds]
@@ -284,7 +398,8 @@ def build_results(agents: Mapping[str, tuple[str, Mapping[str, Any], Mapping[str
     rows: dict[str, Any] = {}
     for i, (key, (label, values, pointing)) in enumerate(refs.items()):
         rows[key] = reference_entry(values, ref_values, label, salt=100 + i, pointing=pointing,
-                                    pointing_references=ref_pointing)
+                                    pointing_references=ref_pointing,
+                                    scenarios=(scenario_references or {}).get(key))
     for i, (key, entry) in enumerate((analytic or {}).items()):
         label, values, pointing = _split(entry)
         rows[key] = analytic_entry(values, ref_values, label, salt=150 + i, pointing=pointing,
@@ -377,6 +492,47 @@ def _error_table(results: Mapping[str, Any], error: str) -> str:
     return "\n".join(lines) + "\n"
 
 
+def summary_cell(d: Mapping[str, Any] | None, agent: bool) -> str:
+    """A :func:`column_summary` as a table cell: the IQM or mean with its interval (an agent's
+    in bold), the count of terminations, or why there is no statistic ("–": not measured).
+    """
+    if d is None:
+        return "–"
+    if "count" in d:
+        return f"{d['count']} of {d['episodes']}"
+    if "non_finite" in d:
+        what = "never settles" if d["infinite"] == d["non_finite"] else "no value"
+        return f"– ({what} in {d['non_finite']} of {d['episodes']})"
+    s = _ci(d["iqm"] if "iqm" in d else d["mean"])
+    return f"**{s}**" if agent else s
+
+
+def _column_cell(row: Mapping[str, Any], scen: str, col: str) -> str:
+    """One cell of the tracking, step and slew table ("–": not measured)."""
+    return summary_cell(row.get("scenarios", {}).get(scen, {}).get(col), row["kind"] == "agent")
+
+
+def has_scenarios(results: Mapping[str, Any]) -> bool:
+    """Whether any row of the results has tracking, step or slew figures."""
+    return any(row.get("scenarios") for row in results["rows"].values())
+
+
+def scenario_table(results: Mapping[str, Any]) -> str:
+    """Markdown: the rows' tracking, step and slew figures (:data:`SCENARIO_COLUMNS`; the
+    rows that have any), with the statistics of the hold tables.
+    """
+    n_test = len(results["test_seeds"])
+    head = ["controller", "seeds"] + [h for cols in SCENARIO_COLUMNS.values() for _, h in cols]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for row in results["rows"].values():
+        if not row.get("scenarios"):
+            continue
+        cells = [_label(row), _seeds_cell(row, n_test)]
+        cells += [_column_cell(row, scen, col) for scen, cols in SCENARIO_COLUMNS.items() for col, _ in cols]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
 def main_table(results: Mapping[str, Any]) -> str:
     """Markdown: the pointing-error table, then the servo-error table (the same rows: every
     score per hold with its interval and its ratios to PI, LQG and pointing LQG), under a caption that says
@@ -402,8 +558,17 @@ def main_table(results: Mapping[str, Any]) -> str:
                     f"one computed on {', '.join(kept)} (servo error only; its ratios divide by "
                     f"the references of that time, on the same test seeds).")
     caption += "\n\n"
-    return (caption + "**Pointing error**\n\n" + _error_table(results, "pointing")
-            + "\n**Servo error**\n\n" + _error_table(results, "servo"))
+    out = (caption + "**Pointing error**\n\n" + _error_table(results, "pointing")
+           + "\n**Servo error**\n\n" + _error_table(results, "servo"))
+    if has_scenarios(results):
+        out += ("\n**Tracking, step and slew** (the rows scored there, on the same test seeds: the "
+                "benchmark's 40-s track in 30-70 km/h wind (3σ after the 5-s warm-up), 20-s 0.1° "
+                "step (overshoot and 2 % settling time) and 50-s 5° slew (3σ) in their default "
+                "bench lengths, each on the worse axis where both move; the statistics of the "
+                "tables above, without ratios; terminated: episodes that hit the 1° error bound "
+                "or the travel limits, of all test episodes)\n\n"
+                + scenario_table(results))
+    return out
 
 
 def seeds_table(results: Mapping[str, Any]) -> str:
@@ -439,7 +604,8 @@ def rl_tables(results: Mapping[str, Any]) -> dict[str, str]:
     return {"rl-table": main_table(results), "rl-seeds": seeds_table(results)}
 
 
-__all__ = ["BOOTSTRAP_SEED", "HOLDS", "POINTING_AXES", "RATIO_HEADS", "RATIO_REFERENCES", "STATISTICS",
-           "agent_entry",
-           "agent_ratio", "analytic_entry", "build_results", "has_pointing", "main_table",
-           "reference_entry", "rl_tables", "seeds_table"]
+__all__ = ["BOOTSTRAP_SEED", "HOLDS", "POINTING_AXES", "RATIO_HEADS", "RATIO_REFERENCES", "SCENARIO_COLUMNS",
+           "STATISTICS", "agent_entry", "agent_ratio", "agent_scenarios", "analytic_entry",
+           "build_results", "column_summary", "column_values", "has_pointing", "has_scenarios",
+           "main_table", "reference_entry", "reference_scenarios", "rl_tables", "scenario_table",
+           "seeds_table", "summary_cell"]

@@ -37,7 +37,7 @@ import yaml
 
 from dss14_env.agents.algos import algo_class, algo_kwargs, is_recurrent, policy_kwargs
 from dss14_env.agents.config import TrainConfig, as_config, is_own_module, load_config
-from dss14_env.agents.envs import EnvPlan, check_env, make_train_vec_env, vec_env_kind
+from dss14_env.agents.envs import EnvPlan, check_env, make_train_vec_env, resolve_env, vec_env_kind
 from dss14_env.agents.evaluation import DSS14_TASKS, EvalTask, check_seed_protocol, dss14_tasks, run_task
 from dss14_env.agents.policy import PolicyController
 from dss14_env.agents.storage import (
@@ -259,7 +259,13 @@ def _restore(model: Any, venv: Any, src: _Resume, cfg: TrainConfig) -> int:
     return src.steps
 
 
-def _eval_tasks(cfg: TrainConfig, plan: EnvPlan) -> list[EvalTask]:
+def validation_tasks(cfg: TrainConfig, plan: EnvPlan | None = None) -> list[EvalTask]:
+    """The periodic evaluation's tasks: the DSS14 holds (with ``eval_env_kwargs`` laid over),
+    or the configured environment.
+
+    :param plan: the configuration's environment plan (default: resolved from ``cfg``)
+    """
+    plan = resolve_env(cfg) if plan is None else plan
     if plan.dss14:
         return dss14_tasks(cfg.eval_env_kwargs) if cfg.eval_env_kwargs else list(DSS14_TASKS)
     return [EvalTask("eval", cfg.env_id, {**cfg.env_kwargs, **cfg.eval_env_kwargs})]
@@ -330,7 +336,7 @@ class _Evaluator:
                  venv: Any, start: int) -> None:
         self.cfg, self.plan, self.run, self.run_id = cfg, plan, run, run_id
         self.config_text, self.venv = config_text, venv
-        self.tasks = _eval_tasks(cfg, plan)
+        self.tasks = validation_tasks(cfg, plan)
         if cfg.select_by != "return" and not any(t.axis for t in self.tasks):
             raise ValueError(f"{cfg.source}: key 'select_by': {cfg.select_by} needs DSS14 hold "
                              f"tasks, {cfg.env_id!r} has none (use return)")
@@ -548,7 +554,7 @@ def train(config: TrainConfig | Mapping[str, Any] | str | Path, run_dir: str | P
     plan, obs_space, act_space, env_config = check_env(cfg)
     if plan.dss14:
         check_seed_protocol(cfg.seed, cfg.n_envs, cfg.eval_seeds, cfg.source)
-        warm = max(t.warmup_steps for t in _eval_tasks(cfg, plan))
+        warm = max(t.warmup_steps for t in validation_tasks(cfg, plan))
         if cfg.eval_freq and cfg.eval_episode_steps <= warm + 1:
             raise ValueError(f"{cfg.source}: key 'eval_episode_steps': the validation episodes "
                              f"must be longer than the {warm}-step warm-up the 3-sigma leaves "
@@ -710,4 +716,5 @@ def load_run_config(run: str | Path) -> TrainConfig:
 
 __all__ = ["RUN_FILES", "TrainingInterrupted", "config_for_command", "import_user_module",
            "last_checkpoint", "later_checkpoints", "load_run_config", "prepare_run", "resume_source",
-           "resume_config_path", "save_checkpoint", "selection_key", "selection_score", "train"]
+           "resume_config_path", "save_checkpoint", "selection_key", "selection_score", "train",
+           "validation_tasks"]

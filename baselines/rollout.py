@@ -2,8 +2,8 @@
 and the figures of every episode (:class:`dss14_env.core.results.EpisodeFigures`).
 
 The bench's runner (:mod:`dss14_env.bench.runner`) and the robustness campaign run their
-episodes through :func:`run_rows` (or :func:`run_episode`); the agents' evaluation
-(:func:`dss14_env.agents.evaluation.run_task`) still steps its own loop.
+episodes through :func:`run_rows` (or :func:`run_episode`), and so does the agents'
+evaluation (:func:`dss14_env.agents.evaluation.run_task`).
 
 **Episodes.**  Episode ``seed`` of a scenario is the environment reset with that seed, so every
 controller sees the same start, wind direction, trajectory and gust realisation for the same
@@ -213,7 +213,7 @@ def _fallback_record(info: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def run_rows(driver: Any, env: Any, seeds: Sequence[int], steps: int, warmup_s: float = 0.0,
-             record: bool = False) -> list[dict[str, Any]]:
+             record: bool = False, reseed: bool = True) -> list[dict[str, Any]]:
     """Episodes ``seeds`` of one controller: rows of a vector environment (batched driver) or
     one episode on a single environment (sequential driver, one seed).
 
@@ -224,13 +224,18 @@ def run_rows(driver: Any, env: Any, seeds: Sequence[int], steps: int, warmup_s: 
     :param steps: control periods per episode
     :param warmup_s: left out of the error statistics, s
     :param record: keep the first row's time histories under ``"trace"``
+    :param reseed: reset the environment with ``seeds`` (default); False continues its
+        generators (the next episodes after a seeded reset; ``seeds`` then only label the rows)
     :return: one :func:`episode_metrics` dict per seed, with ``seed``, ``terminated``,
         ``failures``, ``failure``, ``fallbacks`` (and ``fallback_log``), the episode's wind
         and ``batch_rows``
     """
     n = len(seeds)
     cfg = env.unwrapped.config if hasattr(env, "unwrapped") else env.config
-    obs, info = env.reset(seed=[int(s) for s in seeds] if driver.batched else int(seeds[0]))
+    if reseed:
+        obs, info = env.reset(seed=[int(s) for s in seeds] if driver.batched else int(seeds[0]))
+    else:
+        obs, info = env.reset()
     wind = (np.broadcast_to(np.asarray(info["wind_speed_mps"], float), (n,)).copy(),
             np.broadcast_to(np.asarray(info["wind_direction_rad"], float), (n,)).copy())
     driver.reset(seeds, info)

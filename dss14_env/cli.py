@@ -150,7 +150,8 @@ def _train(args: argparse.Namespace) -> int:
         print(f"{counted(n, 'point')} x {counted(len(seeds), 'seed')}: per point a campaign folder "
               f"(summary.json, learning curves), sweep.json and sweep.md written to {out}")
     else:
-        print(f"{counted(len(seeds), 'run')}, summary.json and learning curves "
+        print((Path(out) / "summary.md").read_text())
+        print(f"{counted(len(seeds), 'run')}, summary.json, summary.md (above) and learning curves "
               f"written to {out}")
     return 0
 

@@ -14,8 +14,9 @@ to Pendulum-v1 is taken per round (same load) and summarised by its median over 
 a 95 % bootstrap interval over the rounds (:func:`dss14_env.core.stats.bootstrap_ci`).  The
 vector env's rate is summarised the same way over its repeats, and set against the **raw
 matmul** of its plant size measured in the same repeat (same load): ``(N x K) @ (K x n+4)``,
-the plant's batch step map (``Plant.batch_step_matrix`` restricted to the state and the
-step outputs, as the vector env uses it) into a preallocated output, rows per second -- the
+the plant's batch step map (``Plant.vector_step_matrix``: ``Plant.batch_step_matrix``
+restricted to the state and the step outputs, the map the vector env steps with) into a
+preallocated output, rows per second -- the
 limit of a step that is one such product plus per-row work; the ratio is taken per repeat.
 ``--check`` exits with status 1 when a ratio misses its target (single env >= 2x
 Pendulum-v1, vector env >= 0.5x the raw matmul), judged on the lower end of its interval.
@@ -93,11 +94,8 @@ def plant_product(envs, num_envs: int, seed: int = 0) -> tuple[np.ndarray, np.nd
     """The operands of the vector env's plant step for ``num_envs`` rows: random rows ``Z``
     (N x K), the plant's step map ``M`` (K x n+4) and the output (N x n+4).
     """
-    from dss14_env.envs.plant import N_STEP_OUTPUTS
-
     base = envs.unwrapped if hasattr(envs, "unwrapped") else envs
-    p = base.plants.plant(0.0, base.config.dt)  # the sizes of every plant of the env
-    M = np.ascontiguousarray(p.batch_step_matrix[:, :p.n + N_STEP_OUTPUTS])
+    M = base.plants.plant(0.0, base.config.dt).vector_step_matrix  # the sizes of every plant of the env
     Z = np.random.default_rng(seed).standard_normal((num_envs, M.shape[0]))
     return Z, M, np.empty((num_envs, M.shape[1]))
 

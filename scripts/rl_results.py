@@ -5,6 +5,9 @@ Three steps, each writing what the next reads::
     # 1. the reference controllers on the test seeds (the benchmark's runner; ~5 min on one core):
     #    3σ servo and pointing errors
     python scripts/rl_results.py references            # -> docs/results/rl_references.json
+    #    the PI and LQG in the track, 0.1 deg step and 5 deg slew (the tracking, step and slew
+    #    table's references; seconds)
+    python scripts/rl_results.py scenario-references   # -> docs/results/rl_scenario_references.json
     # 2. the training campaigns (dss14 train <algo> --config <cfg> --seeds 0-4 --out runs/<agent>),
     #    then the results file and the learning-curve figures
     python scripts/rl_results.py build --runs runs  # -> docs/results/rl_results.json, rl/*.png
@@ -39,6 +42,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 RESULTS = ROOT / "docs" / "results" / "rl_results.json"
 REFERENCES = ROOT / "docs" / "results" / "rl_references.json"
+SCENARIO_REFERENCES = ROOT / "docs" / "results" / "rl_scenario_references.json"
 FIGURES = ROOT / "docs" / "results" / "rl"
 #: the generated blocks and the documents that show them
 DOCUMENTS = {ROOT / "README.md": ("rl-table",), ROOT / "docs" / "rl.md": ("rl-table", "rl-seeds")}
@@ -135,6 +139,30 @@ def references(out: Path) -> None:
     print(f"wrote {out}")
 
 
+def scenario_references(out: Path) -> None:
+    """Score the campaigns' references (PI, LQG: dss14_env.agents.campaign_report.REFERENCES)
+    on the test seeds of the track, step and slew, as a campaign scores its policies there (the
+    bench's episodes, lengths and figures): the tracking, step and slew table's reference rows.
+    """
+    from dss14_env.agents.campaign_report import REFERENCES as CAMPAIGN_REFERENCES
+    from dss14_env.agents.campaign_report import reference_scores
+    from dss14_env.agents.evaluation import dss14_tasks
+    from dss14_env.agents.results import SCENARIO_COLUMNS
+
+    tasks = dss14_tasks(scenarios=list(SCENARIO_COLUMNS))
+    scores = reference_scores(tasks, TEST_SEEDS, None)
+    doc = {"what": "figures per test seed of the reference controllers in the track, step and slew "
+                   "(dss14_env.agents.campaign_report.reference_scores: the bench's episode loop "
+                   "and figures, the default bench run's episode lengths)",
+           "date_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+           "machine": _machine(), "test_seeds": TEST_SEEDS,
+           "steps": {t.name: t.steps for t in tasks},
+           "labels": {k: CAMPAIGN_REFERENCES[k][0] for k in scores},
+           "figures": {k: {scen: d["figures"] for scen, d in v.items()} for k, v in scores.items()}}
+    out.write_text(json.dumps(doc, indent=1) + "\n")
+    print(f"wrote {out}")
+
+
 def _pointing_values(yard: dict) -> dict:
     """hold -> the expected 3σ pointing error of the hold's swung axis (``[el, xel]`` entries)."""
     return {h: y["pointing_three_sigma_mdeg"][0 if POINTING_AXES[h] == "el" else 1]
@@ -193,8 +221,12 @@ def _reference_drift(committed: dict, ref: dict) -> dict:
     return out
 
 
-def build(runs: Path, out: Path, refs: Path, figures: Path, keep_from: Path = RESULTS) -> None:
+def build(runs: Path, out: Path, refs: Path, figures: Path, keep_from: Path = RESULTS,
+          scenario_refs: Path = SCENARIO_REFERENCES) -> None:
     """The results file from the campaigns' summaries and the reference runs; the curves.
+
+    The tracking, step and slew columns: the agents whose campaigns scored those scenarios
+    (``test_scenarios``), the references of ``scenario_refs`` (when the file exists).
 
     An agent whose campaign is not under ``runs`` keeps its row of the committed results file
     (``keep_from``) as it is, marked ``kept_from``: the trained runs are not in the repository,
@@ -250,7 +282,16 @@ def build(runs: Path, out: Path, refs: Path, figures: Path, keep_from: Path = RE
         analytic["pointing_yardstick_analytic"] = (
             "pointing yardstick, expected value (H2 analysis of the pointing cost)",
             py["three_sigma_mdeg"], py["pointing_three_sigma_mdeg"])
-    results = build_results(agents, references_, ref["test_seeds"], meta, analytic)
+    scen_refs = None
+    if scenario_refs.is_file():
+        sref = json.loads(scenario_refs.read_text())
+        if sref["test_seeds"] != ref["test_seeds"]:
+            raise ValueError(f"{scenario_refs}: test seeds {sref['test_seeds']} differ from "
+                             f"{refs}'s {ref['test_seeds']}")
+        scen_refs = sref["figures"]
+        meta["scenario_references"] = (str(scenario_refs.relative_to(ROOT))
+                                       if scenario_refs.is_relative_to(ROOT) else str(scenario_refs))
+    results = build_results(agents, references_, ref["test_seeds"], meta, analytic, scen_refs)
     rows = results["rows"]
     results["rows"] = {**{k: v for k, v in rows.items() if v["kind"] != "agent"},
                        **{k: kept[k] if k in kept else rows[k] for k in AGENTS if k in kept or k in rows}}
@@ -324,6 +365,9 @@ def main(argv: list[str] | None = None) -> int:
     sub = ap.add_subparsers(dest="cmd", required=True)
     r = sub.add_parser("references", help="run the reference controllers on the test seeds")
     r.add_argument("--out", type=Path, default=REFERENCES)
+    sr = sub.add_parser("scenario-references",
+                        help="the PI and LQG in the track, step and slew on the test seeds")
+    sr.add_argument("--out", type=Path, default=SCENARIO_REFERENCES)
     b = sub.add_parser("build", help="the results file from the campaigns")
     b.add_argument("--runs", type=Path, default=Path("runs"))
     b.add_argument("--references", type=Path, default=REFERENCES)
@@ -331,6 +375,8 @@ def main(argv: list[str] | None = None) -> int:
     b.add_argument("--figures", type=Path, default=FIGURES)
     b.add_argument("--keep-from", type=Path, default=RESULTS,
                    help="the results file whose rows are kept for campaigns not under --runs")
+    b.add_argument("--scenario-references", type=Path, default=SCENARIO_REFERENCES,
+                   help="the references of the tracking, step and slew columns (if the file exists)")
     s = sub.add_parser("ship", help="copy the shipped agents' chosen seeds to agents/policies")
     s.add_argument("--runs", type=Path, default=Path("runs"))
     s.add_argument("--results", type=Path, default=RESULTS)
@@ -340,8 +386,11 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.cmd == "references":
         references(args.out)
+    elif args.cmd == "scenario-references":
+        scenario_references(args.out)
     elif args.cmd == "build":
-        build(args.runs, args.out, args.references, args.figures, args.keep_from)
+        build(args.runs, args.out, args.references, args.figures, args.keep_from,
+              args.scenario_references)
     elif args.cmd == "ship":
         ship(args.runs, args.results)
     else:

@@ -269,8 +269,8 @@ def test_sweep_writes_a_campaign_per_point_and_a_consistent_sweep_json(swept: Pa
     for p, lr in zip(report["points"], SWEEP["learning_rate"], strict=True):
         sub = swept / p["folder"]
         assert p["values"] == {"learning_rate": lr}
-        assert {q.name for q in sub.iterdir()} == {"config.yaml", "summary.json", "curves_eval.png",
-                                                   "seed_0", "seed_1", MANIFEST}
+        assert {q.name for q in sub.iterdir()} == {"config.yaml", "summary.json", "summary.md",
+                                                   "curves_eval.png", "seed_0", "seed_1", MANIFEST}
         assert yaml.safe_load((sub / "config.yaml").read_text())["learning_rate"] == lr
         summary = _json(sub / "summary.json")
         assert summary["training_seeds"] == report["training_seeds"] == [0, 1000]
@@ -341,7 +341,8 @@ def test_a_sweep_and_a_campaign_do_not_mix_in_one_folder(swept: Path, tmp_path: 
         train_seeds(TINY, [0], out, figures=False, **TEST)
     train_seeds({**TINY, "total_timesteps": 64, "eval_freq": 0}, [0], out, overwrite=True, figures=False,
                 test_seeds=(0,))
-    assert sorted(p.name for p in out.iterdir()) == ["config.yaml", MANIFEST, "seed_0", "summary.json"]
+    assert sorted(p.name for p in out.iterdir()) == ["config.yaml", MANIFEST, "seed_0", "summary.json",
+                                                     "summary.md"]
 
 
 def test_overwrite_takes_only_the_sweeps_own_point_folders(swept: Path, tmp_path: Path) -> None:
@@ -352,4 +353,4 @@ def test_overwrite_takes_only_the_sweeps_own_point_folders(swept: Path, tmp_path
     train_seeds({**TINY, "total_timesteps": 64, "eval_freq": 0}, [0], out, overwrite=True, figures=False,
                 test_seeds=(0,))
     assert sorted(p.name for p in out.iterdir()) == ["config.yaml", MANIFEST, "notes=keep", "point_07",
-                                                      "seed_0", "summary.json"]
+                                                      "seed_0", "summary.json", "summary.md"]

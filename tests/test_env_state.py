@@ -87,9 +87,9 @@ def test_vector_env_refuses_cut_off_and_misshaped_snapshots() -> None:
     venv.reset(seed=2)
     good = venv.get_state()
     _refused(venv, _cut(good, "_s"), r"^state is incomplete: .*\(_s\)")
-    zs = good.data["_Zs"]
-    _refused(venv, dataclasses.replace(good, data={**good.data, "_Zs": zs[:1]}),
-             r"^state must hold 2 sub-environments of this model .*part\(s\) _Zs have other shapes")
+    z = good.data["_Z"]  # the step buffers, one column per sub-environment
+    _refused(venv, dataclasses.replace(good, data={**good.data, "_Z": z[..., :1]}),
+             r"^state must hold 2 sub-environments of this model .*part\(s\) _Z have other shapes")
 
 
 @pytest.mark.parametrize("env_id", ["DSS14-Residual-v0", "DSS14-Plain-v0", "DSS14-ResidualLQG-v0"])

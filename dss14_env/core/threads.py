@@ -6,6 +6,9 @@ environments turns such last-bit differences into different trajectories, so a m
 a controller design built under 2 threads would give other episodes than the same build under
 1 thread.  :func:`single_threaded` runs a build with one BLAS thread (the matrices are small: it
 is not slower), so every build is bit-for-bit the same whatever the caller's settings.
+Finding the BLAS libraries reads the process's memory map (about half a millisecond, more than
+the rest of an episode reset), so the controller that :func:`single_threaded` limits through is
+found once and found again only after new modules were imported (:func:`blas_controller`).
 
 >>> import numpy as np
 >>> @single_threaded
@@ -18,8 +21,11 @@ is not slower), so every build is bit-for-bit the same whatever the caller's set
 from __future__ import annotations
 
 import functools
+import sys
 from collections.abc import Callable
 from typing import Any, TypeVar
+
+from threadpoolctl import ThreadpoolController
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -28,8 +34,19 @@ def single_threaded(func: F) -> F:
     """Decorator: run ``func`` with the BLAS libraries limited to one thread (restored after)."""
     @functools.wraps(func)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
-        from threadpoolctl import threadpool_limits
-
-        with threadpool_limits(limits=1, user_api="blas"):
+        with blas_controller().limit(limits=1, user_api="blas"):
             return func(*args, **kwargs)
     return wrapper  # type: ignore[return-value]
+
+
+def blas_controller() -> ThreadpoolController:
+    """The thread pools of the libraries loaded now (``threadpoolctl``), found again only when
+    modules were imported since the last call (an import is what loads a new BLAS library).
+    """
+    return _controller(len(sys.modules))
+
+
+@functools.lru_cache(maxsize=1)
+def _controller(n_modules: int) -> ThreadpoolController:
+    """A controller made when ``n_modules`` modules were loaded (the cache key)."""
+    return ThreadpoolController()

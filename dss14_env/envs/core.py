@@ -98,7 +98,7 @@ _BOUNDS = {"error": OBS_ERROR_BOUND, "error_rate": OBS_ERROR_RATE_BOUND, "comman
 OBS_HIGH = np.array([_BOUNDS[pair] for pair in ObsLayout._fields for _ in range(2)], dtype=np.float32)
 #: the clamped entries (errors and error rates)
 _CLAMPED = slice(OBS.error.start, OBS.error_rate.stop)
-_LOW4, _HIGH4 = -OBS_HIGH[_CLAMPED].astype(np.float64), OBS_HIGH[_CLAMPED].astype(np.float64)
+_LOW4, _HIGH4 = (b[_CLAMPED, None].astype(np.float64) for b in (-OBS_HIGH, OBS_HIGH))  # columns
 #: the info keys of every step, in order
 INFO_KEYS = ("servo_error_az_mdeg", "servo_error_el_mdeg", "measured_error_az_mdeg",
              "measured_error_el_mdeg", "pointing_error_el_mdeg", "pointing_error_xel_mdeg",
@@ -389,28 +389,21 @@ def observation(em: np.ndarray, em_prev: np.ndarray | None, c_deg: np.ndarray, c
     :param r: applied rate commands, rad/s
     :param clamp: clamp the errors and error rates to their bounds
     """
-    out = np.empty((em.shape[0], OBS_SIZE), np.float32)
-    if clamp:  # the clamped entries in float64 first (_CLAMPED starts at entry 0)
-        o = np.empty((em.shape[0], _CLAMPED.stop))
-        np.multiply(em, 1.0 / k.error_scale, out=o[:, OBS.error])
-        if em_prev is None:
-            o[:, OBS.error_rate] = 0.0
-        else:
-            np.multiply(em - em_prev, k.error_rate_scale, out=o[:, OBS.error_rate])
-        np.maximum(o, _LOW4, out=o)
-        np.minimum(o, _HIGH4, out=o)
-        out[:, _CLAMPED] = o
+    o = np.empty((OBS_SIZE, em.shape[0]))  # entry-major, float64: each pair a contiguous row pair
+    np.multiply(em.T, 1.0 / k.error_scale, out=o[OBS.error])
+    if em_prev is None:
+        o[OBS.error_rate] = 0.0
     else:
-        np.multiply(em, 1.0 / k.error_scale, out=out[:, OBS.error], casting="same_kind")
-        if em_prev is None:
-            out[:, OBS.error_rate] = 0.0
-        else:
-            np.multiply(em - em_prev, k.error_rate_scale, out=out[:, OBS.error_rate], casting="same_kind")
-    out[:, OBS.command] = c_deg
-    out[:, OBS.command_rate] = cd_scaled
-    np.multiply(rel, R2D, out=out[:, OBS.encoder], casting="same_kind")
-    np.multiply(r, 1.0 / k.rate_limit, out=out[:, OBS.prev_rate], casting="same_kind")
-    return out
+        np.subtract(em.T, em_prev.T, out=o[OBS.error_rate])
+        o[OBS.error_rate] *= k.error_rate_scale
+    if clamp:
+        np.maximum(o[_CLAMPED], _LOW4, out=o[_CLAMPED])
+        np.minimum(o[_CLAMPED], _HIGH4, out=o[_CLAMPED])
+    o[OBS.command] = c_deg.T
+    o[OBS.command_rate] = cd_scaled.T
+    np.multiply(rel.T, R2D, out=o[OBS.encoder])
+    np.multiply(r.T, 1.0 / k.rate_limit, out=o[OBS.prev_rate])
+    return o.T.astype(np.float32, order="C")  # each entry rounded once, from float64
 
 
 def pointing_errors(c: np.ndarray, point: np.ndarray, xel_scale: float) -> np.ndarray:
@@ -570,7 +563,7 @@ def _clamp(x: float, b: float) -> float:
     return b if x > b else (-b if x < -b else x)
 
 
-_dot, _array, _f32, _floor = np.dot, np.array, np.float32, math.floor  # the hot path's names
+_array, _f32, _floor = np.array, np.float32, math.floor  # the hot path's names
 _tuple_new = tuple.__new__  # a StepState without the NamedTuple constructor's call overhead
 
 
@@ -647,7 +640,7 @@ def step_1(action: Any, bufs: tuple, st: StepState, M: np.ndarray, row: list, sc
     except ValueError:
         c_az, c_el, c_deg_az, c_deg_el, cd_az, cd_el, n_az, n_el = row[:8]
         z[3:len(row) - 5] = row[8:]
-    _dot(M, cur[1], nxt[2])
+    M.dot(cur[1], nxt[2])  # the method: no dispatch of np.dot
     th_az, th_el, p_el, p_xel = nxt[3].tolist()
     # encoders (absolute angle, quantised) and servo errors
     if n_az or n_el:

@@ -358,6 +358,14 @@ class Plant:
         """
         return _batch_step_matrix(self)
 
+    @cached_property
+    def vector_step_matrix(self) -> np.ndarray:
+        """:attr:`batch_step_matrix` without the gust-torque outputs (not observed), contiguous:
+        the vector env's step map ``[x+, y+] = [x, r, T_mean, kappa_az xi, kappa_el xi] @ M``,
+        ``y`` the first :data:`N_STEP_OUTPUTS` outputs; shape ``(n + 4 + 2 k, n + 4)``.
+        """
+        return np.ascontiguousarray(self.batch_step_matrix[:, :self.n + N_STEP_OUTPUTS])
+
     def __repr__(self) -> str:
         return (f"Plant(U={self.wind_speed:.3g} m/s, dt={self.dt:g} s, n={self.n}, "
                 f"params={self.params or 'nominal'}, encoders={self.encoders})")

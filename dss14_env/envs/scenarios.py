@@ -93,13 +93,15 @@ def command_parts(tr: Mapping[str, np.ndarray]) -> tuple[bool, bool, bool]:
     return (bool(tr["v"].any() or tr["amp"].any()), bool(tr["step"].any()), bool(tr["slew_acc"].any()))
 
 
-def command(tr: Mapping[str, np.ndarray], t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def command(tr: Mapping[str, np.ndarray], t: np.ndarray, parts: tuple[bool, bool, bool] | None = None
+            ) -> tuple[np.ndarray, np.ndarray]:
     """Commanded positions and rates relative to the start (rad, rad/s).
 
     :param tr: trajectory parameters, arrays of shape ``(..., 2)`` (:func:`trajectory`, or a
         stack of them)
     :param t: times, s, shape broadcastable to ``tr``'s leading shape (e.g. ``(B,)`` for one
         parameter set, ``(N,)`` for N stacked sets)
+    :param parts: :func:`command_parts` of ``tr`` (computed here if None)
     :return: ``(c, c_dot)``, each of shape ``(..., 2)``
 
     >>> from dss14_env.envs.config import load_env_config
@@ -109,25 +111,31 @@ def command(tr: Mapping[str, np.ndarray], t: np.ndarray) -> tuple[np.ndarray, np
     >>> np.round(np.abs(np.degrees(c[1])), 9).tolist(), np.abs(cd[1]).tolist()
     ([1.0, 1.0], [0.0, 0.0])
     """
-    track, step, slew = command_parts(tr)
+    track, step, slew = command_parts(tr) if parts is None else parts
     t = np.asarray(t, float)[..., None]
-    if track:
-        wt = tr["omega"] * t + tr["phase"]
-        c = tr["v"] * t + tr["amp"] * (np.sin(wt) - tr["sin_phase"])
-        cd = tr["v"] + tr["amp"] * tr["omega"] * np.cos(wt)
+    if track:  # c = v t + A (sin(w t + phi) - sin(phi)), c_dot = v + A w cos(w t + phi), in place
+        wt = tr["omega"] * t
+        wt += tr["phase"]
+        c = np.sin(wt)
+        c -= tr["sin_phase"]
+        c *= tr["amp"]
+        c += tr["v"] * t
+        cd = np.cos(wt, out=wt)
+        cd *= tr["amp"] * tr["omega"]
+        cd += tr["v"]
     else:
         c = np.zeros(np.broadcast_shapes(t.shape, tr["v"].shape))
         cd = np.zeros_like(c)
     if step:
-        c = c + tr["step"] * (t >= tr["t_step"])
+        c += tr["step"] * (t >= tr["t_step"])
     if slew:
         acc = tr["slew_acc"]
         tau = t - tr["slew_t0"]
         ta, T = tr["slew_ta"], tr["slew_T"]
         r1, r2 = np.maximum(tau, 0.0), np.maximum(tau - ta, 0.0)
         r3, r4 = np.maximum(tau - (T - ta), 0.0), np.maximum(tau - T, 0.0)
-        c = c + 0.5 * acc * (r1 * r1 - r2 * r2 - r3 * r3 + r4 * r4)
-        cd = cd + acc * (r1 - r2 - r3 + r4)
+        c += 0.5 * acc * (r1 * r1 - r2 * r2 - r3 * r3 + r4 * r4)
+        cd += acc * (r1 - r2 - r3 + r4)
     return c, cd
 
 
@@ -274,8 +282,9 @@ def block_rows(tr: Mapping[str, np.ndarray], k0: int, dt: float, rate_limit: flo
     Row ``j`` is ``[c (2), c in deg (2), c_dot / rate_limit (2), encoder noise (2), xi (k)]``:
     the command at the end of step ``k0 + j`` (``t = (k0 + j + 1) dt``; rad, deg and scaled
     rate), the step's encoder noise (rad; zeros when there is none) and its standard normals of
-    the gust noise.  The single and the vector environment both build their rows here, so they
-    agree exactly.
+    the gust noise.  The single environment steps through these rows; the vector environment
+    evaluates :func:`command` at each step's ``t`` for all its sub-environments with the same
+    operations, so they agree exactly.
 
     :param tr: trajectory parameters, arrays ``(2,)`` for one episode, or ``(1, N, 2)`` for N
         stacked episodes (then the block is time-major: ``(NOISE_BLOCK, N, ...)``)
@@ -304,10 +313,13 @@ def block_rows(tr: Mapping[str, np.ndarray], k0: int, dt: float, rate_limit: flo
     return out
 
 
-def draw_noise_block(rng: np.random.Generator, noise_rank: int, encoder_noise: bool) -> np.ndarray:
+def draw_noise_block(rng: np.random.Generator, noise_rank: int, encoder_noise: bool,
+                     out: np.ndarray | None = None) -> np.ndarray:
     """Standard normals for the next :data:`NOISE_BLOCK` steps of one episode.
 
+    :param out: a C-contiguous float64 array of the block's shape to draw into (the same
+        draws; default: a new array)
     :return: ``(NOISE_BLOCK, noise_rank + 2)`` with encoder noise (az, el in the last two
         columns), else ``(NOISE_BLOCK, noise_rank)``
     """
-    return rng.standard_normal((NOISE_BLOCK, noise_rank + (2 if encoder_noise else 0)))
+    return rng.standard_normal((NOISE_BLOCK, noise_rank + (2 if encoder_noise else 0)), out=out)

@@ -45,7 +45,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from dss14_env.core.units import DEG, R2MD
+from dss14_env.core.units import DEG, R2D, R2MD
 from dss14_env.envs.config import EnvConfig, load_env_config
 from dss14_env.envs.core import (
     OBS_HIGH,
@@ -69,8 +69,8 @@ from dss14_env.envs.plant import N_STEP_OUTPUTS, Plant, PlantFactory, resolve_fa
 from dss14_env.envs.scenarios import (
     NOISE_BLOCK,
     Episode,
-    block_rows,
     command,
+    command_parts,
     draw_noise_block,
     draw_reset,
     episode_info,
@@ -137,7 +137,7 @@ class DSS14VectorEnv(VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.constants = StepConstants.from_config(self.config)
         self._rngs: list[np.random.Generator | None] = [None] * self.num_envs
-        self._Zs = None
+        self._Z = None
 
     # ------------------------------------------------------------------ reset
     def reset(self, *, seed: int | Sequence[int | None] | None = None,
@@ -173,16 +173,22 @@ class DSS14VectorEnv(VectorEnv):
         self._n, self._k_rank = p.n, p.noise_rank
         n, k = p.n, p.noise_rank
         # plant state, inputs and outputs in *slot* order (sub-environments sorted by plant,
-        # slot s holds sub-environment perm[s]); everything else in sub-environment order
-        self._Zs = np.zeros((N, n + 4 + 2 * k))
-        self._Os = np.zeros((N, n + N_STEP_OUTPUTS))
-        self._Y = np.zeros((N, N_STEP_OUTPUTS))
+        # slot s holds sub-environment perm[s]), one column per slot: two step buffers
+        # [x; r; T_mean; kappa_az xi; kappa_el xi] of which _cur is this step's, the matrix
+        # product writing [x+; y+] into the other; everything else in sub-environment order
+        self._Z = np.zeros((2, n + 4 + 2 * k, N))
+        self._cur = 0
+        self._t_mean_s = np.zeros((2, N))
+        self._Y = np.zeros((N, N_STEP_OUTPUTS))  # the step outputs at each episode's start
         self._kappa = np.zeros((N, 2))
-        self._kappa_s = np.zeros((N, 2))
+        self._kappa_s = np.zeros((2, N))
         self._start = np.zeros((N, 2))
         self._traj = {key: np.zeros((N, 2)) for key in _TRAJ_KEYS}
         self._k = np.zeros(N, np.int64)
-        self._blocks = np.zeros((NOISE_BLOCK, N, 8 + k))  # block_rows, time-major
+        #: the sub-environments' noise blocks (:func:`~dss14_env.envs.scenarios.draw_noise_block`),
+        #: time-major: a step reads one contiguous row per sub-environment
+        self._noise = np.zeros((NOISE_BLOCK, N, self._noise_width()))
+        self._parts = (False, False, False)
         #: the step state of every sub-environment (:class:`~dss14_env.envs.core.StepState`)
         self._s = StepState(np.zeros((N, 2)), np.zeros((N, 2)), np.zeros((N, 2)), np.zeros((N, 2), np.int64),
                             np.zeros(N, np.int64))
@@ -199,10 +205,6 @@ class DSS14VectorEnv(VectorEnv):
         self._any_noise = False
         self._clamp_always = False
         self._perm = self._inv = None
-
-    def _matrix(self, plant: Plant) -> np.ndarray:
-        """The plant's batch step map without the gust-torque outputs (not observed)."""
-        return np.ascontiguousarray(plant.batch_step_matrix[:, :self._n + N_STEP_OUTPUTS])
 
     def _plant_id(self, plant: Plant) -> int:
         for i, p in enumerate(self._plants):
@@ -222,12 +224,12 @@ class DSS14VectorEnv(VectorEnv):
             rng = self._rngs[i]
             ep, ne, normals = draw_reset(cfg, rng, self.plants, k.encoder_sigma)
             episodes.append(ep)
-            block_rows(ep.traj, 0, k.dt, k.rate_limit, normals, k.encoder_sigma, out=self._blocks[:, i])
+            self._noise[:, i] = normals
             p = ep.plant
             self._pid[i] = self._plant_id(p)
             slot = i if inv_old is None else inv_old[i]
-            self._Zs[slot, :n] = ep.x0
-            self._Zs[slot, n + 2:n + 4] = ep.t_mean
+            self._Z[self._cur, :n, slot] = ep.x0
+            self._t_mean_s[:, slot] = ep.t_mean
             self._Y[i] = p.C[:N_STEP_OUTPUTS] @ ep.x0
             self._r0[i] = ep.r0
             self._kappa[i] = ep.kappa
@@ -239,6 +241,7 @@ class DSS14VectorEnv(VectorEnv):
             self._ne0[i] = ne
         self._k[idx] = 0
         self._s.j[idx] = 0
+        self._parts = command_parts(self._traj)
         self._regroup(inv_old)
         self._clamp_always = any(k.clamp_always(me) for me in np.unique(self._max_e).tolist())
         return episodes
@@ -253,11 +256,11 @@ class DSS14VectorEnv(VectorEnv):
             self._pid = remap[self._pid]
         if len(self._plants) == 1:
             perm = None
-            self._groups = [(self._matrix(self._plants[0]), 0, self.num_envs)]
+            self._groups = [(self._plants[0].vector_step_matrix.T, 0, self.num_envs)]
         else:  # slots sorted by plant: group g is slots bounds[g]:bounds[g+1]
             perm = np.argsort(self._pid, kind="stable")
             bounds = np.searchsorted(self._pid[perm], np.arange(len(self._plants) + 1))
-            self._groups = [(self._matrix(p), int(bounds[g]), int(bounds[g + 1]))
+            self._groups = [(p.vector_step_matrix.T, int(bounds[g]), int(bounds[g + 1]))
                             for g, p in enumerate(self._plants)]
         old_perm = self._perm
         if not (perm is None and old_perm is None) and (
@@ -265,11 +268,12 @@ class DSS14VectorEnv(VectorEnv):
             # move the slot-ordered rows: new slot s takes sub-environment perm[s]
             new_perm = self._arange if perm is None else perm
             src = new_perm if inv_old is None else inv_old[new_perm]
-            self._Zs = self._Zs[src]
-            self._Os = self._Os[src]
+            self._Z[self._cur] = self._Z[self._cur][:, src]
+            self._t_mean_s = self._t_mean_s[:, src]
             self._perm = perm
             self._inv = None if perm is None else np.argsort(perm, kind="stable")
-        self._kappa_s = self._kappa if self._perm is None else self._kappa[self._perm]
+        kappa = self._kappa if self._perm is None else self._kappa[self._perm]
+        self._kappa_s = np.ascontiguousarray(kappa.T)  # rows az, el: one per product input
         self._any_noise = bool(np.any(self._kappa))
         self._j_uniform = bool(np.all(self._s.j == self._s.j[0]))
 
@@ -299,68 +303,83 @@ class DSS14VectorEnv(VectorEnv):
 
     def plant_states(self) -> np.ndarray:
         """Plant states ``(N, n)`` (balanced coordinates of each sub-environment's plant)."""
-        x = self._Zs[:, :self._n]
+        x = self._Z[self._cur, :self._n].T
         return x.copy() if self._perm is None else x[self._inv]
 
     # ------------------------------------------------------------------ step
-    def _rows(self, done: np.ndarray) -> np.ndarray:
-        """This step's rows of :func:`dss14_env.envs.scenarios.block_rows` (command at t[k+1],
-        encoder noise, normals), drawing the next noise blocks where due (not for the
-        sub-environments about to be reset).
+    def _normals(self, done: np.ndarray) -> np.ndarray:
+        """This step's standard normals ``(N, k [+ 2])`` (a row of each sub-environment's noise
+        block), drawing the next noise blocks where due (not for the sub-environments about to
+        be reset: their rows are not used).
         """
-        N, k, kc = self.num_envs, self._k_rank, self.constants
         j = self._s.j
-        enc = kc.encoder_sigma > 0.0
         if self._j_uniform:
             j0 = int(j[0])
             if j0 >= NOISE_BLOCK:
-                normals = np.zeros((NOISE_BLOCK, N, k + (2 if enc else 0)))
-                for i in range(N):
-                    if not done[i]:
-                        normals[:, i] = draw_noise_block(self._rngs[i], k, enc)
-                tr = {key: v[None] for key, v in self._traj.items()}
-                block_rows(tr, int(self._k[0]), kc.dt, kc.rate_limit, normals, kc.encoder_sigma,
-                           out=self._blocks)
+                self._draw_blocks(np.flatnonzero(~done))
                 j0 = 0
                 j[:] = 0
-            row = self._blocks[j0]
+            rows = self._noise[j0]
         else:
             full = j >= NOISE_BLOCK
             if full.any():
-                for i in np.flatnonzero(full & ~done).tolist():
-                    tr = {key: v[i] for key, v in self._traj.items()}
-                    block_rows(tr, int(self._k[i]), kc.dt, kc.rate_limit,
-                               draw_noise_block(self._rngs[i], k, enc), kc.encoder_sigma,
-                               out=self._blocks[:, i])
-                    j[i] = 0
+                due = np.flatnonzero(full & ~done)
+                self._draw_blocks(due)
+                j[due] = 0
                 np.minimum(j, NOISE_BLOCK - 1, out=j)
-            row = self._blocks[j, self._arange]
+            rows = self._noise[j, self._arange]
         j += 1
-        return row
+        return rows
 
-    def _advance(self, R: np.ndarray, Xi: np.ndarray) -> np.ndarray:
-        """The plant map of every sub-environment (one matrix product per plant): the outputs
-        ``(N, 4)`` at the step's end.
+    def _noise_width(self) -> int:
+        """Standard normals per step: the noise rank, plus 2 with encoder noise."""
+        return self._k_rank + (2 if self.constants.encoder_sigma else 0)
+
+    def _draw_blocks(self, idx: np.ndarray) -> None:
+        """The next noise blocks of the sub-environments ``idx``, each from its own generator
+        (drawn block by block, then stored time-major in one copy).
         """
-        n, k = self._n, self._k_rank
-        Zs, Os, perm = self._Zs, self._Os, self._perm
-        if perm is None:
-            Zs[:, n:n + 2] = R
-        else:
-            np.take(R, perm, axis=0, out=Zs[:, n:n + 2])
+        blocks = np.empty((idx.size, NOISE_BLOCK, self._noise_width()))
+        enc = self.constants.encoder_sigma > 0.0
+        for b, i in zip(blocks, idx.tolist(), strict=True):
+            draw_noise_block(self._rngs[i], self._k_rank, enc, out=b)
+        self._noise[:, idx] = blocks.transpose(1, 0, 2)
+
+    def _commands(self) -> tuple[np.ndarray, np.ndarray]:
+        """The commands at the end of this step, ``t = (k + 1) dt``, of every sub-environment
+        (:func:`dss14_env.envs.scenarios.command`): rad and rad/s, ``(N, 2)`` each.
+        """
+        return command(self._traj, (self._k + 1) * self.constants.dt, self._parts)
+
+    def _advance(self, R: np.ndarray, Xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The plant map of every sub-environment (one matrix product per plant, from this
+        step's buffer into the other): the encoder and the pointing angles ``(N, 2)`` each at
+        the step's end (outputs 0-1 and 2-3).
+        """
+        n, k, perm = self._n, self._k_rank, self._perm
+        Z, nxt = self._Z[self._cur], self._Z[1 - self._cur]
+        Z[n:n + 2] = (R if perm is None else np.take(R, perm, axis=0)).T
+        Z[n + 2:n + 4] = self._t_mean_s  # the rows the previous product wrote its outputs to
         if self._any_noise:
-            Xk = Xi if perm is None else np.take(Xi, perm, axis=0)
-            np.multiply(Xk, self._kappa_s[:, :1], out=Zs[:, n + 4:n + 4 + k])
-            np.multiply(Xk, self._kappa_s[:, 1:], out=Zs[:, n + 4 + k:])
-        if perm is None:
-            np.matmul(Zs, self._groups[0][0], out=Os)
-            Y = Os[:, n:].copy()
-        else:
-            for MT, a, b in self._groups:
-                np.matmul(Zs[a:b], MT, out=Os[a:b])
-            Y = np.take(Os[:, n:], self._inv, axis=0)
-        Zs[:, :n] = Os[:, :n]
-        return Y
+            Xs = (Xi if perm is None else np.take(Xi, perm, axis=0)).T
+            np.multiply(Xs, self._kappa_s[0], out=Z[n + 4:n + 4 + k])
+            np.multiply(Xs, self._kappa_s[1], out=Z[n + 4 + k:])
+        for MT, a, b in self._groups:
+            np.matmul(MT, Z[:, a:b], out=nxt[:n + N_STEP_OUTPUTS, a:b])
+        self._cur = 1 - self._cur
+        return self._unslot(nxt[n:n + 2]), self._unslot(nxt[n + 2:n + 4])
+
+    def _unslot(self, rows: np.ndarray) -> np.ndarray:
+        """Two rows of slot-ordered values as a new ``(N, 2)`` array in sub-environment order
+        (column by column: contiguous pairs, which later steps read fastest).
+        """
+        out = np.empty((self.num_envs, 2))
+        for col, row in zip(out.T, rows, strict=True):
+            if self._perm is None:
+                col[:] = row
+            else:
+                row.take(self._inv, out=col, mode="clip")  # clip: no bounds buffer; inv is in range
+        return out
 
     def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
         """Step every sub-environment (autoreset the ones that ended on the previous step).
@@ -369,24 +388,26 @@ class DSS14VectorEnv(VectorEnv):
         :raises ValueError: a bad action (:func:`dss14_env.envs.core.as_actions`), before
             anything changes
         """
-        if self._Zs is None:
+        if self._Z is None:
             raise RuntimeError("call reset() before step()")
         kc = self.constants
         A = as_actions(actions, (self.num_envs, 2))
         done, s = self._prev_done, self._s
         a, R, rate_hit, acc_hit = limit_commands(A, s.r_prev, kc)
-        row = self._rows(done)
-        self._Y = Y = self._advance(R, row[:, 8:])
+        normals = self._normals(done)
+        c, cd = self._commands()
+        theta, point = self._advance(R, normals[:, :self._k_rank])
         self._k += 1
         # encoders, errors, episode end, reward, observation and info at t[k+1]
-        c, theta = row[:, 0:2], Y[:, 0:2]
-        rel = read_encoders(theta, self._start, row[:, 6:8], kc)
+        noise = normals[:, self._k_rank:] * kc.encoder_sigma if kc.encoder_sigma else None
+        rel = read_encoders(theta, self._start, noise, kc)
         em, e = servo_errors(c, rel), servo_errors(c, theta)
         term = terminated(e, theta, self._start, self._max_e, kc)
         any_term = bool(term.any())
-        pe = pointing_errors(c, Y[:, 2:4], self.plants.xel_scale)
+        pe = pointing_errors(c, point, self.plants.xel_scale)
         rew = reward(scored_errors(e, pe, kc), a, s.a_prev, term, kc)
-        obs = observation(em, s.em_prev, row[:, 2:4], row[:, 4:6], rel, R, any_term or self._clamp_always, kc)
+        obs = observation(em, s.em_prev, c * R2D, cd * (1.0 / kc.rate_limit), rel, R,
+                          any_term or self._clamp_always, kc)
         if not np.isfinite(rew.sum()):
             bad = np.flatnonzero(~np.isfinite(rew)).tolist()
             raise FloatingPointError(f"the reward became non-finite in sub-environment(s) {bad}: the plant "
@@ -418,8 +439,8 @@ class DSS14VectorEnv(VectorEnv):
 
     # ------------------------------------------------------------------ copies and state
     #: the attributes of the dynamic state (:meth:`get_state`)
-    _STATE = ("_Zs", "_Os", "_Y", "_kappa", "_kappa_s", "_start", "_traj", "_k", "_s", "_blocks", "_r0",
-              "_ne0", "_max_e", "_wind", "_pid", "_plants", "_groups", "_prev_done",
+    _STATE = ("_Z", "_cur", "_t_mean_s", "_Y", "_kappa", "_kappa_s", "_start", "_traj", "_parts", "_k", "_s",
+              "_noise", "_r0", "_ne0", "_max_e", "_wind", "_pid", "_plants", "_groups", "_prev_done",
               "_j_uniform", "_any_noise", "_clamp_always", "_perm", "_inv", "_rngs", "_np_random",
               "_np_random_seed")
 
@@ -429,7 +450,7 @@ class DSS14VectorEnv(VectorEnv):
 
         :raises RuntimeError: before the first reset
         """
-        if self._Zs is None:
+        if self._Z is None:
             raise RuntimeError("call reset() before get_state()")
         shared = tuple(self._plants) + tuple(g[0] for g in self._groups)
         return snapshot(self, self.__dict__, tuple(n for n in self._STATE if n in self.__dict__), shared)
@@ -453,10 +474,11 @@ class DSS14VectorEnv(VectorEnv):
         N, p = self.num_envs, self.plants.plant(0.0, self.config.dt)
         n, k = p.n, p.noise_rank
         s = data["_s"]
-        shapes = {"_Zs": (N, n + 4 + 2 * k), "_Os": (N, n + N_STEP_OUTPUTS), "_Y": (N, N_STEP_OUTPUTS),
-                  "_blocks": (NOISE_BLOCK, N, 8 + k), "_start": (N, 2), "_k": (N,), "_wind": (N, 2),
+        shapes = {"_Z": (2, n + 4 + 2 * k, N), "_t_mean_s": (2, N), "_Y": (N, N_STEP_OUTPUTS),
+                  "_noise": (NOISE_BLOCK, N, self._noise_width()), "_start": (N, 2), "_k": (N,),
+                  "_wind": (N, 2),
                   "_max_e": (N,), "_r0": (N, 2), "_ne0": (N, 2), "_prev_done": (N,), "_pid": (N,),
-                  "_kappa": (N, 2), "_kappa_s": (N, 2)}
+                  "_kappa": (N, 2), "_kappa_s": (2, N)}
         bad = [name for name, shape in shapes.items()
                if not isinstance(data[name], np.ndarray) or data[name].shape != shape]
         if not isinstance(s, StepState) or any(np.shape(v)[:1] != (N,) for v in s):
