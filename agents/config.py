@@ -63,8 +63,9 @@ ALGOS = ("ppo", "recurrent_ppo", "sac")
 ACTIVATIONS = ("tanh", "relu", "elu", "leaky_relu")
 #: what picks ``eval/best``: the highest mean validation return, or (DSS14) the lowest
 #: geometric mean over the hold tasks of their mean validation 3σ servo error
-#: (``three_sigma``) or 3σ pointing error (``pointing``)
-SELECT_BY = ("return", "three_sigma", "pointing")
+#: (``three_sigma``) or 3σ pointing error (``pointing``), or over every validation scenario of
+#: its figure (``general``: :func:`dss14_env.agents.train.general_figure`)
+SELECT_BY = ("return", "three_sigma", "pointing", "general")
 #: ``auto``: ``batched`` for DSS14 ids (:mod:`dss14_env.agents.vec_env`), ``dummy`` otherwise
 VEC_ENVS = ("auto", "batched", "dummy", "subproc")
 
@@ -96,11 +97,11 @@ def _num(default: float | None, lo: float | None = None, hi: float | None = None
     return spec("1", lo=lo, hi=hi, lo_open=lo_open, default=default, **kw)
 
 
-def _test_scenarios(names: Any, source: str) -> list[str]:
-    """The final test's scenarios, each once (the schema checked each name)."""
+def _test_scenarios(names: Any, source: str, key: str = "test_scenarios") -> list[str]:
+    """The final test's (or the validation's) scenarios, each once (the schema checked each name)."""
     names = list(names)
     if len(set(names)) != len(names):
-        raise ConfigError(f"{source}: field 'test_scenarios': each scenario once, got {names}")
+        raise ConfigError(f"{source}: field '{key}': each scenario once, got {names}")
     return names
 
 
@@ -137,6 +138,8 @@ class CommonSettings:
     eval_env_kwargs: dict = spec(None, kind="mapping", default_factory=dict)
     eval_episode_steps: int = _int(1, 1000, hi=1_000_000)
     select_by: str = spec(None, kind="str", choices=SELECT_BY, default="return")
+    eval_scenarios: tuple = spec(None, kind="list", items=Spec(None, "str", choices=tuple(SCENARIO_TASKS)),
+                                 default=DEFAULT_SCENARIOS)
     test_scenarios: tuple = spec(None, kind="list", items=Spec(None, "str", choices=tuple(SCENARIO_TASKS)),
                                  default=DEFAULT_SCENARIOS)
     checkpoint_freq: int = _int(0, 200_000, hi=MAX_TIMESTEPS)
@@ -449,6 +452,7 @@ class TrainConfig:
         out["mixture"] = _mixture(out["mixture"], out["n_envs"], source)
         out["eval_seeds"] = list(out["eval_seeds"])
         out["test_scenarios"] = _test_scenarios(out["test_scenarios"], source)
+        out["eval_scenarios"] = _test_scenarios(out["eval_scenarios"], source, "eval_scenarios")
         out = json.loads(json.dumps(out, default=_plain))  # plain YAML types
         if algo in ("ppo", "recurrent_ppo"):
             rollout = out["n_steps"] * out["n_envs"]

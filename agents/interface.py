@@ -107,6 +107,10 @@ class InterfaceSpec:
         ``g(u) = sinh(b u) / sinh(b)``, 0 <= b <= 10, default 0: linear
     :param obs_symlog: the environment's entries (and their history) as symlog of mdeg and
         mdeg/s (:func:`symlog_observation`), default False: as the environment gives them
+    :param history_filters: time constants (s, each in (0, 60]) of first-order low-pass
+        filters of the ``history_entries``, appended after the history (symlog like them with
+        ``obs_symlog``): memory of seconds in a few entries, from which a feed-forward network
+        can form lead and lag; default none
     """
 
     base: str | None = None
@@ -121,6 +125,7 @@ class InterfaceSpec:
     feedforward_gain: float = 1.0
     action_curve: float = 0.0
     obs_symlog: bool = False
+    history_filters: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:
         if self.base not in BASES:
@@ -146,6 +151,12 @@ class InterfaceSpec:
             raise ValueError(f"lqg_features must be distinct names of {list(LQG_FEATURE_WIDTHS)}, "
                              f"got {feats!r}")
         object.__setattr__(self, "lqg_features", tuple(feats))
+        taus = self.history_filters
+        if isinstance(taus, (str, bytes)) or not isinstance(taus, (list, tuple)) or len(taus) > 8 or not all(
+                isinstance(t, (int, float)) and not isinstance(t, bool) and 0.0 < t <= 60.0 for t in taus):
+            raise ValueError(f"history_filters must be a list of at most 8 time constants in (0, 60] s, "
+                             f"got {taus!r}")
+        object.__setattr__(self, "history_filters", tuple(float(t) for t in taus))
         if not isinstance(self.obs_symlog, bool):
             raise ValueError(f"obs_symlog must be true or false, got {self.obs_symlog!r}")
         if not isinstance(self.estimate, bool):
@@ -164,6 +175,7 @@ class InterfaceSpec:
         d = asdict(self)
         d["history_entries"] = list(self.history_entries)
         d["lqg_features"] = list(self.lqg_features)
+        d["history_filters"] = list(self.history_filters)
         if self.obs_entries is not None:
             d["obs_entries"] = list(self.obs_entries)
         if isinstance(d["gains"], tuple):
@@ -219,7 +231,11 @@ class PolicyInterface:
                 self.lqg_batch.reset_batch(self.n)
         self.n_features = n_feat
         self.entries = list(range(OBS_SIZE)) if spec.obs_entries is None else list(spec.obs_entries)
-        self.obs_dim = len(self.entries) + n_feat + spec.history * len(spec.history_entries)
+        n_hist = len(spec.history_entries)
+        self.obs_dim = len(self.entries) + n_feat + (spec.history + len(spec.history_filters)) * n_hist
+        #: the filters' gains per step, and their states (raw observation units)
+        self._alpha = np.array([-math.expm1(-env_config.dt / t) for t in spec.history_filters])
+        self._filt = np.zeros((self.n, len(spec.history_filters), n_hist), np.float64)
         self.base_action = np.zeros((self.n, 2))
         self._past = np.zeros((self.n, spec.history, len(spec.history_entries)), np.float32)
         self._fresh = np.ones(self.n, bool)
@@ -246,7 +262,7 @@ class PolicyInterface:
                 self.lqg[i].reset()
 
     #: the attributes of the dynamic state (:meth:`get_state`)
-    _STATE = ("pi", "lqg", "lqg_batch", "base_action", "command_rate", "_past", "_fresh")
+    _STATE = ("pi", "lqg", "lqg_batch", "base_action", "command_rate", "_past", "_filt", "_fresh")
 
     def get_state(self) -> dict[str, Any]:
         """A copy of the dynamic state (base controllers, last base action, history) that
@@ -294,6 +310,9 @@ class PolicyInterface:
             parts.append(self._history(self._past, self._fresh, now))
             self._past = np.roll(self._past, 1, axis=1)
             self._past[:, 0] = now
+        if self.spec.history_filters:
+            self._filt = self._filtered(self._filt, self._fresh, o)
+            parts.append(self._filter_part(self._filt))
         self._fresh[:] = False
         return np.concatenate(parts, axis=1)
 
@@ -328,7 +347,27 @@ class PolicyInterface:
         if self.spec.history:
             now = seen[:, list(self.spec.history_entries)]
             parts.append(self._history(self._past[rows].copy(), self._fresh[rows], now))
+        if self.spec.history_filters:
+            parts.append(self._filter_part(self._filtered(self._filt[rows], self._fresh[rows], o)))
         return np.concatenate(parts, axis=1)
+
+    def _filtered(self, state: np.ndarray, fresh: np.ndarray, o: np.ndarray) -> np.ndarray:
+        """The filters' next states for observations ``o`` (rows starting an episode start
+        from their first observation, the steady state the episode starts in); a new array.
+        """
+        x = o[:, list(self.spec.history_entries)].astype(np.float64)[:, None, :]
+        out = state + self._alpha[None, :, None] * (x - state)
+        if fresh.any():
+            out[fresh] = x[fresh]
+        return out
+
+    def _filter_part(self, state: np.ndarray) -> np.ndarray:
+        """The filter states as the policy sees them (symlog like the history), flattened."""
+        flat = state.astype(np.float32)
+        if self._symlog_units is not None:
+            units = self._symlog_units[list(self.spec.history_entries)]
+            flat = symlog_observation(flat, units)
+        return flat.reshape(flat.shape[0], -1)
 
     def _seen(self, o: np.ndarray) -> np.ndarray:
         """The environment's entries as the policy sees them (symlog or as given)."""
@@ -472,7 +511,8 @@ def interface_observation_space(interface: PolicyInterface) -> spaces.Box:
         OBS_HIGH[None], symlog_units(interface.env_config))[0]
     high = np.concatenate([env_high[interface.entries],
                            np.full(interface.n_features, FEATURE_BOUND, np.float32),
-                           np.tile(env_high[list(s.history_entries)], s.history)]).astype(np.float32)
+                           np.tile(env_high[list(s.history_entries)], s.history + len(s.history_filters))
+                           ]).astype(np.float32)
     return spaces.Box(-high, high, dtype=np.float32)
 
 
@@ -526,7 +566,7 @@ def spec_from_kwargs(kwargs: dict[str, Any], defaults: InterfaceSpec) -> tuple[I
     kw = dict(kwargs)
     fields = {"base", "action", "gains", "residual_scale", "history", "history_entries",
               "estimate", "lqg_features", "obs_entries", "feedforward_gain", "action_curve",
-              "obs_symlog"}
+              "obs_symlog", "history_filters"}
     given = {k: kw.pop(k) for k in list(kw) if k in fields}
     d = defaults.to_dict()
     d.update(given)

@@ -38,7 +38,14 @@ import yaml
 from dss14_env.agents.algos import algo_class, algo_kwargs, is_recurrent, policy_kwargs
 from dss14_env.agents.config import TrainConfig, as_config, is_own_module, load_config
 from dss14_env.agents.envs import EnvPlan, check_env, make_train_vec_env, resolve_env, vec_env_kind
-from dss14_env.agents.evaluation import DSS14_TASKS, EvalTask, check_seed_protocol, dss14_tasks, run_task
+from dss14_env.agents.evaluation import (
+    DEFAULT_SCENARIOS,
+    DSS14_TASKS,
+    EvalTask,
+    check_seed_protocol,
+    dss14_tasks,
+    run_task,
+)
 from dss14_env.agents.policy import PolicyController
 from dss14_env.agents.storage import (
     CONFIG,
@@ -260,13 +267,15 @@ def _restore(model: Any, venv: Any, src: _Resume, cfg: TrainConfig) -> int:
 
 
 def validation_tasks(cfg: TrainConfig, plan: EnvPlan | None = None) -> list[EvalTask]:
-    """The periodic evaluation's tasks: the DSS14 holds (with ``eval_env_kwargs`` laid over),
-    or the configured environment.
+    """The periodic evaluation's tasks: the DSS14 scenarios ``eval_scenarios`` (default the two
+    holds, with ``eval_env_kwargs`` laid over), or the configured environment.
 
     :param plan: the configuration's environment plan (default: resolved from ``cfg``)
     """
     plan = resolve_env(cfg) if plan is None else plan
     if plan.dss14:
+        if tuple(cfg.eval_scenarios) != DEFAULT_SCENARIOS:
+            return dss14_tasks(cfg.eval_env_kwargs, cfg.eval_scenarios)
         return dss14_tasks(cfg.eval_env_kwargs) if cfg.eval_env_kwargs else list(DSS14_TASKS)
     return [EvalTask("eval", cfg.env_id, {**cfg.env_kwargs, **cfg.eval_env_kwargs})]
 
@@ -306,6 +315,8 @@ def selection_score(cfg: TrainConfig, returns: np.ndarray,
     test metric; the geometric mean weighs the front and side holds alike though their 3σ
     differ in size); ``-inf`` when a validation episode terminated or a 3σ is not finite.
     ``select_by: pointing``: the same of the 3σ pointing errors (the caller passes those).
+    ``select_by: general``: the same over every validation scenario of its
+    :func:`general_figure` (the caller passes those).
 
     :param returns: every validation episode's return
     :param three_sigma: task name -> the validation episodes' 3σ (mdeg) of the selection's
@@ -318,6 +329,19 @@ def selection_score(cfg: TrainConfig, returns: np.ndarray,
     if terminated or not means or not all(np.isfinite(m) and m > 0 for m in means):
         return -np.inf
     return -float(np.exp(np.mean(np.log(means))))
+
+
+def general_figure(task: EvalTask, result: Mapping[str, np.ndarray]) -> np.ndarray:
+    """Each validation episode's figure of one scenario for ``select_by: general`` (mdeg or s,
+    lower is better): a hold's 3σ servo error on its loaded axis; the step's 2 % settling time
+    of the slower axis (inf: never settles); otherwise (track, slew) the geometric mean of the
+    two axes' 3σ servo errors.
+    """
+    if task.axis is not None:
+        return np.asarray(result["three_sigma_mdeg"], float)
+    if task.preset == "step":
+        return np.maximum(result["settling_time_s_az"], result["settling_time_s_el"])
+    return np.sqrt(np.asarray(result["servo_three_sigma_mdeg_az"]) * result["servo_three_sigma_mdeg_el"])
 
 
 def selection_key(cfg: TrainConfig) -> str:
@@ -356,7 +380,8 @@ class _Evaluator:
             self.ctrl = PolicyController(model.policy, cfg, None, "eval", None, None)
         self.ctrl.stats = _stats(cfg, self.venv)
         steps = cfg.eval_episode_steps if self.plan.dss14 else None
-        res = {t.name: run_task(self.ctrl, t, cfg.eval_seeds, steps, cfg.n_eval_episodes)
+        res = {t.name: run_task(self.ctrl, t, cfg.eval_seeds, steps if t.axis is not None else None,
+                                cfg.n_eval_episodes)
                for t in self.tasks}
         h = self.history
         h["timesteps"].append(int(model.num_timesteps))
@@ -371,8 +396,9 @@ class _Evaluator:
                     res[t.name]["pointing_three_sigma_mdeg"])
         mean = float(np.mean(h["results"][-1]))
         key = selection_key(cfg)
-        score = selection_score(cfg, h["results"][-1],
-                                {t.name: res[t.name][key] for t in self.tasks if t.axis is not None},
+        figures = ({t.name: general_figure(t, res[t.name]) for t in self.tasks} if cfg.select_by == "general"
+                   else {t.name: res[t.name][key] for t in self.tasks if t.axis is not None})
+        score = selection_score(cfg, h["results"][-1], figures,
                                 any(bool(r["terminated"].any()) for r in res.values()))
         h["selection_score"].append(score)
         _save_history(self.run / "eval" / "evaluations.npz", h)

@@ -182,3 +182,42 @@ def test_log_reward_never_pays_for_terminating() -> None:
             break
     else:
         pytest.fail("the slew never terminated")
+
+
+# ------------------------------------------------------------------------------ history filters
+def test_history_filters_are_first_order_low_passes_from_the_first_observation() -> None:
+    spec = InterfaceSpec(obs_entries=(0,), history_entries=(0, 11), history_filters=(0.1, 1.0))
+    itf = PolicyInterface(spec, CFG, 2)
+    assert itf.obs_dim == 1 + 2 * 2
+    o = np.zeros((2, 12), np.float32)
+    o[:, 0] = [1.0, -2.0]
+    first = itf.observe(o)
+    np.testing.assert_allclose(first[:, 1:].reshape(2, 2, 2)[:, :, 0], [[1.0, 1.0], [-2.0, -2.0]])
+    o[:, 0] = [3.0, 0.0]  # a step of +2 in both rows: 1 - exp(-k dt / tau) of it after k steps
+    for k in range(1, 26):
+        out = itf.observe(o)
+    for j, tau in enumerate((0.1, 1.0)):
+        frac = -math.expm1(-25 * CFG.dt / tau)
+        np.testing.assert_allclose(out[:, 1 + 2 * j], [1.0 + 2.0 * frac, -2.0 + 2.0 * frac], rtol=1e-5)
+
+
+def test_history_filters_peek_equals_observe_and_restart_refills() -> None:
+    spec = InterfaceSpec(history=2, history_filters=(0.05, 0.5), obs_symlog=True)
+    itf = PolicyInterface(spec, CFG, 3)
+    rng = np.random.default_rng(2)
+    for _ in range(10):
+        itf.observe(rng.normal(0, 1, (3, 12)).astype(np.float32))
+    o = rng.normal(0, 1, (3, 12)).astype(np.float32)
+    peeked = itf.peek(o[[0, 2]], np.array([0, 2]))
+    np.testing.assert_array_equal(peeked, itf.observe(o)[[0, 2]])
+    itf.restart(np.array([False, True, False]))
+    o2 = rng.normal(0, 1, (3, 12)).astype(np.float32)
+    again = itf.observe(o2)
+    fresh = PolicyInterface(spec, CFG, 1).observe(o2[[1]])
+    np.testing.assert_array_equal(again[1], fresh[0])
+
+
+@pytest.mark.parametrize("taus", [(0.0,), (-1.0,), (61.0,), "0.5", (0.1,) * 9, (True,)])
+def test_bad_history_filters_are_refused(taus: object) -> None:
+    with pytest.raises(ValueError, match="history_filters must be"):
+        InterfaceSpec(history_filters=taus)
