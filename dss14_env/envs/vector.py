@@ -358,10 +358,10 @@ class DSS14VectorEnv(VectorEnv):
         """
         n, k, perm = self._n, self._k_rank, self._perm
         Z, nxt = self._Z[self._cur], self._Z[1 - self._cur]
-        Z[n:n + 2] = (R if perm is None else np.take(R, perm, axis=0)).T
+        Z[n:n + 2] = (R if perm is None else R.take(perm, axis=0)).T
         Z[n + 2:n + 4] = self._t_mean_s  # the rows the previous product wrote its outputs to
         if self._any_noise:
-            Xs = (Xi if perm is None else np.take(Xi, perm, axis=0)).T
+            Xs = (Xi if perm is None else Xi.take(perm, axis=0)).T
             np.multiply(Xs, self._kappa_s[0], out=Z[n + 4:n + 4 + k])
             np.multiply(Xs, self._kappa_s[1], out=Z[n + 4 + k:])
         for MT, a, b in self._groups:
