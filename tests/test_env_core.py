@@ -111,7 +111,7 @@ def _run_both(d: dict) -> None:
     sc = step_constants(k, tuple(start), d["me"], d["xel"], *d["wind"])
     st_in = StepState(tuple(d["rp"]), tuple(d["ap"]), tuple(d["em0"]), d["hits"], 3)
     a = d["a"]
-    obs1, rew1, term1, info1, bufs1, st1 = step_1(a, (cur, nxt), st_in, M, row, sc)
+    obs1, rew1, term1, info1, bufs1, st1 = step_1(a, (cur, nxt), st_in, np.ascontiguousarray(M.T), row, sc)
 
     # the plant map: one exact matrix product
     z_in = np.concatenate([st1.r_prev, [1.0], d["xi"], d["x0"]])

@@ -3,11 +3,14 @@ threads (:mod:`dss14_env.core.threads`)."""
 
 from __future__ import annotations
 
+import sys
+import types
+
 import numpy as np
 from threadpoolctl import threadpool_info, threadpool_limits
 
 from dss14_env.baselines.design import build_design_model
-from dss14_env.core.threads import single_threaded
+from dss14_env.core.threads import blas_controller, single_threaded
 from dss14_env.model.assembly import build_model
 from dss14_env.wind.loads import calibrate_wind_loads
 
@@ -37,3 +40,15 @@ def test_the_callers_limits_come_back() -> None:
         assert set(inner()) == {1}
         after = [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
     assert before == after
+
+
+def test_the_blas_controller_is_found_again_only_after_an_import() -> None:
+    first = blas_controller()
+    assert blas_controller() is first  # nothing imported since: not searched again
+    sys.modules["_dss14_threads_probe"] = types.ModuleType("_dss14_threads_probe")
+    try:
+        again = blas_controller()
+        assert again is not first
+        assert {c.user_api for c in again.lib_controllers} >= {"blas"}
+    finally:
+        del sys.modules["_dss14_threads_probe"]

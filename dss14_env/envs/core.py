@@ -570,7 +570,7 @@ _tuple_new = tuple.__new__  # a StepState without the NamedTuple constructor's c
 _F32, _F64 = np.dtype(np.float32), np.dtype(np.float64)
 
 
-def step_1(action: Any, bufs: tuple, st: StepState, M: np.ndarray, row: list, sc: EpisodeConstants
+def step_1(action: Any, bufs: tuple, st: StepState, MT: np.ndarray, row: list, sc: EpisodeConstants
            ) -> tuple[np.ndarray, float, bool, dict[str, Any], tuple, StepState]:
     """One step of one environment on floats: :func:`as_actions` (a fast path for float32 and
     float64 arrays of shape (2,), the same rule), :func:`limit_commands`, the plant map
@@ -582,7 +582,8 @@ def step_1(action: Any, bufs: tuple, st: StepState, M: np.ndarray, row: list, sc
     :param bufs: ``(cur, nxt)``, the step buffers' views
         (:func:`dss14_env.envs.plant.buffer_views`; ``cur`` holds the plant state)
     :param st: the :class:`StepState` (pairs of floats)
-    :param M: the episode's plant map (:meth:`dss14_env.envs.plant.Plant.episode_map`)
+    :param MT: the episode's plant map (:meth:`dss14_env.envs.plant.Plant.episode_map`),
+        transposed and C-contiguous (``input @ MT``: the fastest matrix-vector product here)
     :param row: the step's row ``[c_az, c_el, c_az_deg, c_el_deg, cd_az, cd_el, n_az, n_el, xi...]``
         of :func:`dss14_env.envs.scenarios.block_rows`: command at the step's end (rad, deg), its
         rate in units of the rate limit, encoder noise (rad), standard normals of the gust noise
@@ -640,7 +641,7 @@ def step_1(action: Any, bufs: tuple, st: StepState, M: np.ndarray, row: list, sc
     except ValueError:
         c_az, c_el, c_deg_az, c_deg_el, cd_az, cd_el, n_az, n_el = row[:8]
         z[3:len(row) - 5] = row[8:]
-    M.dot(cur[1], nxt[2])  # the method: no dispatch of np.dot
+    cur[1].dot(MT, nxt[2])  # the method: no dispatch of np.dot
     th_az, th_el, p_el, p_xel = nxt[3].tolist()
     # encoders (absolute angle, quantised) and servo errors
     if n_az or n_el:

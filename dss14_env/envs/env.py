@@ -420,7 +420,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         me = cfg.max_error_deg * DEG * R2MD
         s_az, s_el = float(ep.start[0]), float(ep.start[1])
         # everything step() reads that is fixed for the episode
-        self._M = np.asfortranarray(M)  # column-major: the fastest matrix-vector product here
+        self._M = np.ascontiguousarray(M.T)  # step_1's form: input @ M^T, the fastest product here
         self._sc = step_constants(k, (s_az, s_el), me, p.xel_scale, ep.wind_speed, ep.wind_direction)
         self._extras = cfg.info_state or self._renderer is not None
         self._info_state = cfg.info_state
@@ -583,7 +583,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         m, M, z, st, rows = data["_m"], data["_M"], data["_z"], data["_st"], data["_rows"]
         width = 3 + p.noise_rank + m
         ok = (m == p.n - p.n_wind and data["_rank"] == p.noise_rank and isinstance(M, np.ndarray)
-              and M.shape == (m + N_STEP_OUTPUTS, width) and isinstance(z, tuple) and len(z) == 2
+              and M.shape == (width, m + N_STEP_OUTPUTS) and isinstance(z, tuple) and len(z) == 2
               and all(isinstance(b, np.ndarray) and b.shape == (width + N_STEP_OUTPUTS,) for b in z)
               and isinstance(st, StepState) and all(len(v) == 2 for v in st[:4])
               and isinstance(rows, list) and len(rows) == NOISE_BLOCK
