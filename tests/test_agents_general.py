@@ -221,3 +221,35 @@ def test_history_filters_peek_equals_observe_and_restart_refills() -> None:
 def test_bad_history_filters_are_refused(taus: object) -> None:
     with pytest.raises(ValueError, match="history_filters must be"):
         InterfaceSpec(history_filters=taus)
+
+
+# ------------------------------------------------------------------------------ general selection
+def test_general_selection_scores_every_scenario_and_disqualifies() -> None:
+    from dss14_env.agents.evaluation import dss14_tasks
+    from dss14_env.agents.train import general_figure, selection_score
+
+    tasks = {t.name: t for t in dss14_tasks(scenarios=("hold_side", "track", "step"))}
+    res = {"hold_side": {"three_sigma_mdeg": np.array([2.0, 2.0])},
+           "track": {"servo_three_sigma_mdeg_az": np.array([1.0, 4.0]),
+                     "servo_three_sigma_mdeg_el": np.array([4.0, 1.0])},
+           "step": {"settling_time_s_az": np.array([5.0, 6.0]), "settling_time_s_el": np.array([7.0, 2.0])}}
+    figs = {n: general_figure(tasks[n], r) for n, r in res.items()}
+    np.testing.assert_allclose(figs["track"], [2.0, 2.0])
+    np.testing.assert_allclose(figs["step"], [7.0, 6.0])
+    cfg = TrainConfig.from_dict({"env_id": "DSS14-Plain-v0", "select_by": "general",
+                                 "eval_scenarios": ["hold_side", "track", "step"]})
+    assert selection_score(cfg, np.zeros(6), figs) == pytest.approx(-(2.0 * 2.0 * 6.5) ** (1 / 3))
+    assert selection_score(cfg, np.zeros(6), figs, terminated=True) == -np.inf
+    figs["step"] = np.array([np.inf, 6.0])  # a step that never settles
+    assert selection_score(cfg, np.zeros(6), figs) == -np.inf
+
+
+def test_validation_tasks_follow_eval_scenarios() -> None:
+    from dss14_env.agents.train import validation_tasks
+
+    cfg = TrainConfig.from_dict({"env_id": "DSS14-Plain-v0", "eval_scenarios": ["step", "hold_side_axis"]})
+    tasks = validation_tasks(cfg)
+    assert [t.name for t in tasks] == ["step", "hold_side_axis"]
+    assert tasks[1].axis == "az" and tasks[1].env_kwargs.get("encoders") == "axis"
+    with pytest.raises(ConfigError, match="field 'eval_scenarios'"):
+        TrainConfig.from_dict({"env_id": "DSS14-Plain-v0", "eval_scenarios": ["step", "step"]})

@@ -158,6 +158,8 @@ RECIPES = {  # config -> (algo, policy observation size, action scale the policy
     "ppo_residual_pi_hold": ("ppo", 12 + 2 + 8 * 4, 0.25),
     "recurrent_ppo": ("recurrent_ppo", 4, 0.02),
     "sac": ("sac", 8 + 8 * 4, 0.02),
+    "ppo_general": ("ppo", 8 + (8 + 3) * 4, 0.25),  # 8 steps and 3 filters of 4 entries
+    "ppo_general_random": ("ppo", 8 + (8 + 3) * 4, 0.25),
 }
 
 
@@ -165,9 +167,11 @@ RECIPES = {  # config -> (algo, policy observation size, action scale the policy
 def test_recipe_configs_build_their_environment(name: str) -> None:
     algo, obs_dim, scale = RECIPES[name]
     cfg = load_config(name)
-    # a recipe on the beam is rewarded, validated and selected on the pointing error
+    # a recipe on the beam is rewarded, validated and selected on the pointing error; a general
+    # recipe is selected over every bench scenario
     on_beam = name.endswith("_pointing")
-    assert cfg.algo == algo and cfg.select_by == ("pointing" if on_beam else "three_sigma")
+    select = "pointing" if on_beam else "general" if "general" in name else "three_sigma"
+    assert cfg.algo == algo and cfg.select_by == select
     assert cfg.seed >= 10_000 and all(1000 <= s < 10_000 for s in cfg.eval_seeds)
     plan, obs_space, act_space, env_cfg = check_env(cfg)
     assert env_cfg.reward == ("pointing" if on_beam else "servo")
@@ -185,7 +189,8 @@ ZOO_RECIPES = {("ppo", "ppo", "DSS14-Plain-v0"): "ppo_plain",
                ("recurrent_ppo", "recurrent_ppo", "DSS14-Plain-v0"): "recurrent_ppo",
                ("sac", "sac", "DSS14-Plain-v0"): "sac",
                ("ppo", "ppo_pointing", "DSS14-Plain-v0"): "ppo_plain_pointing",
-               ("ppo", "ppo_pointing", "DSS14-ResidualLQG-v0"): "ppo_residual_lqg_pointing"}
+               ("ppo", "ppo_pointing", "DSS14-ResidualLQG-v0"): "ppo_residual_lqg_pointing",
+               ("ppo", "ppo_general", "DSS14-Plain-v0"): "ppo_general"}
 #: keys a recipe's zoo entry must give as the training config does
 RECIPE_KEYS = ("env_id", "env_kwargs", "n_envs", "total_timesteps", "normalize_obs",
                "normalize_reward", "learning_rate", "gamma", "net_arch", "activation_fn",
@@ -206,7 +211,7 @@ def test_zoo_entries_are_the_recipes(algo: str, file: str, env_id: str) -> None:
 def test_zoo_entries_are_plain_yaml_for_rl_zoo3() -> None:
     """rl-zoo3 passes every key but its own to the algorithm: none of this package's keys."""
     ours = {"frame_stack", "select_by", "eval_seeds", "eval_episode_steps", "obs_entries"}
-    for file in ("ppo", "recurrent_ppo", "sac", "ppo_pointing"):
+    for file in ("ppo", "recurrent_ppo", "sac", "ppo_pointing", "ppo_general"):
         for env_id, entry in yaml.safe_load(hyperparams_path(file).read_text()).items():
             assert not ours & set(entry), (file, env_id)
 
