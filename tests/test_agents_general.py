@@ -194,7 +194,7 @@ def test_history_filters_are_first_order_low_passes_from_the_first_observation()
     first = itf.observe(o)
     np.testing.assert_allclose(first[:, 1:].reshape(2, 2, 2)[:, :, 0], [[1.0, 1.0], [-2.0, -2.0]])
     o[:, 0] = [3.0, 0.0]  # a step of +2 in both rows: 1 - exp(-k dt / tau) of it after k steps
-    for k in range(1, 26):
+    for _ in range(25):
         out = itf.observe(o)
     for j, tau in enumerate((0.1, 1.0)):
         frac = -math.expm1(-25 * CFG.dt / tau)
