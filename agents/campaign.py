@@ -256,6 +256,10 @@ def train_one_seed(item: Mapping[str, Any]) -> dict[str, Any]:
     entry["final"] = _score(run, tasks, test_seeds, test_steps)
     best = run / "eval" / "best"
     entry["best"] = _score(best, tasks, test_seeds, test_steps) if best.is_dir() else None
+    if entry["best"] is None and (run / "eval" / "evaluations.npz").is_file():
+        # every validation disqualified the policy (a termination, or with select_by general a
+        # step that never settles): the seed's selected policy is its final one
+        entry["best"], entry["best_is_final"] = entry["final"], True
     return entry
 
 

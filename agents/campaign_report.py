@@ -171,6 +171,11 @@ def summary_markdown(summary: Mapping[str, Any]) -> str:
         lines.append("| " + " | ".join(cells) + " |")
     pick = ("the validation-selected policy (eval/best), the final policy in brackets"
             if which == "best" else "the final policy (no eval/best)")
+    finals = [str(e["training_seed"]) for e in per_seed if e.get("best_is_final")]
+    if finals and which == "best":
+        pick += (f" (training seed{'s' if len(finals) > 1 else ''} {', '.join(finals)}: every validation "
+                 f"disqualified the policy -- a termination or a step that never settles -- so the "
+                 f"selected policy is the final one)")
     text = (f"# Training campaign: {summary['config']}\n\n"
             f"{summary['algo']} on `{summary['env_id']}`, "
             f"{counted(len(per_seed), 'training seed')} ({', '.join(map(str, summary['training_seeds']))}); "

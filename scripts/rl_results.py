@@ -45,7 +45,11 @@ REFERENCES = ROOT / "docs" / "results" / "rl_references.json"
 SCENARIO_REFERENCES = ROOT / "docs" / "results" / "rl_scenario_references.json"
 FIGURES = ROOT / "docs" / "results" / "rl"
 #: the generated blocks and the documents that show them
-DOCUMENTS = {ROOT / "README.md": ("rl-table",), ROOT / "docs" / "rl.md": ("rl-table", "rl-seeds")}
+DOCUMENTS = {ROOT / "README.md": ("rl-table",),
+             ROOT / "docs" / "rl.md": ("rl-table", "rl-seeds", "rl-campaign")}
+#: the robustness campaign of the learned policies beside PI and LQG (``dss14 campaign``,
+#: :func:`dss14_env.bench.campaign_report.compact_results` of its results.json), and the command
+CAMPAIGN = ROOT / "docs" / "results" / "campaign_policies.json"
 #: the reference controllers: runner name -> label
 REFERENCE_CONTROLLERS = {"pi_kp1": "PI (report: kp 1, ki 0.3)", "lqg": "LQG", "mpc": "MPC",
                          "yardstick": "yardstick (H2-optimal, knows the wind)"}
@@ -69,6 +73,11 @@ AGENTS = {
     "ppo_plain_pointing": ("plain PPO, trained on the pointing error", "ppo_plain_pointing", None),
     "ppo_residual_lqg_pointing": ("model-informed PPO on the pointing LQG, trained on the pointing "
                                   "error", "ppo_residual_lqg_pointing", None),
+    # one policy for the whole job (a mixture of every bench scenario, select_by general)
+    "ppo_general": ("general plain PPO: one policy for tracks, holds, steps and slews", "ppo_general",
+                    "ppo_general"),
+    "ppo_general_random": ("general plain PPO trained on randomised plants", "ppo_general_random",
+                           "ppo_general_random"),
 }
 #: single policies scored like the campaigns' (one training seed: an interval over test seeds
 #: only): key -> (label, shipped folder, the agent whose campaign it is a seed of): a shipped
@@ -253,7 +262,8 @@ def build(runs: Path, out: Path, refs: Path, figures: Path, keep_from: Path = RE
             "yardstick_analytic_three_sigma_mdeg": ref.get("yardstick_analytic_three_sigma_mdeg"),
             "protocol": "training seeds 10000 + 1000 k (k = 0-4), validation seeds 1000-1005 "
                         "(2000-step holds, select_by three_sigma, or pointing for the agents "
-                        "trained on the pointing error), test seeds 0-9 (3000-step holds, 5-s "
+                        "trained on the pointing error; the general agents: every bench scenario, "
+                        "select_by general), test seeds 0-9 (3000-step holds, 5-s "
                         "warm-up); the validation-selected policy (eval/best) is scored",
             "kept_rows": {k: "its campaign's runs are not in the repository: the row is the "
                              "committed one (servo error only, its ratios against the references "
@@ -338,11 +348,32 @@ def ship(runs: Path, results_path: Path) -> None:
         print(f"{key}: {run} -> {dest.relative_to(ROOT)}")
 
 
+def campaign_block(path: Path) -> str:
+    """The learned policies' robustness campaign for docs/rl.md: what ran, then the campaign's
+    own table (:func:`dss14_env.bench.campaign_report.main_table`)."""
+    from dss14_env.bench.campaign_report import main_table
+    from dss14_env.bench.plan import control_period
+
+    if not path.is_file():
+        return f"(no `{path.name}` yet: `dss14 campaign --ray --out campaign_out`, then keep its results.json)"
+    res = json.loads(path.read_text())
+    c = res["campaign"]
+    s = c["spec"]
+    return "\n".join([
+        f"`dss14 campaign --plants {s['plants']} --controllers {' '.join(s['controllers'])} "
+        f"--ray` (`{path.relative_to(ROOT).as_posix()}`): {s['plants']} plants drawn from the "
+        f"report's hydraulic ranges (stable part), one {s['steps'] * control_period():g}-s hold per "
+        f"plant and condition, every controller on the same plants and gusts; medians, 95th percentiles and "
+        f"worst cases with 95 % bootstrap intervals over plants, requirement shares with Wilson "
+        f"intervals (docs/scale.md explains the table). Wall time {c['wall_time_s']['total']:.0f} s.",
+        "", main_table(res)])
+
+
 def render(results_path: Path, check: bool) -> int:
     """Fill the generated blocks of the documents; with ``check`` only report stale ones."""
     from dss14_env.reproduce import fill_blocks, find_blocks
 
-    blocks = rl_tables(json.loads(results_path.read_text()))
+    blocks = {**rl_tables(json.loads(results_path.read_text())), "rl-campaign": campaign_block(CAMPAIGN)}
     stale = []
     for doc, names in DOCUMENTS.items():
         text = doc.read_text()

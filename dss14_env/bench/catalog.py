@@ -91,8 +91,9 @@ class ControllerRow:
 _POLICY_CLASS = ("dss14_env.agents.policy", "PolicyController")
 
 
-def _policy_row(name: str, policy: str, description: str, bench: bool = True) -> ControllerRow:
-    return ControllerRow(name, *_POLICY_CLASS, description, policy=policy, bench=bench)
+def _policy_row(name: str, policy: str, description: str, bench: bool = True,
+                campaign: bool = True) -> ControllerRow:
+    return ControllerRow(name, *_POLICY_CLASS, description, policy=policy, bench=bench, campaign=campaign)
 
 
 #: the controllers, in table order
@@ -124,6 +125,10 @@ CONTROLLER_ROWS: tuple[ControllerRow, ...] = (
                 "cannot follow slews and tracks and terminates in the slew"),
     _policy_row("ppo_residual_lqg", "ppo_residual_lqg", "model-informed PPO, a residual on the LQG "
                 "(`agents/policies/ppo_residual_lqg`, docs/rl.md)"),
+    _policy_row("ppo_general", "ppo_general", "general plain PPO, one policy for every scenario: "
+                "the policy sets the command about the commanded rate fed forward, no controller "
+                "underneath; trained on a mixture of tracks, holds, steps and slews "
+                "(`agents/policies/ppo_general`, docs/rl.md)"),
     ControllerRow("yardstick", "dss14_env.baselines.yardstick", "YardstickController",
                   "the H2-optimal full-order LQG told the episode's wind (an oracle designed "
                   "without the acceleration limit: limit-cycles on steps and slews and on some "
@@ -162,7 +167,7 @@ def policy_row(path: str | Path, name: str | None = None) -> ControllerRow:
     """A row for the trained policy at ``path`` (``--ppo-model``), named after the policy
     (:func:`policy_name`) unless ``name`` is given.
     """
-    return _policy_row(name or policy_name(path), str(path), f"trained policy {path}")
+    return _policy_row(name or policy_name(path), str(path), f"trained policy {path}", campaign=False)
 
 
 @dataclass(frozen=True)
