@@ -555,8 +555,9 @@ def main_table(results: Mapping[str, Any]) -> str:
     kept = sorted({r["kept_from"] for r in results["rows"].values() if r.get("kept_from")})
     if kept:
         caption += (f" †: a campaign whose trained runs are not in the repository: its row is the "
-                    f"one computed on {', '.join(kept)} (servo error only; its ratios divide by "
-                    f"the references of that time, on the same test seeds).")
+                    f"one computed on {', '.join(kept)} (the servo error only where its pointing "
+                    f"columns show –; its ratios divide by the references of that time, on the same "
+                    f"test seeds).")
     caption += "\n\n"
     out = (caption + "**Pointing error**\n\n" + _error_table(results, "pointing")
            + "\n**Servo error**\n\n" + _error_table(results, "servo"))

@@ -355,7 +355,8 @@ def campaign_block(path: Path) -> str:
     from dss14_env.bench.plan import control_period
 
     if not path.is_file():
-        return f"(no `{path.name}` yet: `dss14 campaign --ray --out campaign_out`, then keep its results.json)"
+        return (f"(no `{path.name}` yet: `dss14 campaign --ray --out campaign_out`, then keep its "
+                f"results.json)")
     res = json.loads(path.read_text())
     c = res["campaign"]
     s = c["spec"]
