@@ -492,6 +492,10 @@ def write_curves(folder: Path, runs: Sequence[Path], tasks: Sequence[EvalTask],
             ax.plot(c["steps"], mid, lw=2, label=f"IQM over {counted(len(runs), 'seed')}")
             _reference_lines(ax, references, t.name, key)
             ax.set_xlabel("environment steps")
+            pos = v[np.isfinite(v) & (v > 0)]
+            if key != "returns" and pos.size and pos.max() > 20.0 * pos.min():
+                ax.set_yscale("log")  # early divergent evaluations would flatten the rest
+                label += ", log scale"
             ax.set_ylabel(label)
             ax.grid(alpha=0.3)
             ax.legend(fontsize=8)

@@ -468,7 +468,7 @@ def action_curve(u: np.ndarray, b: float) -> np.ndarray:
     ``b / sinh(b)`` at 0.
 
     >>> action_curve(np.array([-1.0, 0.0, 0.5, 1.0]), 4.0).round(4).tolist()
-    [-1.0, 0.0, 0.1331, 1.0]
+    [-1.0, 0.0, 0.1329, 1.0]
     """
     return u if b == 0.0 else np.sinh(b * u) / math.sinh(b)
 

@@ -184,8 +184,8 @@ def _selected_at(run: Path) -> int | None:
     if not path.is_file():
         return None
     with np.load(path, allow_pickle=False) as d:
-        if "selection_score" not in d.files:
-            return None
+        if "selection_score" not in d.files or not np.isfinite(np.max(d["selection_score"])):
+            return None  # no evaluation kept a policy: the final one is scored
         return int(d["timesteps"][int(np.argmax(d["selection_score"]))])
 
 

@@ -129,6 +129,9 @@ CONTROLLER_ROWS: tuple[ControllerRow, ...] = (
                 "the policy sets the command about the commanded rate fed forward, no controller "
                 "underneath; trained on a mixture of tracks, holds, steps and slews "
                 "(`agents/policies/ppo_general`, docs/rl.md)"),
+    _policy_row("ppo_general_random", "ppo_general_random", "the general plain PPO trained on "
+                "plants drawn from the report's hydraulic ranges (`agents/policies/ppo_general_random`, "
+                "docs/rl.md)", bench=False),
     ControllerRow("yardstick", "dss14_env.baselines.yardstick", "YardstickController",
                   "the H2-optimal full-order LQG told the episode's wind (an oracle designed "
                   "without the acceleration limit: limit-cycles on steps and slews and on some "
