@@ -367,7 +367,7 @@ def campaign_block(path: Path) -> str:
         f"plant and condition, every controller on the same plants and gusts; medians, 95th percentiles and "
         f"worst cases with 95 % bootstrap intervals over plants, requirement shares with Wilson "
         f"intervals (docs/scale.md explains the table). Wall time {c['wall_time_s']['total']:.0f} s.",
-        "", main_table(res)])
+        "", main_table(res), ""])
 
 
 def render(results_path: Path, check: bool) -> int:
