@@ -594,7 +594,8 @@ def seeds_table(results: Mapping[str, Any]) -> str:
                     cells.append("–" if d is None else
                                  f"{_num(d['per_seed'][i])} ({_num(d['per_seed_final'][i])})")
             sel = row.get("selected_at_steps")
-            cells += [str(sel[i]) if sel else "–", f"{row['env_steps'][i]:,}".replace(",", " "),
+            at = "–" if not sel else "final (none kept)" if sel[i] is None else str(sel[i])
+            cells += [at, f"{row['env_steps'][i]:,}".replace(",", " "),
                       f"{row['wall_s'][i]:.0f}", f"{row['steps_per_s'][i]:.0f}"]
             lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
