@@ -258,6 +258,23 @@ def vec_env_kind(cfg: TrainConfig, plan: EnvPlan) -> str:
     return cfg.vec_env
 
 
+def _wrap_batched(venv: Any, cfg: TrainConfig, plan: EnvPlan, env_config: Any,
+                  monitor_dir: Path | None) -> Any:
+    """A batched training VecEnv under a ``VecMonitor`` (``monitor_dir/monitor.csv``: the
+    environment's returns), the logarithmic reward (``reward_log_scale``) and the interface.
+    """
+    from stable_baselines3.common.vec_env import VecMonitor
+
+    from dss14_env.agents.interface import InterfaceVecEnv
+
+    if monitor_dir is not None:
+        monitor_dir.mkdir(parents=True, exist_ok=True)
+    venv = VecMonitor(venv, None if monitor_dir is None else str(monitor_dir / "monitor.csv"))
+    if cfg.reward_log_scale is not None:
+        venv = LogRewardVecEnv(venv, cfg.reward_log_scale, env_config, cfg.gamma)
+    return venv if plan.interface is None else InterfaceVecEnv(venv, plan.interface, env_config)
+
+
 def make_train_vec_env(cfg: TrainConfig, plan: EnvPlan, env_config: Any,
                        monitor_dir: Path | None) -> Any:
     """The training VecEnv (before normalisation); sub-environment ``i`` seeded ``seed + i``.
@@ -267,9 +284,7 @@ def make_train_vec_env(cfg: TrainConfig, plan: EnvPlan, env_config: Any,
     ``Monitor`` per copy (``monitor_dir/<i>.monitor.csv``).
     """
     from stable_baselines3.common.env_util import make_vec_env
-    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor
-
-    from dss14_env.agents.interface import InterfaceVecEnv
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
     kind = vec_env_kind(cfg, plan)
     if cfg.mixture:
@@ -277,23 +292,13 @@ def make_train_vec_env(cfg: TrainConfig, plan: EnvPlan, env_config: Any,
             raise ValueError(f"{cfg.source}: key 'mixture': needs the batched VecEnv (vec_env: auto "
                              f"or batched on a DSS14 environment)")
         venv = make_mixture_vec_env(cfg.mixture, plan.base_kwargs, cfg.seed, env_config, cfg.source)
-        if monitor_dir is not None:
-            monitor_dir.mkdir(parents=True, exist_ok=True)
-        venv = VecMonitor(venv, None if monitor_dir is None else str(monitor_dir / "monitor.csv"))
-        if cfg.reward_log_scale is not None:
-            venv = LogRewardVecEnv(venv, cfg.reward_log_scale, env_config, cfg.gamma)
-        return venv if plan.interface is None else InterfaceVecEnv(venv, plan.interface, env_config)
+        return _wrap_batched(venv, cfg, plan, env_config, monitor_dir)
     if kind == "batched":
         kw = dict(plan.base_kwargs)
         steps = kw.pop("max_episode_steps", None)
         venv = make_sb3_vec_env(plan.base_id, cfg.n_envs, seed=cfg.seed, max_episode_steps=steps,
                                 **kw)
-        if monitor_dir is not None:
-            monitor_dir.mkdir(parents=True, exist_ok=True)
-        venv = VecMonitor(venv, None if monitor_dir is None else str(monitor_dir / "monitor.csv"))
-        if cfg.reward_log_scale is not None:
-            venv = LogRewardVecEnv(venv, cfg.reward_log_scale, env_config, cfg.gamma)
-        return venv if plan.interface is None else InterfaceVecEnv(venv, plan.interface, env_config)
+        return _wrap_batched(venv, cfg, plan, env_config, monitor_dir)
     if plan.interface is not None and cfg.env_id not in WRAPPER_IDS:
         factory = functools.partial(_interface_env, plan.base_id, dict(plan.base_kwargs),
                                     plan.interface)

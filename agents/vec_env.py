@@ -188,9 +188,9 @@ class MixtureVecEnv(_vec_env_base()):
 
     def _part_indices(self, indices: Any) -> list[tuple[int, int]]:
         """``(part, index within the part)`` of each global index."""
-        idx = self._get_indices(indices)
-        return [(int(np.searchsorted(self._bounds, i, side="right") - 1),
-                 int(i - self._bounds[np.searchsorted(self._bounds, i, side="right") - 1])) for i in idx]
+        idx = np.asarray(list(self._get_indices(indices)), int)
+        part = np.searchsorted(self._bounds, idx, side="right") - 1
+        return [(int(j), int(i - self._bounds[j])) for i, j in zip(idx, part, strict=True)]
 
     def get_attr(self, attr_name: str, indices: Any = None) -> list[Any]:
         if attr_name == "scenario_name":
