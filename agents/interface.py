@@ -40,7 +40,12 @@ a batched vector env) and for scoring (:class:`dss14_env.agents.policy.PolicyCon
   each, 6; action units) -- features whose meaning does not depend on the design the LQG picks
   per episode -- then, with ``history`` H > 0, the H previous values of the
   ``history_entries`` of the observation, newest first (frame stacking; at an episode's first
-  step the first observation repeated, the steady state the episode starts in).
+  step the first observation repeated, the steady state the episode starts in), then the
+  low-passed entries (``history_filters``), then the ``context``: constants of the environment's
+  configuration that a user knows before the first step (:data:`CONTEXTS`; ``"axis_encoders"``:
+  1 where the encoders sit at the axes, 0 at the drives), so that one policy may learn a law per
+  configuration (gain scheduling on a known quantity, as the report designs its loop per encoder
+  location).
 
 Rows restart independently (:meth:`PolicyInterface.restart`), so a vector environment's
 auto-reset sub-environments start fresh while the others go on.
@@ -77,6 +82,19 @@ ACTIONS = ("absolute", "residual", "feedforward")
 #: the base controllers: None, the PI, and the LQG designs (encoder or pointing error)
 BASES = (None, "pi", "lqg", "lqg_pointing")
 LQG_BASES = ("lqg", "lqg_pointing")
+#: the context features (:class:`InterfaceSpec` ``context``): name -> its value for an
+#: environment configuration
+CONTEXTS = {"axis_encoders": lambda cfg: 1.0 if getattr(cfg, "encoders", None) == "axis" else 0.0}
+
+
+def context_values(names: tuple[str, ...], env_config: Any) -> np.ndarray:
+    """The context features ``names`` (:data:`CONTEXTS`) of one environment configuration.
+
+    >>> from types import SimpleNamespace
+    >>> context_values(("axis_encoders",), SimpleNamespace(encoders="axis")).tolist()
+    [1.0]
+    """
+    return np.array([CONTEXTS[k](env_config) for k in names], np.float32)
 
 
 def _entries(value: Any, name: str) -> tuple[int, ...]:
@@ -111,6 +129,8 @@ class InterfaceSpec:
         filters of the ``history_entries``, appended after the history (symlog like them with
         ``obs_symlog``): memory of seconds in a few entries, from which a feed-forward network
         can form lead and lag; default none
+    :param context: names of :data:`CONTEXTS` appended last (constants of the environment's
+        configuration, e.g. ``["axis_encoders"]``); default none
     """
 
     base: str | None = None
@@ -126,6 +146,7 @@ class InterfaceSpec:
     action_curve: float = 0.0
     obs_symlog: bool = False
     history_filters: tuple[float, ...] = ()
+    context: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if self.base not in BASES:
@@ -157,6 +178,11 @@ class InterfaceSpec:
             raise ValueError(f"history_filters must be a list of at most 8 time constants in (0, 60] s, "
                              f"got {taus!r}")
         object.__setattr__(self, "history_filters", tuple(float(t) for t in taus))
+        ctx = self.context
+        if isinstance(ctx, (str, bytes)) or not isinstance(ctx, (list, tuple)) or \
+                any(c not in CONTEXTS for c in ctx) or len(set(ctx)) != len(ctx):
+            raise ValueError(f"context must be distinct names of {list(CONTEXTS)}, got {ctx!r}")
+        object.__setattr__(self, "context", tuple(ctx))
         if not isinstance(self.obs_symlog, bool):
             raise ValueError(f"obs_symlog must be true or false, got {self.obs_symlog!r}")
         if not isinstance(self.estimate, bool):
@@ -176,6 +202,7 @@ class InterfaceSpec:
         d["history_entries"] = list(self.history_entries)
         d["lqg_features"] = list(self.lqg_features)
         d["history_filters"] = list(self.history_filters)
+        d["context"] = list(self.context)
         if self.obs_entries is not None:
             d["obs_entries"] = list(self.obs_entries)
         if isinstance(d["gains"], tuple):
@@ -232,7 +259,10 @@ class PolicyInterface:
         self.n_features = n_feat
         self.entries = list(range(OBS_SIZE)) if spec.obs_entries is None else list(spec.obs_entries)
         n_hist = len(spec.history_entries)
-        self.obs_dim = len(self.entries) + n_feat + (spec.history + len(spec.history_filters)) * n_hist
+        self.obs_dim = (len(self.entries) + n_feat + (spec.history + len(spec.history_filters)) * n_hist
+                        + len(spec.context))
+        #: the context features of every row (:meth:`set_context`), from ``env_config`` until set
+        self.context = np.tile(context_values(spec.context, env_config), (self.n, 1))
         #: the filters' gains per step, and their states (raw observation units)
         self._alpha = np.array([-math.expm1(-env_config.dt / t) for t in spec.history_filters])
         self._filt = np.zeros((self.n, len(spec.history_filters), n_hist), np.float64)
@@ -275,6 +305,17 @@ class PolicyInterface:
         """Restore a :meth:`get_state` copy (any number of times)."""
         self.__dict__.update(copy.deepcopy(state))
 
+    def set_context(self, env_configs: Any) -> None:
+        """The context features from the environments the rows act on: one configuration for
+        every row, or a sequence of ``n`` (a mixture's sub-environments).
+        """
+        if isinstance(env_configs, (list, tuple)):
+            if len(env_configs) != self.n:
+                raise ValueError(f"set_context: {len(env_configs)} configurations for {self.n} rows")
+            self.context = np.stack([context_values(self.spec.context, c) for c in env_configs])
+        else:
+            self.context = np.tile(context_values(self.spec.context, env_configs), (self.n, 1))
+
     # ------------------------------------------------------------------ observation
     def observe(self, obs: np.ndarray) -> np.ndarray:
         """Advance every row on its environment observation; the policy's observations.
@@ -313,6 +354,8 @@ class PolicyInterface:
         if self.spec.history_filters:
             self._filt = self._filtered(self._filt, self._fresh, o)
             parts.append(self._filter_part(self._filt))
+        if self.spec.context:
+            parts.append(self.context)
         self._fresh[:] = False
         return np.concatenate(parts, axis=1)
 
@@ -349,6 +392,8 @@ class PolicyInterface:
             parts.append(self._history(self._past[rows].copy(), self._fresh[rows], now))
         if self.spec.history_filters:
             parts.append(self._filter_part(self._filtered(self._filt[rows], self._fresh[rows], o)))
+        if self.spec.context:
+            parts.append(self.context[rows])
         return np.concatenate(parts, axis=1)
 
     def _filtered(self, state: np.ndarray, fresh: np.ndarray, o: np.ndarray) -> np.ndarray:
@@ -511,8 +556,8 @@ def interface_observation_space(interface: PolicyInterface) -> spaces.Box:
         OBS_HIGH[None], symlog_units(interface.env_config))[0]
     high = np.concatenate([env_high[interface.entries],
                            np.full(interface.n_features, FEATURE_BOUND, np.float32),
-                           np.tile(env_high[list(s.history_entries)], s.history + len(s.history_filters))
-                           ]).astype(np.float32)
+                           np.tile(env_high[list(s.history_entries)], s.history + len(s.history_filters)),
+                           np.ones(len(s.context), np.float32)]).astype(np.float32)
     return spaces.Box(-high, high, dtype=np.float32)
 
 
@@ -538,6 +583,8 @@ class InterfaceVecEnv(_vec_env_wrapper()):
 
     def __init__(self, venv: Any, spec: InterfaceSpec, env_config: Any) -> None:
         self.interface = PolicyInterface(spec, env_config, venv.num_envs)
+        if spec.context:  # each sub-environment's own configuration (a mixture's parts differ)
+            self.interface.set_context(list(venv.get_attr("config")))
         super().__init__(venv, observation_space=interface_observation_space(self.interface),
                          action_space=spaces.Box(-1.0, 1.0, (2,), np.float32))
 
@@ -566,16 +613,17 @@ def spec_from_kwargs(kwargs: dict[str, Any], defaults: InterfaceSpec) -> tuple[I
     kw = dict(kwargs)
     fields = {"base", "action", "gains", "residual_scale", "history", "history_entries",
               "estimate", "lqg_features", "obs_entries", "feedforward_gain", "action_curve",
-              "obs_symlog", "history_filters"}
+              "obs_symlog", "history_filters", "context"}
     given = {k: kw.pop(k) for k in list(kw) if k in fields}
     d = defaults.to_dict()
     d.update(given)
     return InterfaceSpec(**d), kw
 
 
-__all__ = ["ACTIONS", "BASES", "FEATURE_BOUND", "HISTORY_ENTRIES", "LQG_BASES", "InterfaceSpec",
+__all__ = ["ACTIONS", "BASES", "CONTEXTS", "FEATURE_BOUND", "HISTORY_ENTRIES", "LQG_BASES", "InterfaceSpec",
            "InterfaceVecEnv",
            "InterfaceWrapper", "LQG_FEATURES", "LQG_FEATURE_WIDTHS", "NO_ABSOLUTE_ANGLES",
-           "PolicyInterface", "action_curve", "interface_observation_space", "spec_from_kwargs",
+           "PolicyInterface", "action_curve", "context_values", "interface_observation_space",
+           "spec_from_kwargs",
            "symlog_observation", "symlog_units"]
 

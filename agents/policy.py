@@ -108,6 +108,8 @@ class PolicyController(Controller):
         self.obs_dim = int(np.prod(policy.observation_space.shape))
         self.spec: InterfaceSpec | None = None
         self.train_env_config = None
+        #: the configuration of the environment it acts on (:meth:`target_env`; None: the run's)
+        self.target_config = None
         self.to_env = 1.0
         if config is not None:
             plan = resolve_env(config)
@@ -135,6 +137,9 @@ class PolicyController(Controller):
         target = _env_config(env)
         if self.train_env_config is not None and target is not None:
             self.to_env = self.train_env_config.action_scale_deg_s / target.action_scale_deg_s
+            self.target_config = target
+            if getattr(self, "interface", None) is not None:
+                self.interface.set_context(target)
 
     # ------------------------------------------------------------------ single
     def reset(self, seed: int | None = None) -> None:
@@ -174,6 +179,8 @@ class PolicyController(Controller):
         self._n = int(n)
         self.interface = (None if self.spec is None
                           else PolicyInterface(self.spec, self.train_env_config, self._n))
+        if self.interface is not None and self.target_config is not None:
+            self.interface.set_context(self.target_config)  # e.g. where its encoders sit
         self._state: Any = None
         self._starts = np.ones(self._n, bool)
         self.info_batch = {}

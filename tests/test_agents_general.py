@@ -223,6 +223,59 @@ def test_bad_history_filters_are_refused(taus: object) -> None:
         InterfaceSpec(history_filters=taus)
 
 
+# ------------------------------------------------------------------------------ context
+def test_context_marks_axis_encoders_in_every_face() -> None:
+    spec = InterfaceSpec(history=1, obs_symlog=True, context=("axis_encoders",))
+    drive = InterfaceWrapper(gym.make("DSS14-Hold-v0"), spec)
+    axis = InterfaceWrapper(gym.make("DSS14-Hold-v0", encoders="axis"), spec)
+    for env, flag in ((drive, 0.0), (axis, 1.0)):
+        obs, _ = env.reset(seed=3)
+        assert obs.shape == env.observation_space.shape and obs[-1] == flag
+        assert env.observation_space.contains(obs)
+        obs, *_ = env.step(np.zeros(2, np.float32))
+        assert obs[-1] == flag
+    # a mixture: each row's own part, in the VecEnv and in its terminal observations
+    from dss14_env.agents.interface import InterfaceVecEnv
+    mix = [{"preset": "hold", "n_envs": 2, "env_kwargs": {"encoders": "axis"}, "max_episode_steps": 5},
+           {"preset": "track", "n_envs": 1, "env_kwargs": {}, "max_episode_steps": 5}]
+    venv = InterfaceVecEnv(make_mixture_vec_env(mix, {}, 7, CFG), spec, CFG)
+    assert venv.reset()[:, -1].tolist() == [1.0, 1.0, 0.0]
+    for _ in range(5):
+        obs, _, dones, infos = venv.step(np.zeros((3, 2), np.float32))
+    assert dones.all() and [i["terminal_observation"][-1] for i in infos] == [1.0, 1.0, 0.0]
+    assert obs[:, -1].tolist() == [1.0, 1.0, 0.0]
+
+
+def test_scored_policy_sees_the_context_of_the_environment_it_acts_on(tmp_path) -> None:
+    """A policy with ``context`` scored on an axis-encoder hold sees 1 there, 0 on the
+    environment it was trained on (the drives), whatever the batch size."""
+    import torch
+    from stable_baselines3 import PPO
+
+    from dss14_env.agents.config import TrainConfig as TC
+    from dss14_env.agents.envs import resolve_env
+    from dss14_env.agents.policy import PolicyController
+
+    cfg = TC.from_dict({"env_id": "DSS14-Plain-v0", "n_envs": 1, "env_kwargs": {
+        "base_id": "DSS14-Hold-v0", "context": ["axis_encoders"]}}, "cfg.yaml")
+    plan = resolve_env(cfg)
+    env = InterfaceWrapper(gym.make("DSS14-Hold-v0"), plan.interface)
+    model = PPO("MlpPolicy", env, n_steps=8, batch_size=8, device="cpu")
+    torch.set_num_threads(1)
+    ctrl = PolicyController(model.policy, cfg, None, "p", env=gym.make("DSS14-Hold-v0", encoders="axis"))
+    for n in (1, 3):
+        ctrl.reset_batch(n)
+        assert ctrl.interface.context.tolist() == [[1.0]] * n
+    ctrl.target_env(gym.make("DSS14-Hold-v0"))
+    assert ctrl.interface.context.tolist() == [[0.0]] * 3
+
+
+@pytest.mark.parametrize("ctx", [("nope",), "axis_encoders", ("axis_encoders", "axis_encoders")])
+def test_bad_context_is_refused(ctx: object) -> None:
+    with pytest.raises(ValueError, match="context must be distinct names of"):
+        InterfaceSpec(context=ctx)
+
+
 # ------------------------------------------------------------------------------ general selection
 def test_general_selection_scores_every_scenario_and_disqualifies() -> None:
     from dss14_env.agents.evaluation import dss14_tasks
