@@ -20,8 +20,8 @@ from hypothesis import strategies as st
 from dss14_env.core.units import R2D, R2MD
 from dss14_env.envs.core import (
     OBS_ERROR_BOUND,
+    ScalarState,
     StepConstants,
-    StepState,
     as_actions,
     limit_commands,
     observation,
@@ -109,24 +109,24 @@ def _run_both(d: dict) -> None:
     cur, nxt = buffer_views(z0, M_STATES), buffer_views(z1, M_STATES)
     row = [*c, *(c * R2D), *d["cd"], *d["noise"], *d["xi"]]
     sc = step_constants(k, tuple(start), d["me"], d["xel"], *d["wind"])
-    st_in = StepState(tuple(d["rp"]), tuple(d["ap"]), tuple(d["em0"]), d["hits"], 3)
+    st_in = ScalarState(*d["rp"].tolist(), *d["ap"].tolist(), *d["em0"].tolist(), *d["hits"], 3)
     a = d["a"]
     obs1, rew1, term1, info1, bufs1, st1 = step_1(a, (cur, nxt), st_in, np.ascontiguousarray(M.T), row, sc)
 
     # the plant map: one exact matrix product
-    z_in = np.concatenate([st1.r_prev, [1.0], d["xi"], d["x0"]])
+    z_in = np.concatenate([(st1.r_az, st1.r_el), [1.0], d["xi"], d["x0"]])
     np.testing.assert_array_equal(z1[M_STATES + h:], M[M_STATES:] @ z_in)
     np.testing.assert_allclose(z1[h:h + M_STATES], M[:M_STATES] @ z_in, rtol=1e-12, atol=1e-12)
     # the batched pieces on the same inputs (N = 1)
     A = as_actions(a, (2,))[None]
     ac, r, rate_hit, acc_hit = limit_commands(A, d["rp"][None], k)
-    assert st1.a_prev == tuple(ac[0]) and st1.r_prev == tuple(r[0])
+    assert (st1.a_az, st1.a_el) == tuple(ac[0]) and (st1.r_az, st1.r_el) == tuple(r[0])
     assert (info1["rate_limited"], info1["accel_limited"]) == (bool(rate_hit[0]), bool(acc_hit[0]))
     assert (info1["n_rate_limited"], info1["n_accel_limited"]) == (d["hits"][0] + rate_hit[0],
                                                                    d["hits"][1] + acc_hit[0])
     rel = read_encoders(theta[None], start[None], d["noise"][None], k)
     em, e = servo_errors(c[None], rel), servo_errors(c[None], theta[None])
-    assert st1.em_prev == tuple(em[0])
+    assert (st1.em_az, st1.em_el) == tuple(em[0])
     term = terminated(e, theta[None], start[None], np.array([d["me"]]), k)
     assert term1 == bool(term[0])
     pe = pointing_errors(c[None], d["point"][None], d["xel"])
@@ -143,7 +143,7 @@ def _run_both(d: dict) -> None:
         else:
             assert info1[key] == v[0], key
     assert bufs1[0] is nxt and bufs1[1] is cur and st1.j == 4
-    assert st1.hits == (info1["n_rate_limited"], info1["n_accel_limited"])
+    assert (st1.n_rate, st1.n_acc) == (info1["n_rate_limited"], info1["n_accel_limited"])
 
 
 @given(step_inputs())

@@ -10,8 +10,9 @@ Every piece is a function of ``(N, ...)`` numpy arrays (N sub-environments); the
 environment (:mod:`dss14_env.envs.vector`) calls them.  The single environment
 (:mod:`dss14_env.envs.env`) runs one step in a few microseconds, where a numpy call costs about
 one, so it calls the *scalar twin* :func:`step_1` (the same formulas on Python floats, in the
-same order of operations; the episode end and the reward are the very functions the batched
-pieces call, :func:`beyond_bounds` and :func:`step_cost`, which take floats or arrays).
+same order of operations; the reward's cost is the very function the batched piece calls,
+:func:`step_cost`, which takes floats or arrays, and the episode end is the rule of
+:func:`beyond_bounds` in its short-circuit form on floats).
 ``tests/test_env_core.py`` holds the twin equal to the batched pieces, bit for bit, on random
 inputs (hypothesis), limiter edges, quantisation and termination boundaries and clamping
 included.
@@ -334,25 +335,27 @@ def terminated(e: np.ndarray, theta: np.ndarray, start: np.ndarray, max_error: n
 
 def beyond_bounds(e_az: Any, e_el: Any, el: Any, az_off: Any, max_error: Any, el_lo: float, el_hi: float,
                   az_half_range: float) -> Any:
-    """The episode-end rule, written once for floats (the single environment) and arrays (the
-    vector environment): a servo error beyond ``max_error`` (mdeg) on an axis, the elevation
+    """The episode-end rule: a servo error beyond ``max_error`` (mdeg) on an axis, the elevation
     outside ``[el_lo, el_hi]`` or the azimuth beyond ``az_half_range`` of the wrap centre
-    (``az_off``; rad).
+    (``az_off``; rad).  Takes floats or arrays; the scalar step (:func:`step_1`) writes the
+    same comparisons joined by ``or`` (``|`` on two Python bools costs as much as the
+    comparisons), held equal to this by ``tests/test_env_core.py``.
     """
     return ((abs(e_az) > max_error) | (abs(e_el) > max_error) | (el < el_lo) | (el > el_hi)
             | (abs(az_off) > az_half_range))
 
 
-def step_cost(s0: Any, s1: Any, d0: Any, d1: Any, inv_scale2: float, weight: float, term: Any,
-              penalty: float) -> Any:
-    """The cost (minus the reward), written once for floats and arrays:
-    ``(s0^2 + s1^2) inv_scale2 + weight (d0^2 + d1^2)``, plus ``penalty`` where ``term``.
+def step_cost(s0: Any, s1: Any, d0: Any, d1: Any, inv_scale2: float, weight: float) -> Any:
+    """The cost (minus the reward) before the termination penalty, written once for floats and
+    arrays: ``(s0^2 + s1^2) inv_scale2 + weight (d0^2 + d1^2)``; the callers add the penalty
+    where the step terminates (:func:`reward`; :func:`step_1` only then: adding ``0.0`` to
+    the non-negative cost changes no bit).
 
     :param s0: the scored errors (mdeg; :func:`scored_errors`), ``s1`` the other axis
     :param d0: the action changes ``a - a_prev``, ``d1`` the other axis
     :param inv_scale2: ``1 / error_scale^2``
     """
-    return (s0 * s0 + s1 * s1) * inv_scale2 + weight * (d0 * d0 + d1 * d1) + term * penalty
+    return (s0 * s0 + s1 * s1) * inv_scale2 + weight * (d0 * d0 + d1 * d1)
 
 
 def reward(e: np.ndarray, a: np.ndarray, a_prev: np.ndarray, term: np.ndarray, k: StepConstants
@@ -366,7 +369,8 @@ def reward(e: np.ndarray, a: np.ndarray, a_prev: np.ndarray, term: np.ndarray, k
     """
     d = a - a_prev
     cost = step_cost(e[:, 0], e[:, 1], d[:, 0], d[:, 1], k.inv_error_scale * k.inv_error_scale,
-                     k.action_change_weight, term, k.termination_penalty)
+                     k.action_change_weight)
+    cost += term * k.termination_penalty
     return np.negative(cost, out=cost)
 
 
@@ -457,9 +461,9 @@ class StepState(NamedTuple):
     """The dynamic state a step reads and writes besides the plant (FuncEnv-style:
     :func:`reset_state` makes it, a step maps it to the next one).
 
-    In the vector environment each field holds every sub-environment (arrays ``(N, 2)``, ``j``
-    ``(N,)``); in the single environment's scalar step (:func:`step_1`) the pairs are tuples of
-    floats and ``j`` an int.  The plant state lives beside it in each environment's own layout
+    Each field holds every sub-environment (arrays ``(N, 2)``, ``j`` ``(N,)``); the single
+    environment's scalar step (:func:`step_1`) carries the same state flat, as a
+    :class:`ScalarState`.  The plant state lives beside it in each environment's own layout
     (the single one's step buffers, the vector one's slot-ordered batch).
     """
 
@@ -473,6 +477,34 @@ class StepState(NamedTuple):
     hits: Any
     #: the next step's row in its noise block
     j: Any
+
+
+class ScalarState(NamedTuple):
+    """The :class:`StepState` of one environment, flat, on Python floats and ints: what the
+    scalar step (:func:`step_1`) reads and makes (one tuple per step, not five).
+    """
+
+    #: previous applied rate command, az and el, rad/s
+    r_az: float
+    r_el: float
+    #: previous clipped action, az and el
+    a_az: float
+    a_el: float
+    #: previous measured servo error, az and el, mdeg
+    em_az: float
+    em_el: float
+    #: the episode's limiter hit counts: rate clip, acceleration limit
+    n_rate: int
+    n_acc: int
+    #: the next step's row in its noise block
+    j: int
+
+    @classmethod
+    def of(cls, st: StepState, j: int = 0) -> ScalarState:
+        """Row 0 of a batched state (:func:`reset_state` with N = 1), at row ``j`` of its noise
+        block.
+        """
+        return cls(*(x for v in st[:4] for x in v[0].tolist()), j)
 
 
 def reset_state(c: np.ndarray, cd: np.ndarray, y: np.ndarray, start: np.ndarray, noise: np.ndarray,
@@ -507,8 +539,8 @@ def reset_state(c: np.ndarray, cd: np.ndarray, y: np.ndarray, start: np.ndarray,
 # The single environment's step on Python floats: the pieces above in one function (a call
 # costs as much as a piece here), in the same order of operations, so that the results are
 # the same bit for bit; tests/test_env_core.py holds each of its results against the batched
-# piece it replaces.  The episode end and the reward are the batched pieces' own formulas
-# (:func:`beyond_bounds`, :func:`step_cost`), called on floats.
+# piece it replaces.  The reward's cost is the batched piece's own formula (:func:`step_cost`),
+# called on floats; the episode end is :func:`beyond_bounds`'s rule joined by ``or``.
 class EpisodeConstants(NamedTuple):
     """What the scalar step (:func:`step_1`) reads that is fixed for one episode
     (:func:`step_constants`; SI, errors in mdeg).
@@ -563,15 +595,15 @@ def _clamp(x: float, b: float) -> float:
     return b if x > b else (-b if x < -b else x)
 
 
-_array, _f32, _floor = np.array, np.float32, math.floor  # the hot path's names
-_tuple_new = tuple.__new__  # a StepState without the NamedTuple constructor's call overhead
+_fromiter, _floor = np.fromiter, math.floor  # the hot path's names
+_tuple_new = tuple.__new__  # a ScalarState without the NamedTuple constructor's call overhead
 
 
 _F32, _F64 = np.dtype(np.float32), np.dtype(np.float64)
 
 
-def step_1(action: Any, bufs: tuple, st: StepState, MT: np.ndarray, row: list, sc: EpisodeConstants
-           ) -> tuple[np.ndarray, float, bool, dict[str, Any], tuple, StepState]:
+def step_1(action: Any, bufs: tuple, st: ScalarState, MT: np.ndarray, row: list, sc: EpisodeConstants
+           ) -> tuple[np.ndarray, float, bool, dict[str, Any], tuple, ScalarState]:
     """One step of one environment on floats: :func:`as_actions` (a fast path for float32 and
     float64 arrays of shape (2,), the same rule), :func:`limit_commands`, the plant map
     (:meth:`dss14_env.envs.plant.Plant.episode_map`), :func:`read_encoders`, :func:`servo_errors`,
@@ -581,7 +613,7 @@ def step_1(action: Any, bufs: tuple, st: StepState, MT: np.ndarray, row: list, s
     :param action: the action as given
     :param bufs: ``(cur, nxt)``, the step buffers' views
         (:func:`dss14_env.envs.plant.buffer_views`; ``cur`` holds the plant state)
-    :param st: the :class:`StepState` (pairs of floats)
+    :param st: the :class:`ScalarState`
     :param MT: the episode's plant map (:meth:`dss14_env.envs.plant.Plant.episode_map`),
         transposed and C-contiguous (``input @ MT``: the fastest matrix-vector product here)
     :param row: the step's row ``[c_az, c_el, c_az_deg, c_el_deg, cd_az, cd_el, n_az, n_el, xi...]``
@@ -601,7 +633,7 @@ def step_1(action: Any, bufs: tuple, st: StepState, MT: np.ndarray, row: list, s
     except (AttributeError, TypeError, ValueError):
         a0, a1 = as_actions(action, (2,)).tolist()
     cur, nxt = bufs
-    (rp0, rp1), (ap0, ap1), (em0_az, em0_el), (n_rate, n_acc), j = st
+    rp0, rp1, ap0, ap1, em0_az, em0_el, n_rate, n_acc, j = st
     (scale, rate_clip, rl, dr, s_az, s_el, quantum, inv_q, me, az_off0, el_lo, el_hi, az_h, inv_es2, w,
      penalty, inv_es, rate_scale, inv_rl, clamp_always, xel_scale, wind_speed, wind_direction, pointing) = sc
     # command limiter
@@ -654,11 +686,15 @@ def step_1(action: Any, bufs: tuple, st: StepState, MT: np.ndarray, row: list, s
     rel_az, rel_el = a_az - s_az, a_el - s_el
     em_az, em_el = (c_az - rel_az) * R2MD, (c_el - rel_el) * R2MD
     e_az, e_el = (c_az - th_az) * R2MD, (c_el - th_el) * R2MD
-    # episode end and reward (the batched pieces' formulas)
-    term = beyond_bounds(e_az, e_el, s_el + th_el, az_off0 + th_az, me, el_lo, el_hi, az_h)
+    # episode end (beyond_bounds's rule) and reward (step_cost)
+    el = s_el + th_el
+    term = (abs(e_az) > me or abs(e_el) > me or el < el_lo or el > el_hi
+            or abs(az_off0 + th_az) > az_h)
     pe_el, pe_xel = (c_el - p_el) * R2MD, (c_az * xel_scale - p_xel) * R2MD
     s0, s1 = (pe_el, pe_xel) if pointing else (e_az, e_el)
-    cost = step_cost(s0, s1, c0 - ap0, c1 - ap1, inv_es2, w, term, penalty)
+    cost = step_cost(s0, s1, c0 - ap0, c1 - ap1, inv_es2, w)
+    if term:
+        cost += penalty
     if not cost < 1.0e300:  # NaN or inf
         raise FloatingPointError(f"the reward became {-cost} (servo errors {e_az}, {e_el} mdeg): the "
                                  "plant left the range it is meant for")
@@ -668,8 +704,8 @@ def step_1(action: Any, bufs: tuple, st: StepState, MT: np.ndarray, row: list, s
     if term or clamp_always:
         o0, o1 = _clamp(o0, OBS_ERROR_BOUND), _clamp(o1, OBS_ERROR_BOUND)
         o2, o3 = _clamp(o2, OBS_ERROR_RATE_BOUND), _clamp(o3, OBS_ERROR_RATE_BOUND)
-    obs = _array((o0, o1, o2, o3, c_deg_az, c_deg_el, cd_az, cd_el, rel_az * R2D, rel_el * R2D,
-                  r0 * inv_rl, r1 * inv_rl), _f32)
+    obs = _fromiter((o0, o1, o2, o3, c_deg_az, c_deg_el, cd_az, cd_el, rel_az * R2D, rel_el * R2D,
+                     r0 * inv_rl, r1 * inv_rl), _F32, OBS_SIZE)
     info = {"servo_error_az_mdeg": e_az, "servo_error_el_mdeg": e_el,
             "measured_error_az_mdeg": em_az, "measured_error_el_mdeg": em_el,
             "pointing_error_el_mdeg": pe_el, "pointing_error_xel_mdeg": pe_xel,
@@ -677,5 +713,5 @@ def step_1(action: Any, bufs: tuple, st: StepState, MT: np.ndarray, row: list, s
             "action_unclipped": (a0, a1), "rate_command_az_deg_s": r0 * R2D,
             "rate_command_el_deg_s": r1 * R2D, "rate_limited": rate_hit, "accel_limited": acc_hit,
             "n_rate_limited": n_rate, "n_accel_limited": n_acc}
-    return obs, -cost, term, info, (nxt, cur), _tuple_new(StepState, ((r0, r1), (c0, c1), (em_az, em_el),
-                                                                      (n_rate, n_acc), j + 1))
+    return obs, -cost, term, info, (nxt, cur), _tuple_new(ScalarState, (r0, r1, c0, c1, em_az, em_el, n_rate,
+                                                                        n_acc, j + 1))

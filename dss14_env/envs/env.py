@@ -20,8 +20,8 @@ from dss14_env.envs.core import (
     OBS_HIGH,
     OBS_NAMES,
     EpisodeConstants,
+    ScalarState,
     StepConstants,
-    StepState,
     as_actions,
     check_seed,
     reset_state,
@@ -378,7 +378,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         self.constants = StepConstants.from_config(c)
         self._renderer = Renderer(render_mode, c.dt, c.render_window_s) if render_mode else None
         self.episode: Episode | None = None
-        self._st: StepState | None = None
+        self._st: ScalarState | None = None
         self._bufs: tuple = ()
         self._riders: list = []
 
@@ -425,9 +425,9 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         self._extras = cfg.info_state or self._renderer is not None
         self._info_state = cfg.info_state
         self._bufs = self._views(False)
-        self._st = StepState(*(tuple(v[0].tolist()) for v in st[:4]), 0)
+        self._st = ScalarState.of(st)
         info = {**episode_info(ep, self.plants.wind_loads), **{key: float(v[0]) for key, v in rinfo.items()}}
-        rp0, rp1 = self._st.r_prev
+        rp0, rp1 = self._st.r_az, self._st.r_el
         obs = obs[0]
         if cfg.info_state:
             info["plant_state"] = ep.x0.copy()
@@ -478,12 +478,12 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
     @property
     def n_rate_limited(self) -> int:
         """Steps of the current episode in which the rate clip acted."""
-        return self._st.hits[0] if self._st is not None else 0
+        return self._st.n_rate if self._st is not None else 0
 
     @property
     def n_accel_limited(self) -> int:
         """Steps of the current episode in which the acceleration limit acted."""
-        return self._st.hits[1] if self._st is not None else 0
+        return self._st.n_acc if self._st is not None else 0
 
     # ------------------------------------------------------------------ step
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
@@ -585,7 +585,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         ok = (m == p.n - p.n_wind and data["_rank"] == p.noise_rank and isinstance(M, np.ndarray)
               and M.shape == (width, m + N_STEP_OUTPUTS) and isinstance(z, tuple) and len(z) == 2
               and all(isinstance(b, np.ndarray) and b.shape == (width + N_STEP_OUTPUTS,) for b in z)
-              and isinstance(st, StepState) and all(len(v) == 2 for v in st[:4])
+              and isinstance(st, ScalarState)
               and isinstance(rows, list) and len(rows) == NOISE_BLOCK
               and all(len(r) == 8 + p.noise_rank for r in rows)
               and _shape(data["_state_map"]) == (p.n, m)
