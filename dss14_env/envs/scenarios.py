@@ -90,7 +90,8 @@ def trajectory(cfg: EnvConfig, rng: np.random.Generator) -> dict[str, np.ndarray
 
 def command_parts(tr: Mapping[str, np.ndarray]) -> tuple[bool, bool, bool]:
     """Which terms of :func:`command` are non-zero: ``(track, step, slew)``."""
-    return (bool(tr["v"].any() or tr["amp"].any()), bool(tr["step"].any()), bool(tr["slew_acc"].any()))
+    nz = np.count_nonzero  # a tenth of the time of ndarray.any on a few entries (every reset)
+    return nz(tr["v"]) + nz(tr["amp"]) > 0, nz(tr["step"]) > 0, nz(tr["slew_acc"]) > 0
 
 
 def command(tr: Mapping[str, np.ndarray], t: np.ndarray, parts: tuple[bool, bool, bool] | None = None
@@ -321,5 +322,11 @@ def draw_noise_block(rng: np.random.Generator, noise_rank: int, encoder_noise: b
         draws; default: a new array)
     :return: ``(NOISE_BLOCK, noise_rank + 2)`` with encoder noise (az, el in the last two
         columns), else ``(NOISE_BLOCK, noise_rank)``
+    :raises ValueError: ``out`` of another shape
     """
-    return rng.standard_normal((NOISE_BLOCK, noise_rank + (2 if encoder_noise else 0)), out=out)
+    shape = (NOISE_BLOCK, noise_rank + (2 if encoder_noise else 0))
+    if out is None:
+        return rng.standard_normal(shape)
+    if out.shape != shape:
+        raise ValueError(f"out must have the noise block's shape {shape}, got {out.shape}")
+    return rng.standard_normal(out=out)  # without the size argument: a sixth faster, the same draws

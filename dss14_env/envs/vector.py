@@ -228,34 +228,39 @@ class DSS14VectorEnv(VectorEnv):
         """Draw new episodes for the sub-environments ``idx`` (same draws as DSS14Env.reset);
         returns them in the order of ``idx``.
         """
-        n, k = self._n, self.constants
+        k = self.constants
         inv_old = self._inv
-        episodes = []
-        for i in idx.tolist():
-            rng = self._rngs[i]
-            ep, ne, normals = draw_reset(cfg, rng, self.plants, k.encoder_sigma)
-            episodes.append(ep)
-            self._noise[:, i] = normals
-            p = ep.plant
-            self._pid[i] = self._plant_id(p)
-            slot = i if inv_old is None else inv_old[i]
-            self._Z[self._cur, :n, slot] = ep.x0
-            self._t_mean_s[:, slot] = ep.t_mean
-            self._Y[i] = p.C[:N_STEP_OUTPUTS] @ ep.x0
-            self._r0[i] = ep.r0
-            self._kappa[i] = ep.kappa
-            self._start[i] = ep.start
-            for key in _TRAJ_KEYS:
-                self._traj[key][i] = ep.traj[key]
-            self._max_e[i] = cfg.max_error_deg * DEG * R2MD
-            self._wind[i] = ep.wind_speed, ep.wind_direction
-            self._ne0[i] = ne
+        draws = [draw_reset(cfg, self._rngs[i], self.plants, k.encoder_sigma) for i in idx.tolist()]
+        episodes = [ep for ep, _, _ in draws]
+        self._store_episodes(idx, episodes, inv_old)
+        self._noise[:, idx] = np.stack([normals for _, _, normals in draws], axis=1)
+        self._ne0[idx] = [ne for _, ne, _ in draws]
+        self._max_e[idx] = cfg.max_error_deg * DEG * R2MD
         self._k[idx] = 0
         self._s.j[idx] = 0
         self._parts = command_parts(self._traj)
         self._regroup(inv_old)
         self._clamp_always = any(k.clamp_always(me) for me in np.unique(self._max_e).tolist())
         return episodes
+
+    def _store_episodes(self, idx: np.ndarray, episodes: list[Episode], inv_old: np.ndarray | None) -> None:
+        """Write the drawn episodes of the sub-environments ``idx`` into the per-sub-environment
+        arrays (the plant state into the slots of the slot order ``inv_old``), one assignment
+        per array.
+        """
+        n = self._n
+        self._pid[idx] = [self._plant_id(ep.plant) for ep in episodes]
+        slots = idx if inv_old is None else inv_old[idx]
+        Z = self._Z[self._cur]
+        Z[:n, slots] = np.stack([ep.x0 for ep in episodes], axis=1)
+        self._t_mean_s[:, slots] = np.stack([ep.t_mean for ep in episodes], axis=1)
+        self._Y[idx] = [ep.plant.C[:N_STEP_OUTPUTS] @ ep.x0 for ep in episodes]
+        self._r0[idx] = [ep.r0 for ep in episodes]
+        self._kappa[idx] = [ep.kappa for ep in episodes]
+        self._start[idx] = [ep.start for ep in episodes]
+        for key in _TRAJ_KEYS:
+            self._traj[key][idx] = [ep.traj[key] for ep in episodes]
+        self._wind[idx] = [(ep.wind_speed, ep.wind_direction) for ep in episodes]
 
     def _regroup(self, inv_old: np.ndarray | None) -> None:
         """Drop plants no sub-environment uses, then group the sub-environments by plant."""
@@ -354,7 +359,10 @@ class DSS14VectorEnv(VectorEnv):
         enc = self.constants.encoder_sigma > 0.0
         for b, i in zip(blocks, idx.tolist(), strict=True):
             draw_noise_block(self._rngs[i], self._k_rank, enc, out=b)
-        self._noise[:, idx] = blocks.transpose(1, 0, 2)
+        if idx.size == self.num_envs:  # all of them (idx sorted): a plain copy, not a scatter
+            self._noise[...] = blocks.transpose(1, 0, 2)
+        else:
+            self._noise[:, idx] = blocks.transpose(1, 0, 2)
 
     def _commands(self) -> tuple[np.ndarray, np.ndarray]:
         """The commands at the end of this step, ``t = (k + 1) dt``, of every sub-environment
