@@ -374,31 +374,51 @@ def is_campaign_folder(path: str | Path) -> bool:
         d.is_dir() and re.fullmatch(r"seed_\d+", d.name) for d in p.iterdir())
 
 
+def selected_evaluation(history: str | Path) -> tuple[int, tuple[bool, float]] | None:
+    """The evaluation ``eval/best`` holds, from a run's ``eval/evaluations.npz``: its index
+    and rank ``(beats the selection's reference on every validation task, selection score)``
+    -- the highest rank, as the training's evaluator keeps it (a history without
+    ``selection_qualified``: every evaluation qualifies); None without scores.
+    """
+    with np.load(history, allow_pickle=False) as d:
+        if "selection_score" not in d.files or not d["selection_score"].size:
+            return None
+        score = d["selection_score"].astype(float)
+        ok = (d["selection_qualified"].astype(bool) if "selection_qualified" in d.files
+              else np.ones(score.size, bool))
+    ranks = list(zip(ok.tolist(), score.tolist(), strict=True))
+    i = max(range(len(ranks)), key=lambda k: ranks[k])  # the first of equal ranks, as kept
+    return i, ranks[i]
+
+
 def best_seed_policy(folder: str | Path) -> tuple[Path, str]:
     """The policy a training campaign folder stands for: ``seed_<k>/eval/best`` of the seed
     whose validation-selected policy has the best validation score (:func:`selection_score`
-    in ``eval/evaluations.npz``: validation seeds only, never the test seeds).
+    in ``eval/evaluations.npz``: validation seeds only, never the test seeds); with
+    ``select_reference``, a seed whose selected policy beats the reference on every validation
+    task ranks before any that does not.
 
     :return: the policy folder and a one-line note saying which seed and why
     :raises ValueError: no seed of the folder has an ``eval/best`` with its scores
     """
     folder = Path(folder)
-    scores: dict[Path, float] = {}
+    ranks: dict[Path, tuple[bool, float]] = {}
     for run in sorted(folder.glob("seed_*"), key=lambda d: int(d.name[5:]) if d.name[5:].isdigit() else -1):
         hist = run / "eval" / "evaluations.npz"
         if not ((run / "eval" / "best" / "policy.pt").is_file() and hist.is_file()):
             continue
-        with np.load(hist, allow_pickle=False) as d:
-            if "selection_score" in d.files and d["selection_score"].size:
-                scores[run] = float(np.max(d["selection_score"]))
-    if not scores:
+        sel = selected_evaluation(hist)
+        if sel is not None:
+            ranks[run] = sel[1]
+    if not ranks:
         raise ValueError(f"--ppo-model: {folder} is a training campaign folder without a seed's "
                          f"eval/best and its validation scores; give a policy folder (e.g. "
                          f"{folder}/seed_0/eval/best)")
-    best = max(scores, key=lambda r: scores[r])
+    best = max(ranks, key=lambda r: ranks[r])
+    beats = " (it beats the selection's reference on every validation task)" if ranks[best][0] else ""
     note = (f"--ppo-model: {folder} is a training campaign: using {best.name}/eval/best, the best "
-            f"validation score of its {counted(len(scores), 'seed')} "
-            f"({scores[best]:.4g}); the campaign's figures over all seeds are in its summary.json")
+            f"validation score of its {counted(len(ranks), 'seed')} "
+            f"({ranks[best][1]:.4g}){beats}; the campaign's figures over all seeds are in its summary.json")
     return best / "eval" / "best", note
 
 

@@ -66,6 +66,9 @@ ACTIVATIONS = ("tanh", "relu", "elu", "leaky_relu")
 #: (``three_sigma``) or 3σ pointing error (``pointing``), or over every validation scenario of
 #: its figure (``general``: :func:`dss14_env.agents.train.general_figure`)
 SELECT_BY = ("return", "three_sigma", "pointing", "general")
+#: reference controllers an evaluation may have to beat on every validation task
+#: (``select_reference``; :data:`dss14_env.agents.campaign_report.REFERENCES`)
+SELECT_REFERENCES = ("pi_kp1", "lqg")
 #: ``auto``: ``batched`` for DSS14 ids (:mod:`dss14_env.agents.vec_env`), ``dummy`` otherwise
 VEC_ENVS = ("auto", "batched", "dummy", "subproc")
 
@@ -138,6 +141,8 @@ class CommonSettings:
     eval_env_kwargs: dict = spec(None, kind="mapping", default_factory=dict)
     eval_episode_steps: int = _int(1, 1000, hi=1_000_000)
     select_by: str = spec(None, kind="str", choices=SELECT_BY, default="return")
+    select_reference: str | None = spec(None, kind="str", choices=SELECT_REFERENCES, optional=True,
+                                        default=None)
     eval_scenarios: tuple = spec(None, kind="list", items=Spec(None, "str", choices=tuple(SCENARIO_TASKS)),
                                  default=DEFAULT_SCENARIOS)
     test_scenarios: tuple = spec(None, kind="list", items=Spec(None, "str", choices=tuple(SCENARIO_TASKS)),
@@ -453,6 +458,9 @@ class TrainConfig:
         out["eval_seeds"] = list(out["eval_seeds"])
         out["test_scenarios"] = _test_scenarios(out["test_scenarios"], source)
         out["eval_scenarios"] = _test_scenarios(out["eval_scenarios"], source, "eval_scenarios")
+        if out["select_reference"] is not None and out["select_by"] == "return":
+            raise ConfigError(f"{source}: field 'select_reference': needs select_by three_sigma, "
+                              f"pointing or general (figures to compare), got select_by return")
         out = json.loads(json.dumps(out, default=_plain))  # plain YAML types
         if algo in ("ppo", "recurrent_ppo"):
             rollout = out["n_steps"] * out["n_envs"]

@@ -45,6 +45,7 @@ from dss14_env.agents.evaluation import (
     check_seed_protocol,
     dss14_tasks,
     run_task,
+    task_env,
 )
 from dss14_env.agents.policy import PolicyController
 from dss14_env.agents.storage import (
@@ -351,9 +352,49 @@ def selection_key(cfg: TrainConfig) -> str:
     return "pointing_three_sigma_mdeg" if cfg.select_by == "pointing" else "three_sigma_mdeg"
 
 
+def selection_figures(cfg: TrainConfig, tasks: list[EvalTask], res: Mapping[str, Mapping[str, Any]]
+                      ) -> dict[str, np.ndarray]:
+    """The per-episode figures a 3σ, pointing or general selection scores, by task name
+    (:func:`general_figure` for every task, else the holds' :func:`selection_key` figure).
+    """
+    if cfg.select_by == "general":
+        return {t.name: general_figure(t, res[t.name]) for t in tasks}
+    key = selection_key(cfg)
+    return {t.name: np.asarray(res[t.name][key], float) for t in tasks if t.axis is not None}
+
+
+def reference_figures(cfg: TrainConfig, tasks: list[EvalTask]) -> dict[str, float]:
+    """``select_reference``'s mean :func:`selection_figures` per validation task: the same
+    seeds, lengths and episodes as the policy's evaluations, the controller built per task on
+    its environment (as the bench builds it).
+    """
+    from dss14_env.agents.campaign_report import reference_controller
+
+    res = {}
+    for t in tasks:
+        env = task_env(t)
+        try:
+            res[t.name] = run_task(reference_controller(cfg.select_reference, env), t, cfg.eval_seeds,
+                                   cfg.eval_episode_steps if t.axis is not None else None,
+                                   cfg.n_eval_episodes)
+        finally:
+            env.close()
+    return {k: float(np.mean(v)) for k, v in selection_figures(cfg, tasks, res).items()}
+
+
+def beats_reference(figures: Mapping[str, np.ndarray], reference: Mapping[str, float]) -> bool:
+    """Whether the mean of every task's figures is below the reference's (lower is better; a
+    non-finite mean never is).
+    """
+    return all(bool(np.mean(figures[k]) < v) for k, v in reference.items())
+
+
 class _Evaluator:
     """The periodic evaluation: the deterministic policy on the validation seeds; keeps
-    ``eval/best`` (best :func:`selection_score`) and ``eval/evaluations.npz``.
+    ``eval/best`` and ``eval/evaluations.npz``.  ``eval/best`` is the evaluation with the best
+    :func:`selection_score` among those that beat ``select_reference`` on every validation task
+    (:func:`beats_reference`; ``selection_qualified`` in the history), or among all while none
+    does (no reference: every evaluation with a finite score qualifies).
     """
 
     def __init__(self, cfg: TrainConfig, plan: EnvPlan, run: Path, run_id: str, config_text: str,
@@ -371,7 +412,12 @@ class _Evaluator:
                 selection_score(cfg, r, {t.name: h[f"{key}_{t.name}"][i] for t in self.tasks
                                          if f"{key}_{t.name}" in h})
                 for i, r in enumerate(h["results"])]
-        self.best = max((float(v) for v in h["selection_score"]), default=-np.inf)
+        if "selection_qualified" not in h:  # a history without a reference: every score counts
+            h["selection_qualified"] = [True] * len(h["selection_score"])
+        #: ``select_reference``'s mean figure per validation task (None: no reference)
+        self.reference = reference_figures(cfg, self.tasks) if cfg.select_reference else None
+        self.best = max(((bool(q), float(v)) for q, v in zip(h["selection_qualified"], h["selection_score"],
+                                                              strict=True)), default=(False, -np.inf))
         self.ctrl: PolicyController | None = None
 
     def __call__(self, model: Any, logger: Any) -> None:
@@ -395,12 +441,13 @@ class _Evaluator:
                 h.setdefault(f"pointing_three_sigma_mdeg_{t.name}", []).append(
                     res[t.name]["pointing_three_sigma_mdeg"])
         mean = float(np.mean(h["results"][-1]))
-        key = selection_key(cfg)
-        figures = ({t.name: general_figure(t, res[t.name]) for t in self.tasks} if cfg.select_by == "general"
-                   else {t.name: res[t.name][key] for t in self.tasks if t.axis is not None})
+        figures = selection_figures(cfg, self.tasks, res)
         score = selection_score(cfg, h["results"][-1], figures,
                                 any(bool(r["terminated"].any()) for r in res.values()))
+        qualified = bool(np.isfinite(score)) and (self.reference is None
+                                                  or beats_reference(figures, self.reference))
         h["selection_score"].append(score)
+        h["selection_qualified"].append(qualified)
         _save_history(self.run / "eval" / "evaluations.npz", h)
         logger.record("eval/mean_return", mean)
         sig = {n: float(np.nanmean(r["three_sigma_mdeg"])) for n, r in res.items()
@@ -411,8 +458,8 @@ class _Evaluator:
             if np.isfinite(r["pointing_three_sigma_mdeg"]).any():
                 logger.record(f"eval/pointing_three_sigma_mdeg_{n}",
                               float(np.nanmean(r["pointing_three_sigma_mdeg"])))
-        if score > self.best:
-            self.best = score
+        if (qualified, score) > self.best:
+            self.best = (qualified, score)
             with atomic_folder(self.run / "eval" / "best") as tmp:
                 write_policy_folder(tmp, model.policy, _stats(cfg, self.venv),
                                     _fingerprint(cfg, self.run_id, model), self.config_text)

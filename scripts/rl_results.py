@@ -36,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dss14_env.agents.campaign import selected_evaluation
 from dss14_env.agents.results import HOLDS, POINTING_AXES, build_results, has_pointing, rl_tables
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -183,15 +184,17 @@ def _selected_at(run: Path) -> int | None:
     path = run / "eval" / "evaluations.npz"
     if not path.is_file():
         return None
+    sel = selected_evaluation(path)
+    if sel is None or not np.isfinite(sel[1][1]):
+        return None  # no evaluation kept a policy: the final one is scored
     with np.load(path, allow_pickle=False) as d:
-        if "selection_score" not in d.files or not np.isfinite(np.max(d["selection_score"])):
-            return None  # no evaluation kept a policy: the final one is scored
-        return int(d["timesteps"][int(np.argmax(d["selection_score"]))])
+        return int(d["timesteps"][sel[0]])
 
 
-def _best_validation(run: Path) -> float:
-    with np.load(run / "eval" / "evaluations.npz", allow_pickle=False) as d:
-        return float(np.max(d["selection_score"]))
+def _best_validation(run: Path) -> tuple[bool, float]:
+    """The rank of a run's selected evaluation: (beats the selection's reference, score)."""
+    sel = selected_evaluation(run / "eval" / "evaluations.npz")
+    return sel[1] if sel is not None else (False, -np.inf)
 
 
 def _campaign(key: str, camp: Path, label: str, shipped: str | None) -> tuple[str, dict, dict]:
@@ -200,16 +203,19 @@ def _campaign(key: str, camp: Path, label: str, shipped: str | None) -> tuple[st
     if "/configs/" in summary.get("config", ""):  # a checkout's path: the shipped config's
         summary["config"] = "configs/" + summary["config"].rsplit("/configs/", 1)[1]
     seed_runs = [camp / f"seed_{e['seed_index']}" for e in summary["per_seed"]]
-    val = [_best_validation(r) for r in seed_runs]
-    pick = int(np.argmax(val))
+    ranks = [_best_validation(r) for r in seed_runs]
+    pick = max(range(len(ranks)), key=lambda k: ranks[k])
     extra = {"selected_at_steps": [_selected_at(r) for r in seed_runs],
-             "validation_score": val,
+             "validation_score": [v for _, v in ranks],
+             "beats_reference": [q for q, _ in ranks],
              "shipped": None if shipped is None else {
                  "folder": f"agents/policies/{shipped}",
                  "seed_index": summary["per_seed"][pick]["seed_index"],
                  "training_seed": summary["training_seeds"][pick],
                  "why": "the best validation score (selection_score of eval/best) of the "
-                        "campaign's seeds; the test seeds played no part"}}
+                        "campaign's seeds, a seed whose policy beats the selection's reference "
+                        "on every validation task first (select_reference); the test seeds "
+                        "played no part"}}
     return label, summary, extra
 
 

@@ -297,6 +297,57 @@ def test_general_selection_scores_every_scenario_and_disqualifies() -> None:
     assert selection_score(cfg, np.zeros(6), figs) == -np.inf
 
 
+def test_beating_the_reference_needs_every_task_below_it() -> None:
+    from dss14_env.agents.train import beats_reference
+
+    ref = {"hold_side": 2.0, "step": 9.9}
+    assert beats_reference({"hold_side": np.array([1.0, 2.5]), "step": np.array([6.0])}, ref)
+    assert not beats_reference({"hold_side": np.array([1.0, 3.5]), "step": np.array([6.0])}, ref)
+    assert not beats_reference({"hold_side": np.array([1.0]), "step": np.array([np.inf, 1.0])}, ref)
+    assert not beats_reference({"hold_side": np.array([2.0]), "step": np.array([1.0])}, ref)  # a tie
+
+
+def test_reference_figures_are_the_references_validation_scores() -> None:
+    """The PI's figures that a selection with ``select_reference`` compares against equal the
+    PI's validation scores computed by the campaign's reference lines (another path), and the
+    step's is its settling time (the PI settles the 0.1 deg step in 8-12 s: docs/bench.md)."""
+    from dss14_env.agents.campaign_report import validation_references
+    from dss14_env.agents.train import reference_figures, validation_tasks
+
+    cfg = TrainConfig.from_dict({"env_id": "DSS14-Plain-v0", "select_by": "general",
+                                 "select_reference": "pi_kp1", "eval_seeds": [1000, 1001],
+                                 "eval_episode_steps": 600, "eval_scenarios": ["hold_side_axis", "step"]})
+    tasks = validation_tasks(cfg)
+    ref = reference_figures(cfg, tasks)
+    other = validation_references(tasks, [1000, 1001], 600)["pi_kp1"]
+    assert ref["hold_side_axis"] == pytest.approx(other["hold_side_axis"]["three_sigma"], rel=1e-9)
+    assert 8.0 < ref["step"] < 12.0
+
+
+def test_select_reference_needs_figures() -> None:
+    with pytest.raises(ConfigError, match="field 'select_reference': needs select_by") as err:
+        TrainConfig.from_dict({"env_id": "DSS14-Plain-v0", "select_reference": "pi_kp1"})
+    assert "\n" not in str(err.value)
+    with pytest.raises(ConfigError, match="field 'select_reference'"):
+        TrainConfig.from_dict({"env_id": "DSS14-Plain-v0", "select_by": "general", "select_reference": "mpc"})
+
+
+def test_an_untrained_policy_keeps_a_best_that_does_not_beat_the_pi(tmp_path) -> None:
+    """Selection against the PI: an untrained policy never beats it on every task, so each
+    evaluation is recorded as not qualified, and ``eval/best`` is still kept (best score)."""
+    from dss14_env.agents.train import train
+
+    cfg = dict(env_id="DSS14-Plain-v0", env_kwargs={"base_id": "DSS14-v0", "max_episode_steps": 100},
+               n_envs=2, total_timesteps=400, n_steps=100, batch_size=100, n_epochs=1, net_arch=[8],
+               eval_freq=200, eval_seeds=[1000], eval_episode_steps=300, checkpoint_freq=0,
+               select_by="general", select_reference="pi_kp1", eval_scenarios=["hold_side", "hold_front"],
+               test_scenarios=["hold_side"], progress_bar=False, verbose=0)
+    run = train(cfg, run_dir=tmp_path / "run")
+    with np.load(run / "eval/evaluations.npz") as d:
+        assert d["selection_qualified"].tolist() == [False, False]
+    assert (run / "eval/best/policy.pt").is_file()
+
+
 def test_validation_tasks_follow_eval_scenarios() -> None:
     from dss14_env.agents.train import validation_tasks
 

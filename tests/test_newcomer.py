@@ -42,6 +42,20 @@ def test_a_campaign_folder_stands_for_its_best_validation_seed(tmp_path: Path) -
     assert "seed_1/eval/best" in note and "3 seeds" in note
 
 
+def test_a_seed_that_beats_the_reference_ranks_before_a_better_score(tmp_path: Path) -> None:
+    _fake_seed(tmp_path, 0, [-1.0, -0.9])
+    _fake_seed(tmp_path, 1, [-3.0, -2.0])
+    _fake_seed(tmp_path, 2, [-1.5])
+    for k, ok in ((0, [False, False]), (1, [True, False]), (2, [False])):
+        hist = tmp_path / f"seed_{k}" / "eval" / "evaluations.npz"
+        with np.load(hist) as d:
+            data = dict(d)
+        np.savez(hist, **data, selection_qualified=np.array(ok))
+    path, note = best_seed_policy(tmp_path)
+    assert path == tmp_path / "seed_1" / "eval" / "best"
+    assert "(-3)" in note and "beats the selection's reference" in note
+
+
 def test_a_campaign_folder_without_results_is_one_line(tmp_path: Path) -> None:
     (tmp_path / "seed_0").mkdir()
     with pytest.raises(ValueError, match="seed_0/eval/best"):
