@@ -335,14 +335,17 @@ def selection_score(cfg: TrainConfig, returns: np.ndarray,
 def general_figure(task: EvalTask, result: Mapping[str, np.ndarray]) -> np.ndarray:
     """Each validation episode's figure of one scenario for ``select_by: general`` (mdeg or s,
     lower is better): a hold's 3σ servo error on its loaded axis; the step's 2 % settling time
-    of the slower axis (inf: never settles); otherwise (track, slew) the geometric mean of the
-    two axes' 3σ servo errors.
+    of the slower axis (inf: never settles); otherwise (track, slew) the larger of the two
+    axes' 3σ servo errors -- the worse axis, as the results tables report them (a mean of both
+    would reward an unloaded axis' error below one encoder count, which is not a property of
+    the controller).
     """
     if task.axis is not None:
         return np.asarray(result["three_sigma_mdeg"], float)
     if task.preset == "step":
         return np.maximum(result["settling_time_s_az"], result["settling_time_s_el"])
-    return np.sqrt(np.asarray(result["servo_three_sigma_mdeg_az"]) * result["servo_three_sigma_mdeg_el"])
+    return np.maximum(np.asarray(result["servo_three_sigma_mdeg_az"], float),
+                      result["servo_three_sigma_mdeg_el"])
 
 
 def selection_key(cfg: TrainConfig) -> str:

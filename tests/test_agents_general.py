@@ -287,11 +287,11 @@ def test_general_selection_scores_every_scenario_and_disqualifies() -> None:
                      "servo_three_sigma_mdeg_el": np.array([4.0, 1.0])},
            "step": {"settling_time_s_az": np.array([5.0, 6.0]), "settling_time_s_el": np.array([7.0, 2.0])}}
     figs = {n: general_figure(tasks[n], r) for n, r in res.items()}
-    np.testing.assert_allclose(figs["track"], [2.0, 2.0])
+    np.testing.assert_allclose(figs["track"], [4.0, 4.0])  # the worse axis
     np.testing.assert_allclose(figs["step"], [7.0, 6.0])
     cfg = TrainConfig.from_dict({"env_id": "DSS14-Plain-v0", "select_by": "general",
                                  "eval_scenarios": ["hold_side", "track", "step"]})
-    assert selection_score(cfg, np.zeros(6), figs) == pytest.approx(-(2.0 * 2.0 * 6.5) ** (1 / 3))
+    assert selection_score(cfg, np.zeros(6), figs) == pytest.approx(-(2.0 * 4.0 * 6.5) ** (1 / 3))
     assert selection_score(cfg, np.zeros(6), figs, terminated=True) == -np.inf
     figs["step"] = np.array([np.inf, 6.0])  # a step that never settles
     assert selection_score(cfg, np.zeros(6), figs) == -np.inf
