@@ -60,7 +60,7 @@ from dss14_env.agents.envs import check_env, resolve_env
 from dss14_env.agents.evaluation import DEFAULT_SCENARIOS, TEST_SEEDS, TEST_STEPS, EvalTask, dss14_tasks
 from dss14_env.agents.policy import load_policy
 from dss14_env.agents.results import SCENARIO_COLUMNS, column_summary, column_values
-from dss14_env.agents.train import train, validation_tasks
+from dss14_env.agents.train import evaluation_ranks, train, validation_tasks
 from dss14_env.core.outdir import (
     atomic_write_bytes,
     atomic_write_text,
@@ -377,16 +377,14 @@ def is_campaign_folder(path: str | Path) -> bool:
 def selected_evaluation(history: str | Path) -> tuple[int, tuple[bool, float]] | None:
     """The evaluation ``eval/best`` holds, from a run's ``eval/evaluations.npz``: its index
     and rank ``(beats the selection's reference on every validation task, selection score)``
-    -- the highest rank, as the training's evaluator keeps it (a history without
-    ``selection_qualified``: every evaluation qualifies); None without scores.
+    -- the highest rank, as the training's evaluator keeps it (:func:`evaluation_ranks`); None
+    without scores.
     """
     with np.load(history, allow_pickle=False) as d:
         if "selection_score" not in d.files or not d["selection_score"].size:
             return None
-        score = d["selection_score"].astype(float)
-        ok = (d["selection_qualified"].astype(bool) if "selection_qualified" in d.files
-              else np.ones(score.size, bool))
-    ranks = list(zip(ok.tolist(), score.tolist(), strict=True))
+        ranks = evaluation_ranks(d["selection_score"].tolist(), d["selection_qualified"].tolist()
+                                 if "selection_qualified" in d.files else None)
     i = max(range(len(ranks)), key=lambda k: ranks[k])  # the first of equal ranks, as kept
     return i, ranks[i]
 

@@ -93,18 +93,32 @@ def validation_references(tasks: Sequence[EvalTask], seeds: Sequence[int], steps
     (the learning curves' reference lines): name -> task -> ``three_sigma``, ``pointing``.
     """
     out: dict[str, Any] = {}
+    holds = [t for t in tasks if t.axis is not None]
     for name in REFERENCES:
-        for t in tasks:
-            if t.preset is None or t.axis is None:
-                continue
-            env = task_env(t)
-            try:
-                r = run_task(reference_controller(name, env), t, seeds, steps, n_episodes)
-            finally:
-                env.close()
-            out.setdefault(name, {})[t.name] = {
+        for t_name, r in reference_runs(name, holds, seeds, steps, n_episodes).items():
+            pointing_axis = next(t.pointing_axis for t in holds if t.name == t_name)
+            out.setdefault(name, {})[t_name] = {
                 "three_sigma": float(np.mean(r["three_sigma_mdeg"])),
-                "pointing": float(np.mean(r["pointing_three_sigma_mdeg"])) if t.pointing_axis else None}
+                "pointing": float(np.mean(r["pointing_three_sigma_mdeg"])) if pointing_axis else None}
+    return out
+
+
+def reference_runs(name: str, tasks: Sequence[EvalTask], seeds: Sequence[int], steps: int | None,
+                   n_episodes: int = 1) -> dict[str, dict[str, Any]]:
+    """The :func:`run_task` results of the reference ``name`` on each DSS14 task (built per task
+    on its environment, as the bench builds it): the holds ``steps`` long, the other scenarios
+    in their own lengths.
+    """
+    out: dict[str, dict[str, Any]] = {}
+    for t in tasks:
+        if t.preset is None:
+            continue
+        env = task_env(t)
+        try:
+            out[t.name] = run_task(reference_controller(name, env), t, seeds,
+                                   steps if t.axis is not None else None, n_episodes)
+        finally:
+            env.close()
     return out
 
 

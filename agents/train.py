@@ -24,6 +24,7 @@ naming the last checkpoint and the command that resumes from it.
 from __future__ import annotations
 
 import json
+import math
 import re
 import shlex
 import time
@@ -45,7 +46,6 @@ from dss14_env.agents.evaluation import (
     check_seed_protocol,
     dss14_tasks,
     run_task,
-    task_env,
 )
 from dss14_env.agents.policy import PolicyController
 from dss14_env.agents.storage import (
@@ -371,18 +371,22 @@ def reference_figures(cfg: TrainConfig, tasks: list[EvalTask]) -> dict[str, floa
     seeds, lengths and episodes as the policy's evaluations, the controller built per task on
     its environment (as the bench builds it).
     """
-    from dss14_env.agents.campaign_report import reference_controller
+    from dss14_env.agents.campaign_report import reference_runs
 
-    res = {}
-    for t in tasks:
-        env = task_env(t)
-        try:
-            res[t.name] = run_task(reference_controller(cfg.select_reference, env), t, cfg.eval_seeds,
-                                   cfg.eval_episode_steps if t.axis is not None else None,
-                                   cfg.n_eval_episodes)
-        finally:
-            env.close()
+    res = reference_runs(cfg.select_reference, tasks, cfg.eval_seeds, cfg.eval_episode_steps,
+                         cfg.n_eval_episodes)
     return {k: float(np.mean(v)) for k, v in selection_figures(cfg, tasks, res).items()}
+
+
+def evaluation_ranks(scores: Any, qualified: Any = None) -> list[tuple[bool, float]]:
+    """Each evaluation's rank ``(qualified, selection score)``: ``eval/best`` holds the highest
+    (the first of equal ranks).  Without the ``qualified`` flags (a history written before
+    them) an evaluation qualifies where its score is finite, as one recorded without a
+    reference.
+    """
+    s = [float(v) for v in scores]
+    q = [bool(v) for v in qualified] if qualified is not None else [math.isfinite(v) for v in s]
+    return list(zip(q, s, strict=True))
 
 
 def beats_reference(figures: Mapping[str, np.ndarray], reference: Mapping[str, float]) -> bool:
@@ -415,12 +419,12 @@ class _Evaluator:
                 selection_score(cfg, r, {t.name: h[f"{key}_{t.name}"][i] for t in self.tasks
                                          if f"{key}_{t.name}" in h})
                 for i, r in enumerate(h["results"])]
-        if "selection_qualified" not in h:  # a history without a reference: every score counts
-            h["selection_qualified"] = [True] * len(h["selection_score"])
+        if "selection_qualified" not in h:  # a history written before the flags
+            h["selection_qualified"] = [q for q, _ in evaluation_ranks(h["selection_score"])]
         #: ``select_reference``'s mean figure per validation task (None: no reference)
         self.reference = reference_figures(cfg, self.tasks) if cfg.select_reference else None
-        self.best = max(((bool(q), float(v)) for q, v in zip(h["selection_qualified"], h["selection_score"],
-                                                              strict=True)), default=(False, -np.inf))
+        self.best = max(evaluation_ranks(h["selection_score"], h["selection_qualified"]),
+                        default=(False, -np.inf))
         self.ctrl: PolicyController | None = None
 
     def __call__(self, model: Any, logger: Any) -> None:
