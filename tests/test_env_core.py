@@ -36,7 +36,7 @@ from dss14_env.envs.core import (
     step_info,
     terminated,
 )
-from dss14_env.envs.plant import buffer_views, step_buffers
+from dss14_env.envs.plant import block_views, step_block
 
 SLOW = settings.get_profile("dss14-slow")  # tests/conftest.py
 
@@ -105,18 +105,19 @@ def _run_both(d: dict) -> None:
     M = np.zeros((M_STATES + 4, h + M_STATES))
     M[:M_STATES] = rng.normal(size=(M_STATES, h + M_STATES))
     M[M_STATES:, 2] = np.concatenate([theta, d["point"]])
-    z0, z1 = step_buffers(M, np.array(d["x0"]), np.zeros(4))
-    cur, nxt = buffer_views(z0, M_STATES), buffer_views(z1, M_STATES)
-    row = [*c, *(c * R2D), *d["cd"], *d["noise"], *d["xi"]]
+    B = step_block(M, np.array(d["x0"]), np.zeros(4), 1)
+    B[0, 3:h] = d["xi"]
+    views = block_views(B, M_STATES)
+    row = [*c, *(c * R2D), *d["cd"], *d["noise"]]
     sc = step_constants(k, tuple(start), d["me"], d["xel"], *d["wind"])
     st_in = ScalarState(*d["rp"].tolist(), *d["ap"].tolist(), *d["em0"].tolist(), *d["hits"], 3)
     a = d["a"]
-    obs1, rew1, term1, info1, bufs1, st1 = step_1(a, (cur, nxt), st_in, np.ascontiguousarray(M.T), row, sc)
+    obs1, rew1, term1, info1, st1 = step_1(a, views[0], st_in, np.ascontiguousarray(M.T), row, sc)
 
     # the plant map: one exact matrix product
     z_in = np.concatenate([(st1.r_az, st1.r_el), [1.0], d["xi"], d["x0"]])
-    np.testing.assert_array_equal(z1[M_STATES + h:], M[M_STATES:] @ z_in)
-    np.testing.assert_allclose(z1[h:h + M_STATES], M[:M_STATES] @ z_in, rtol=1e-12, atol=1e-12)
+    np.testing.assert_array_equal(B[1, M_STATES + h:], M[M_STATES:] @ z_in)
+    np.testing.assert_allclose(B[1, h:h + M_STATES], M[:M_STATES] @ z_in, rtol=1e-12, atol=1e-12)
     # the batched pieces on the same inputs (N = 1)
     A = as_actions(a, (2,))[None]
     ac, r, rate_hit, acc_hit = limit_commands(A, d["rp"][None], k)
@@ -142,7 +143,7 @@ def _run_both(d: dict) -> None:
             assert info1[key] == tuple(v[0])
         else:
             assert info1[key] == v[0], key
-    assert bufs1[0] is nxt and bufs1[1] is cur and st1.j == 4
+    assert st1.j == 4
     assert (st1.n_rate, st1.n_acc) == (info1["n_rate_limited"], info1["n_accel_limited"])
 
 

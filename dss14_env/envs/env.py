@@ -32,9 +32,9 @@ from dss14_env.envs.plant import (
     N_STEP_OUTPUTS,
     OUTPUTS,
     PlantFactory,
-    buffer_views,
+    block_views,
     resolve_factory,
-    step_buffers,
+    step_block,
 )
 from dss14_env.envs.presets import registered_ids_table
 from dss14_env.envs.render import Renderer
@@ -43,6 +43,7 @@ from dss14_env.envs.scenarios import (
     Episode,
     block_rows,
     command,
+    command_parts,
     draw_noise_block,
     draw_reset,
     episode_info,
@@ -379,7 +380,8 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         self._renderer = Renderer(render_mode, c.dt, c.render_window_s) if render_mode else None
         self.episode: Episode | None = None
         self._st: ScalarState | None = None
-        self._bufs: tuple = ()
+        self._block: np.ndarray | None = None
+        self._views: list = []
         self._riders: list = []
 
     # ------------------------------------------------------------------ reset
@@ -407,11 +409,20 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         C = p.C @ Tm
         x0 = Pm @ ep.x0
         y0 = C[:N_STEP_OUTPUTS] @ x0
-        self._z = step_buffers(M, x0, y0)
+        B = self._block
+        if (B is not None and B.shape == (NOISE_BLOCK + 1, M.shape[1] + N_STEP_OUTPUTS)
+                and self._m == x0.shape[0]):
+            n_in = M.shape[1]  # the buffers of the last episode: every entry is written before it is read
+            B[0, n_in - x0.shape[0]:n_in] = x0
+            B[0, n_in:] = y0
+        else:
+            self._block = step_block(M, x0, y0, NOISE_BLOCK)
+            self._views = block_views(self._block, x0.shape[0])
         self._m, self._rank = x0.shape[0], p.noise_rank
         self._state_map, self._C_gust = Tm, C[N_STEP_OUTPUTS:]
         self._gust_az, self._gust_inv = gust_divisor(ep.kappa, p.g0)
         self.episode = ep
+        self._parts = command_parts(ep.traj)
         self._next_block(0, normals)
         # the state, first observation and info through the batched core (N = 1)
         c, cd = command(ep.traj, np.zeros(1))
@@ -424,7 +435,6 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         self._sc = step_constants(k, (s_az, s_el), me, p.xel_scale, ep.wind_speed, ep.wind_direction)
         self._extras = cfg.info_state or self._renderer is not None
         self._info_state = cfg.info_state
-        self._bufs = self._views(False)
         self._st = ScalarState.of(st)
         info = {**episode_info(ep, self.plants.wind_loads), **{key: float(v[0]) for key, v in rinfo.items()}}
         rp0, rp1 = self._st.r_az, self._st.r_el
@@ -441,21 +451,27 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
                 self._renderer.show()
         return obs, info
 
-    def _views(self, swapped: bool) -> tuple:
-        """The current and next step buffers' views (:func:`dss14_env.envs.plant.buffer_views`)."""
-        v0, v1 = (buffer_views(z, self._m) for z in self._z)
-        return (v1, v0) if swapped else (v0, v1)
-
     def _next_block(self, k0: int, normals: np.ndarray | None = None) -> None:
-        """Per-step rows of steps ``k0 .. k0 + NOISE_BLOCK - 1`` (as lists of floats):
-        :func:`dss14_env.envs.scenarios.block_rows`, from ``normals`` (drawn here if None).
+        """The steps ``k0 .. k0 + NOISE_BLOCK - 1``: their rows (as lists of floats,
+        :func:`dss14_env.envs.scenarios.block_rows`) and their gust noise in the step block
+        (:func:`dss14_env.envs.plant.step_block`), from ``normals`` (drawn here if None); after the
+        first block, the state the last step wrote starts the new one.
         """
         k = self.constants
         if normals is None:
             normals = draw_noise_block(self.np_random, self._rank, k.encoder_sigma > 0.0)
-        blk = block_rows(self.episode.traj, k0, k.dt, k.rate_limit, normals, k.encoder_sigma)
-        self._rows = blk.tolist()
+        B = self._block
+        if k0:
+            B[0, -(self._m + N_STEP_OUTPUTS):] = B[NOISE_BLOCK, -(self._m + N_STEP_OUTPUTS):]
+        B[:NOISE_BLOCK, 3:3 + self._rank] = normals[:, :self._rank]
+        self._rows = block_rows(self.episode.traj, k0, k.dt, k.rate_limit, normals, k.encoder_sigma,
+                                parts=self._parts).tolist()
         self._k0 = k0
+
+    def _plant_state(self) -> np.ndarray:
+        """The current one-copy plant state (a view into the step block)."""
+        n_in = self._block.shape[1] - N_STEP_OUTPUTS
+        return self._block[self._st.j, n_in - self._m:n_in]
 
     def wind_gust(self) -> float:
         """The current gust speed about the mean wind speed, m/s (0 without wind).
@@ -464,7 +480,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         """
         if self._st is None:
             raise RuntimeError("call reset() before wind_gust()")
-        return self._gust_of(self._bufs[0][2][:self._m])
+        return self._gust_of(self._plant_state())
 
     def _gust_of(self, x: np.ndarray) -> float:
         tg = self._C_gust @ x  # x: the episode's one-copy state
@@ -502,15 +518,14 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
             as_actions(action, (2,))  # checked before the next noise block changes the generator
             self._next_block(self._k0 + j)
             st, j = st._replace(j=0), 0
-        obs, rew, term, info, self._bufs, self._st = step_1(action, self._bufs, st, self._M, self._rows[j],
-                                                            self._sc)
+        obs, rew, term, info, self._st = step_1(action, self._views[j], st, self._M, self._rows[j], self._sc)
         if self._extras:
             self._step_extras(info)
         return obs, rew, term, False, info
 
     def _step_extras(self, info: dict) -> None:
         """``info["plant_state"]`` and the render history, when asked for."""
-        x = self._bufs[0][2][:self._m]
+        x = self._plant_state()
         if self._info_state:
             info["plant_state"] = self._state_map @ x
         if self._renderer is not None:
@@ -525,21 +540,21 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
 
     # ------------------------------------------------------------------ copies and state
     #: the attributes of the dynamic state (:meth:`get_state`)
-    _STATE = ("_z", "_bufs", "_st", "_rows", "_k0", "_np_random", "_np_random_seed", "episode", "_M", "_sc",
-              "_m", "_rank", "_state_map", "_C_gust", "_gust_az", "_gust_inv", "_info_state", "_extras")
+    _STATE = ("_block", "_st", "_rows", "_k0", "_parts", "_np_random", "_np_random_seed", "episode", "_M",
+              "_sc", "_m", "_rank", "_state_map", "_C_gust", "_gust_az", "_gust_inv", "_info_state",
+              "_extras")
     #: the parts of it that never change in place (kept by reference in a snapshot)
-    _SHARED = ("episode", "_M", "_sc", "_rows", "_state_map", "_C_gust")
+    _SHARED = ("episode", "_M", "_sc", "_rows", "_parts", "_state_map", "_C_gust")
 
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()
-        if self._st is not None:  # views do not survive a copy: keep which buffer is current
-            state["_bufs"] = self._bufs[0][0] is self._z[1]
+        state["_views"] = []  # views do not survive a copy: made again from the step block
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         self.__dict__.update(state)
-        if self._st is not None:
-            self._bufs = self._views(self._bufs)
+        if self._block is not None:
+            self._views = block_views(self._block, self._m)
 
     def attach(self, rider: Any) -> None:
         """Make ``rider``'s state part of this environment's snapshots: :meth:`get_state` holds
@@ -580,14 +595,13 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         model (:meth:`set_state`).
         """
         p = self.plants.plant(0.0, self.config.dt)  # sizes only
-        m, M, z, st, rows = data["_m"], data["_M"], data["_z"], data["_st"], data["_rows"]
+        m, M, B, st, rows = data["_m"], data["_M"], data["_block"], data["_st"], data["_rows"]
         width = 3 + p.noise_rank + m
         ok = (m == p.n - p.n_wind and data["_rank"] == p.noise_rank and isinstance(M, np.ndarray)
-              and M.shape == (width, m + N_STEP_OUTPUTS) and isinstance(z, tuple) and len(z) == 2
-              and all(isinstance(b, np.ndarray) and b.shape == (width + N_STEP_OUTPUTS,) for b in z)
+              and M.shape == (width, m + N_STEP_OUTPUTS)
+              and _shape(B) == (NOISE_BLOCK + 1, width + N_STEP_OUTPUTS)
               and isinstance(st, ScalarState)
-              and isinstance(rows, list) and len(rows) == NOISE_BLOCK
-              and all(len(r) == 8 + p.noise_rank for r in rows)
+              and isinstance(rows, list) and len(rows) == NOISE_BLOCK and all(len(r) == 8 for r in rows)
               and _shape(data["_state_map"]) == (p.n, m)
               and _shape(data["_C_gust"]) == (len(OUTPUTS) - N_STEP_OUTPUTS, m)
               and isinstance(data["episode"], Episode) and isinstance(data["_sc"], EpisodeConstants))

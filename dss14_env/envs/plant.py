@@ -378,27 +378,31 @@ def _batch_step_matrix(p: Plant) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------- one episode's step
-def step_buffers(M: np.ndarray, x0: np.ndarray, y0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The two step buffers ``z = [r_a, r_e, 1, xi, u, y]`` of an episode map ``M``
-    (:meth:`Plant.episode_map`), the first holding the one-copy start state ``x0`` and its
-    outputs ``y0``; :func:`buffer_views` makes the views the step reads and writes
+def step_block(M: np.ndarray, x0: np.ndarray, y0: np.ndarray, steps: int) -> np.ndarray:
+    """The step buffers of ``steps`` steps of an episode map ``M`` (:meth:`Plant.episode_map`),
+    one row per step and one more: row ``j`` is ``z = [r_a, r_e, 1, xi, u, y]``, step ``j``'s
+    input ``[r, 1, xi, u]`` followed by the outputs ``y`` of the step before, which wrote
+    ``[u, y]``.  Row 0 holds the one-copy start state ``x0`` and its outputs ``y0``; the noise
+    columns ``xi`` are filled a block of steps at a time, so that a step writes only its rate
+    command.  :func:`block_views` makes the views the steps read and write
     (:func:`dss14_env.envs.core.step_1`).
     """
     n_in = M.shape[1]
-    z0, z1 = np.zeros(n_in + N_STEP_OUTPUTS), np.zeros(n_in + N_STEP_OUTPUTS)
-    z0[2] = z1[2] = 1.0
-    z0[n_in - x0.shape[0]:n_in] = x0
-    z0[n_in:] = y0
-    return z0, z1
+    B = np.zeros((steps + 1, n_in + N_STEP_OUTPUTS))
+    B[:, 2] = 1.0
+    B[0, n_in - x0.shape[0]:n_in] = x0
+    B[0, n_in:] = y0
+    return B
 
 
-def buffer_views(z: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``(z, input [r, 1, xi, u], state and outputs [u, y], outputs y)`` of one step buffer of
-    an episode with ``m`` one-copy states (views, so that ``M @ input`` is written in place into
-    the other buffer's ``[u, y]``: one matrix-vector product per step, no copies).
+def block_views(B: np.ndarray, m: int) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+    """Per step ``j`` of a :func:`step_block` ``B`` of an episode with ``m`` one-copy states:
+    ``(z_j, input_j [r, 1, xi, u], [u, y] of row j + 1, y of row j + 1)``, views, so that
+    ``input_j @ M^T`` is written in place into the next row (one matrix-vector product per step,
+    no copies).
     """
-    n_in = z.shape[0] - N_STEP_OUTPUTS
-    return z, z[:n_in], z[n_in - m:], z[n_in:]
+    n_in = B.shape[1] - N_STEP_OUTPUTS
+    return [(B[j], B[j, :n_in], B[j + 1, n_in - m:], B[j + 1, n_in:]) for j in range(B.shape[0] - 1)]
 
 
 # ---------------------------------------------------------------------- plants of one model
@@ -465,8 +469,8 @@ class PlantFactory:
             :data:`dss14_env.model.uncertainty.SWEEP_PARAMS`) replacing the nominal ones
         :param encoders: what the encoders measure (:data:`ENCODER_OUTPUTS`)
         """
-        key = (tuple(sorted((k, float(v)) for k, v in (params or {}).items())), float(wind_speed), float(dt),
-               encoders)
+        key = (tuple(sorted((k, float(v)) for k, v in params.items())) if params else (), float(wind_speed),
+               float(dt), encoders)
         plant = self._plants.get(key)
         if plant is not None:
             self._plants.move_to_end(key)

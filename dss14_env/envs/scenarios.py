@@ -94,6 +94,21 @@ def command_parts(tr: Mapping[str, np.ndarray]) -> tuple[bool, bool, bool]:
     return nz(tr["v"]) + nz(tr["amp"]) > 0, nz(tr["step"]) > 0, nz(tr["slew_acc"]) > 0
 
 
+def _per_axis(t: np.ndarray, like: np.ndarray) -> np.ndarray:
+    """The times ``t`` once per axis: a new contiguous array of the shape of ``t[..., None]``
+    broadcast with ``like`` (an operation of an ``(N, 1)`` with an ``(N, 2)`` array goes pair by
+    pair, several times slower than one of two ``(N, 2)`` arrays); ``t[..., None]`` itself where
+    the axes are not the last dimension of ``like``.
+    """
+    shape = np.broadcast(t[..., None], like).shape
+    if shape[-1] != 2:  # the axes lie elsewhere: the operations run along the times already
+        return t[..., None]
+    out = np.empty(shape)
+    out[..., 0] = t
+    out[..., 1] = t
+    return out
+
+
 def command(tr: Mapping[str, np.ndarray], t: np.ndarray, parts: tuple[bool, bool, bool] | None = None
             ) -> tuple[np.ndarray, np.ndarray]:
     """Commanded positions and rates relative to the start (rad, rad/s).
@@ -113,7 +128,7 @@ def command(tr: Mapping[str, np.ndarray], t: np.ndarray, parts: tuple[bool, bool
     ([1.0, 1.0], [0.0, 0.0])
     """
     track, step, slew = command_parts(tr) if parts is None else parts
-    t = np.asarray(t, float)[..., None]
+    t = _per_axis(np.asarray(t, float), tr["v"])
     if track:  # c = v t + A (sin(w t + phi) - sin(phi)), c_dot = v + A w cos(w t + phi), in place
         wt = tr["omega"] * t
         wt += tr["phase"]
@@ -277,15 +292,17 @@ def start_elevation(cfg: EnvConfig, rng: np.random.Generator, plants: PlantFacto
 
 
 def block_rows(tr: Mapping[str, np.ndarray], k0: int, dt: float, rate_limit: float,
-               normals: np.ndarray, encoder_sigma: float, out: np.ndarray | None = None) -> np.ndarray:
+               normals: np.ndarray, encoder_sigma: float, out: np.ndarray | None = None,
+               parts: tuple[bool, bool, bool] | None = None) -> np.ndarray:
     """Per-step rows of the steps ``k0 .. k0 + NOISE_BLOCK - 1`` of one or more episodes.
 
-    Row ``j`` is ``[c (2), c in deg (2), c_dot / rate_limit (2), encoder noise (2), xi (k)]``:
-    the command at the end of step ``k0 + j`` (``t = (k0 + j + 1) dt``; rad, deg and scaled
-    rate), the step's encoder noise (rad; zeros when there is none) and its standard normals of
-    the gust noise.  The single environment steps through these rows; the vector environment
-    evaluates :func:`command` at each step's ``t`` for all its sub-environments with the same
-    operations, so they agree exactly.
+    Row ``j`` is ``[c (2), c in deg (2), c_dot / rate_limit (2), encoder noise (2)]``: the
+    command at the end of step ``k0 + j`` (``t = (k0 + j + 1) dt``; rad, deg and scaled rate)
+    and the step's encoder noise (rad; zeros when there is none).  The single environment steps
+    through these rows (the gust noise's standard normals, the first ``k`` columns of
+    ``normals``, go into its step block, :func:`dss14_env.envs.plant.step_block`); the vector
+    environment evaluates :func:`command` at each step's ``t`` for all its sub-environments with
+    the same operations, so they agree exactly.
 
     :param tr: trajectory parameters, arrays ``(2,)`` for one episode, or ``(1, N, 2)`` for N
         stacked episodes (then the block is time-major: ``(NOISE_BLOCK, N, ...)``)
@@ -295,14 +312,28 @@ def block_rows(tr: Mapping[str, np.ndarray], k0: int, dt: float, rate_limit: flo
     :param normals: :func:`draw_noise_block` output ``(NOISE_BLOCK, k [+ 2])``, or
         ``(NOISE_BLOCK, N, k [+ 2])`` for stacked episodes
     :param encoder_sigma: encoder noise std, rad (0: the normals have no encoder columns)
-    :param out: array to write the rows to (default: a new one)
-    :return: ``(NOISE_BLOCK, [N,] 8 + k)``
+    :param out: array to write the rows to (default: a new one; for one episode a transposed
+        view of one, its rows are read as lists)
+    :param parts: :func:`command_parts` of ``tr`` (computed here if None)
+    :return: ``(NOISE_BLOCK, [N,] 8)``
     """
     t = (np.arange(k0 + 1, k0 + 1 + NOISE_BLOCK) * dt).reshape((NOISE_BLOCK,) + (1,) * (normals.ndim - 2))
-    c, cd = command(tr, t)
     k = normals.shape[-1] - (2 if encoder_sigma else 0)
+    if normals.ndim == 2 and out is None:
+        # one episode: entries first, so that every operation runs along the block
+        c, cd = command({key: v[:, None, None] for key, v in tr.items()}, t, parts)
+        rows = np.empty((8, NOISE_BLOCK))
+        rows[0:2] = c[..., 0]
+        np.multiply(c[..., 0], R2D, out=rows[2:4])
+        np.multiply(cd[..., 0], 1.0 / rate_limit, out=rows[4:6])
+        if encoder_sigma:
+            np.multiply(normals[:, k:].T, encoder_sigma, out=rows[6:8])
+        else:
+            rows[6:8] = 0.0
+        return rows.T
+    c, cd = command(tr, t, parts)
     if out is None:
-        out = np.empty(normals.shape[:-1] + (8 + k,))
+        out = np.empty(normals.shape[:-1] + (8,))
     out[..., 0:2] = c
     np.multiply(c, R2D, out=out[..., 2:4])
     np.multiply(cd, 1.0 / rate_limit, out=out[..., 4:6])
@@ -310,7 +341,6 @@ def block_rows(tr: Mapping[str, np.ndarray], k0: int, dt: float, rate_limit: flo
         np.multiply(normals[..., k:], encoder_sigma, out=out[..., 6:8])
     else:
         out[..., 6:8] = 0.0
-    out[..., 8:] = normals[..., :k]
     return out
 
 
