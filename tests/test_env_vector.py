@@ -14,14 +14,19 @@ from dss14_env.envs.vector import DSS14VectorEnv
 INFO = ("servo_error_az_mdeg", "servo_error_el_mdeg", "measured_error_az_mdeg", "measured_error_el_mdeg",
         "pointing_error_el_mdeg", "pointing_error_xel_mdeg", "wind_speed_mps", "wind_direction_rad",
         "rate_command_az_deg_s", "rate_command_el_deg_s")
-# (config, constant action or None for small random ones): the second makes sub-environments
-# hit the elevation limit at different steps, so autoresets desynchronise them
+# (config, constant action or None for small random ones, episode length): the second makes
+# sub-environments hit the elevation limit at different steps, so autoresets desynchronise them;
+# the last truncates episodes at the end of their first noise block, so that a block falls due
+# on the step that resets them, beside desynchronised ones
 CASES = {
     "track-random-wind-encoder-noise": (dict(scenario="track", wind_speed_kmh="random",
-                                             wind_direction="random", encoder_noise_mdeg=0.1), None),
+                                             wind_direction="random", encoder_noise_mdeg=0.1), None, 400),
     "hold-terminating-at-el-limit": (dict(scenario="hold", wind_speed_kmh="random",
-                                          start_el_deg="random", start_el_range_deg=[6.05, 6.5]), -0.5),
-    "slew-exact-encoders": (dict(scenario="slew", wind_speed_kmh=30.0, encoder_bits=None), None),
+                                          start_el_deg="random", start_el_range_deg=[6.05, 6.5]), -0.5, 400),
+    "slew-exact-encoders": (dict(scenario="slew", wind_speed_kmh=30.0, encoder_bits=None), None, 400),
+    "hold-truncating-at-a-block-end": (dict(scenario="hold", wind_speed_kmh="random", start_el_deg="random",
+                                            start_el_range_deg=[6.05, 9.0], encoder_noise_mdeg=0.1),
+                                       -0.3, 256),
 }
 
 
@@ -34,9 +39,9 @@ def _actions(const: float | None, T: int, N: int) -> np.ndarray:
 @pytest.mark.parametrize("case", CASES)
 def test_vector_env_equals_single_envs_with_seeds_seed_plus_i(case: str) -> None:
     # seeding rule: sub-environment i == a single env reset with seed + i; NEXT_STEP autoreset;
-    # 700 steps cross two noise blocks of 256 steps, episodes end at 400 steps or earlier
-    kw, const = CASES[case]
-    N, T, max_steps, seed = 3, 700, 400, 10
+    # 700 steps cross two noise blocks of 256 steps, episodes end at max_steps or earlier
+    kw, const, max_steps = CASES[case]
+    N, T, seed = 3, 700, 10
     acts = _actions(const, T, N)
     venv = DSS14VectorEnv(num_envs=N, max_episode_steps=max_steps, **kw)
     obs, info = venv.reset(seed=seed)
@@ -68,6 +73,8 @@ def test_vector_env_equals_single_envs_with_seeds_seed_plus_i(case: str) -> None
         np.testing.assert_allclose(np.array(s_info), v_info[:, i], rtol=1e-7, atol=1e-9)
     if case == "hold-terminating-at-el-limit":
         assert v_term.sum() >= N  # the desynchronising terminations did happen
+    if case == "hold-truncating-at-a-block-end":  # both kinds of episode end did happen
+        assert v_term.sum() >= 1 and v_trunc.sum() >= 1
 
 
 def test_make_vec_vector_entry_point_equals_the_sync_vector_env() -> None:

@@ -97,9 +97,13 @@ OBS_POSITION_BOUND_DEG = 720.0
 _BOUNDS = {"error": OBS_ERROR_BOUND, "error_rate": OBS_ERROR_RATE_BOUND, "command": OBS_POSITION_BOUND_DEG,
            "command_rate": 1.0, "encoder": OBS_POSITION_BOUND_DEG, "prev_rate": 1.0}
 OBS_HIGH = np.array([_BOUNDS[pair] for pair in ObsLayout._fields for _ in range(2)], dtype=np.float32)
-#: the clamped entries (errors and error rates)
-_CLAMPED = slice(OBS.error.start, OBS.error_rate.stop)
-_LOW4, _HIGH4 = (b[_CLAMPED, None].astype(np.float64) for b in (-OBS_HIGH, OBS_HIGH))  # columns
+#: the batched observation's pair indices (:func:`observation` builds it pair-major)
+_N_PAIRS = len(ObsLayout._fields)
+_P_ERROR, _P_RATE, _P_COMMAND, _P_COMMAND_RATE, _P_ENCODER, _P_PREV_RATE = (
+    getattr(OBS, name).start // 2 for name in ObsLayout._fields)
+#: the clamped pairs (errors and error rates) and their bounds, one per pair
+_P_CLAMPED = slice(_P_ERROR, _P_RATE + 1)
+_PAIR_BOUNDS = OBS_HIGH[OBS.error.start:OBS.error_rate.stop:2, None, None].astype(np.float64)
 #: the info keys of every step, in order
 INFO_KEYS = ("servo_error_az_mdeg", "servo_error_el_mdeg", "measured_error_az_mdeg",
              "measured_error_el_mdeg", "pointing_error_el_mdeg", "pointing_error_xel_mdeg",
@@ -393,21 +397,25 @@ def observation(em: np.ndarray, em_prev: np.ndarray | None, c_deg: np.ndarray, c
     :param r: applied rate commands, rad/s
     :param clamp: clamp the errors and error rates to their bounds
     """
-    o = np.empty((OBS_SIZE, em.shape[0]))  # entry-major, float64: each pair a contiguous row pair
-    np.multiply(em.T, 1.0 / k.error_scale, out=o[OBS.error])
+    n = em.shape[0]
+    o = np.empty((_N_PAIRS, n, 2))  # pair-major, float64: each pair one contiguous (N, 2) block
+    np.multiply(em, 1.0 / k.error_scale, out=o[_P_ERROR])
     if em_prev is None:
-        o[OBS.error_rate] = 0.0
+        o[_P_RATE] = 0.0
     else:
-        np.subtract(em.T, em_prev.T, out=o[OBS.error_rate])
-        o[OBS.error_rate] *= k.error_rate_scale
+        np.subtract(em, em_prev, out=o[_P_RATE])
+        o[_P_RATE] *= k.error_rate_scale
     if clamp:
-        np.maximum(o[_CLAMPED], _LOW4, out=o[_CLAMPED])
-        np.minimum(o[_CLAMPED], _HIGH4, out=o[_CLAMPED])
-    o[OBS.command] = c_deg.T
-    o[OBS.command_rate] = cd_scaled.T
-    np.multiply(rel.T, R2D, out=o[OBS.encoder])
-    np.multiply(r.T, 1.0 / k.rate_limit, out=o[OBS.prev_rate])
-    return o.T.astype(np.float32, order="C")  # each entry rounded once, from float64
+        np.maximum(o[_P_CLAMPED], -_PAIR_BOUNDS, out=o[_P_CLAMPED])
+        np.minimum(o[_P_CLAMPED], _PAIR_BOUNDS, out=o[_P_CLAMPED])
+    o[_P_COMMAND] = c_deg
+    o[_P_COMMAND_RATE] = cd_scaled
+    np.multiply(rel, R2D, out=o[_P_ENCODER])
+    np.multiply(r, 1.0 / k.rate_limit, out=o[_P_PREV_RATE])
+    o32 = o.astype(np.float32)  # each entry rounded once, from float64
+    # (pairs, N, 2) -> (N, pairs, 2), each pair moved as one 8-byte item (a transposing copy
+    # of single floats goes entry by entry, several times slower)
+    return np.ascontiguousarray(o32.view(np.complex64)[..., 0].T).view(np.float32).reshape(n, OBS_SIZE)
 
 
 def pointing_errors(c: np.ndarray, point: np.ndarray, xel_scale: float) -> np.ndarray:
@@ -602,8 +610,8 @@ _tuple_new = tuple.__new__  # a ScalarState without the NamedTuple constructor's
 _F32, _F64 = np.dtype(np.float32), np.dtype(np.float64)
 
 
-def step_1(action: Any, bufs: tuple, st: ScalarState, MT: np.ndarray, row: list, sc: EpisodeConstants
-           ) -> tuple[np.ndarray, float, bool, dict[str, Any], tuple, ScalarState]:
+def step_1(action: Any, views: tuple, st: ScalarState, MT: np.ndarray, row: list, sc: EpisodeConstants
+           ) -> tuple[np.ndarray, float, bool, dict[str, Any], ScalarState]:
     """One step of one environment on floats: :func:`as_actions` (a fast path for float32 and
     float64 arrays of shape (2,), the same rule), :func:`limit_commands`, the plant map
     (:meth:`dss14_env.envs.plant.Plant.episode_map`), :func:`read_encoders`, :func:`servo_errors`,
@@ -611,16 +619,17 @@ def step_1(action: Any, bufs: tuple, st: ScalarState, MT: np.ndarray, row: list,
     :func:`pointing_errors`).
 
     :param action: the action as given
-    :param bufs: ``(cur, nxt)``, the step buffers' views
-        (:func:`dss14_env.envs.plant.buffer_views`; ``cur`` holds the plant state)
+    :param views: the step's views into the episode's step block
+        (:func:`dss14_env.envs.plant.block_views`: its buffer, whose input holds the plant state
+        and the step's gust noise, and where the product writes the next state and outputs)
     :param st: the :class:`ScalarState`
     :param MT: the episode's plant map (:meth:`dss14_env.envs.plant.Plant.episode_map`),
         transposed and C-contiguous (``input @ MT``: the fastest matrix-vector product here)
-    :param row: the step's row ``[c_az, c_el, c_az_deg, c_el_deg, cd_az, cd_el, n_az, n_el, xi...]``
-        of :func:`dss14_env.envs.scenarios.block_rows`: command at the step's end (rad, deg), its
-        rate in units of the rate limit, encoder noise (rad), standard normals of the gust noise
+    :param row: the step's row ``[c_az, c_el, c_az_deg, c_el_deg, cd_az, cd_el, n_az, n_el]`` of
+        :func:`dss14_env.envs.scenarios.block_rows`: command at the step's end (rad, deg), its
+        rate in units of the rate limit, encoder noise (rad)
     :param sc: :func:`step_constants`
-    :return: ``(obs, reward, terminated, info, bufs_next, st_next)``
+    :return: ``(obs, reward, terminated, info, st_next)``
     :raises ValueError: a bad action (:func:`as_actions`), before anything changes
     :raises FloatingPointError: the plant state became non-finite (it left the range it is
         meant for)
@@ -632,7 +641,7 @@ def step_1(action: Any, bufs: tuple, st: ScalarState, MT: np.ndarray, row: list,
             a0, a1 = as_actions(action, (2,)).tolist()  # x - x is NaN for NaN and +-inf
     except (AttributeError, TypeError, ValueError):
         a0, a1 = as_actions(action, (2,)).tolist()
-    cur, nxt = bufs
+    z, inp, out, y = views
     rp0, rp1, ap0, ap1, em0_az, em0_el, n_rate, n_acc, j = st
     (scale, rate_clip, rl, dr, s_az, s_el, quantum, inv_q, me, az_off0, el_lo, el_hi, az_h, inv_es2, w,
      penalty, inv_es, rate_scale, inv_rl, clamp_always, xel_scale, wind_speed, wind_direction, pointing) = sc
@@ -665,16 +674,11 @@ def step_1(action: Any, bufs: tuple, st: ScalarState, MT: np.ndarray, row: list,
     if acc_hit:
         n_acc += 1
     # the plant map: [u+, y+] = M [r, 1, xi, u], the exact discretisation (Plant.episode_map)
-    z = cur[0]
     z[0] = r0
     z[1] = r1
-    try:  # the 4 normals of the default 4-state gust filter
-        c_az, c_el, c_deg_az, c_deg_el, cd_az, cd_el, n_az, n_el, z[3], z[4], z[5], z[6] = row
-    except ValueError:
-        c_az, c_el, c_deg_az, c_deg_el, cd_az, cd_el, n_az, n_el = row[:8]
-        z[3:len(row) - 5] = row[8:]
-    cur[1].dot(MT, nxt[2])  # the method: no dispatch of np.dot
-    th_az, th_el, p_el, p_xel = nxt[3].tolist()
+    inp.dot(MT, out)  # the method: no dispatch of np.dot
+    c_az, c_el, c_deg_az, c_deg_el, cd_az, cd_el, n_az, n_el = row
+    th_az, th_el, p_el, p_xel = y.tolist()
     # encoders (absolute angle, quantised) and servo errors
     if n_az or n_el:
         a_az, a_el = s_az + th_az + n_az, s_el + th_el + n_el
@@ -713,5 +717,5 @@ def step_1(action: Any, bufs: tuple, st: ScalarState, MT: np.ndarray, row: list,
             "action_unclipped": (a0, a1), "rate_command_az_deg_s": r0 * R2D,
             "rate_command_el_deg_s": r1 * R2D, "rate_limited": rate_hit, "accel_limited": acc_hit,
             "n_rate_limited": n_rate, "n_accel_limited": n_acc}
-    return obs, -cost, term, info, (nxt, cur), _tuple_new(ScalarState, (r0, r1, c0, c1, em_az, em_el, n_rate,
-                                                                        n_acc, j + 1))
+    return obs, -cost, term, info, _tuple_new(ScalarState, (r0, r1, c0, c1, em_az, em_el, n_rate, n_acc,
+                                                            j + 1))

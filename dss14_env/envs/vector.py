@@ -197,8 +197,13 @@ class DSS14VectorEnv(VectorEnv):
         self._traj = {key: np.zeros((N, 2)) for key in _TRAJ_KEYS}
         self._k = np.zeros(N, np.int64)
         #: the sub-environments' noise blocks (:func:`~dss14_env.envs.scenarios.draw_noise_block`),
-        #: time-major: a step reads one contiguous row per sub-environment
+        #: a time-major ring: every step reads slot ``g mod NOISE_BLOCK`` (``g`` the steps since
+        #: the first reset), one contiguous row per sub-environment, whatever its row ``j`` in its
+        #: block (a block is written from the slot its row 0 is read at)
         self._noise = np.zeros((NOISE_BLOCK, N, self._noise_width()))
+        self._stage = np.empty((N, NOISE_BLOCK, self._noise_width()))  # blocks as drawn
+        self._g = 0
+        self._jmax = 0  # the largest row j, kept without a pass over j
         self._parts = (False, False, False)
         #: the step state of every sub-environment (:class:`~dss14_env.envs.core.StepState`)
         self._s = StepState(np.zeros((N, 2)), np.zeros((N, 2)), np.zeros((N, 2)), np.zeros((N, 2), np.int64),
@@ -212,7 +217,6 @@ class DSS14VectorEnv(VectorEnv):
         self._groups: list = []
         self._prev_done = np.zeros(N, bool)
         self._arange = np.arange(N)
-        self._j_uniform = True
         self._any_noise = False
         self._clamp_always = False
         self._perm = self._inv = None
@@ -233,11 +237,12 @@ class DSS14VectorEnv(VectorEnv):
         draws = [draw_reset(cfg, self._rngs[i], self.plants, k.encoder_sigma) for i in idx.tolist()]
         episodes = [ep for ep, _, _ in draws]
         self._store_episodes(idx, episodes, inv_old)
-        self._noise[:, idx] = np.stack([normals for _, _, normals in draws], axis=1)
+        self._put_blocks(idx, np.stack([normals for _, _, normals in draws], axis=1))
         self._ne0[idx] = [ne for _, ne, _ in draws]
         self._max_e[idx] = cfg.max_error_deg * DEG * R2MD
         self._k[idx] = 0
         self._s.j[idx] = 0
+        self._jmax = int(self._s.j.max())
         self._parts = command_parts(self._traj)
         self._regroup(inv_old)
         self._clamp_always = any(k.clamp_always(me) for me in np.unique(self._max_e).tolist())
@@ -291,7 +296,6 @@ class DSS14VectorEnv(VectorEnv):
         kappa = self._kappa if self._perm is None else self._kappa[self._perm]
         self._kappa_s = np.ascontiguousarray(kappa.T)  # rows az, el: one per product input
         self._any_noise = bool(np.any(self._kappa))
-        self._j_uniform = bool(np.all(self._s.j == self._s.j[0]))
 
     def _reset_rows(self, idx: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
         """Observation rows and info of freshly reset sub-environments ``idx`` (as DSS14Env.reset)."""
@@ -329,22 +333,15 @@ class DSS14VectorEnv(VectorEnv):
         be reset: their rows are not used).
         """
         j = self._s.j
-        if self._j_uniform:
-            j0 = int(j[0])
-            if j0 >= NOISE_BLOCK:
-                self._draw_blocks(np.flatnonzero(~done))
-                j0 = 0
-                j[:] = 0
-            rows = self._noise[j0]
-        else:
-            full = j >= NOISE_BLOCK
-            if full.any():
-                due = np.flatnonzero(full & ~done)
-                self._draw_blocks(due)
-                j[due] = 0
-                np.minimum(j, NOISE_BLOCK - 1, out=j)
-            rows = self._noise[j, self._arange]
+        if self._jmax >= NOISE_BLOCK:
+            due = np.flatnonzero((j >= NOISE_BLOCK) & ~done)
+            self._draw_blocks(due)
+            j[due] = 0
+            self._jmax = int(j.max())
+        rows = self._noise[self._g % NOISE_BLOCK]
         j += 1
+        self._jmax += 1
+        self._g += 1
         return rows
 
     def _noise_width(self) -> int:
@@ -353,16 +350,26 @@ class DSS14VectorEnv(VectorEnv):
 
     def _draw_blocks(self, idx: np.ndarray) -> None:
         """The next noise blocks of the sub-environments ``idx``, each from its own generator
-        (drawn block by block, then stored time-major in one copy).
+        (drawn block by block, then stored in the ring, :meth:`_put_blocks`).
         """
-        blocks = np.empty((idx.size, NOISE_BLOCK, self._noise_width()))
+        blocks = self._stage[:idx.size]
         enc = self.constants.encoder_sigma > 0.0
         for b, i in zip(blocks, idx.tolist(), strict=True):
             draw_noise_block(self._rngs[i], self._k_rank, enc, out=b)
-        if idx.size == self.num_envs:  # all of them (idx sorted): a plain copy, not a scatter
-            self._noise[...] = blocks.transpose(1, 0, 2)
+        self._put_blocks(idx, blocks.transpose(1, 0, 2))
+
+    def _put_blocks(self, idx: np.ndarray, blocks: np.ndarray) -> None:
+        """Store the noise blocks ``(NOISE_BLOCK, len(idx), width)`` of the sub-environments
+        ``idx`` (sorted) in the ring, row 0 at the slot the next step reads.
+        """
+        s0 = self._g % NOISE_BLOCK
+        tail = NOISE_BLOCK - s0
+        if idx.size == self.num_envs:  # all of them: plain copies, not scatters
+            self._noise[s0:] = blocks[:tail]
+            self._noise[:s0] = blocks[tail:]
         else:
-            self._noise[:, idx] = blocks.transpose(1, 0, 2)
+            self._noise[s0:, idx] = blocks[:tail]
+            self._noise[:s0, idx] = blocks[tail:]
 
     def _commands(self) -> tuple[np.ndarray, np.ndarray]:
         """The commands at the end of this step, ``t = (k + 1) dt``, of every sub-environment
@@ -448,8 +455,8 @@ class DSS14VectorEnv(VectorEnv):
     # ------------------------------------------------------------------ copies and state
     #: the attributes of the dynamic state (:meth:`get_state`)
     _STATE = ("_Z", "_cur", "_t_mean_s", "_Y", "_kappa", "_kappa_s", "_start", "_traj", "_parts", "_k", "_s",
-              "_noise", "_r0", "_ne0", "_max_e", "_wind", "_pid", "_plants", "_groups", "_prev_done",
-              "_j_uniform", "_any_noise", "_clamp_always", "_perm", "_inv", "_rngs", "_np_random",
+              "_noise", "_g", "_jmax", "_r0", "_ne0", "_max_e", "_wind", "_pid", "_plants", "_groups",
+              "_prev_done", "_any_noise", "_clamp_always", "_perm", "_inv", "_rngs", "_np_random",
               "_np_random_seed")
 
     def get_state(self) -> EnvState:
