@@ -405,18 +405,17 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         k = self.constants
         ep, ne, normals = draw_reset(cfg, self.np_random, self.plants, k.encoder_sigma)
         p = ep.plant
-        M, Tm, Pm = p.episode_map(ep.kappa, ep.t_mean)
-        C = p.C @ Tm
+        MT, Tm, Pm, C = p.episode_step(ep.kappa, ep.t_mean)
         x0 = Pm @ ep.x0
         y0 = C[:N_STEP_OUTPUTS] @ x0
         B = self._block
-        if (B is not None and B.shape == (NOISE_BLOCK + 1, M.shape[1] + N_STEP_OUTPUTS)
+        if (B is not None and B.shape == (NOISE_BLOCK + 1, MT.shape[0] + N_STEP_OUTPUTS)
                 and self._m == x0.shape[0]):
-            n_in = M.shape[1]  # the buffers of the last episode: every entry is written before it is read
+            n_in = MT.shape[0]  # the buffers of the last episode: every entry is written before it is read
             B[0, n_in - x0.shape[0]:n_in] = x0
             B[0, n_in:] = y0
         else:
-            self._block = step_block(M, x0, y0, NOISE_BLOCK)
+            self._block = step_block(MT.T, x0, y0, NOISE_BLOCK)
             self._views = block_views(self._block, x0.shape[0])
         self._m, self._rank = x0.shape[0], p.noise_rank
         self._state_map, self._C_gust = Tm, C[N_STEP_OUTPUTS:]
@@ -431,7 +430,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         me = cfg.max_error_deg * DEG * R2MD
         s_az, s_el = float(ep.start[0]), float(ep.start[1])
         # everything step() reads that is fixed for the episode
-        self._M = np.ascontiguousarray(M.T)  # step_1's form: input @ M^T, the fastest product here
+        self._M = MT  # step_1's form: input @ M^T, the fastest product here
         self._sc = step_constants(k, (s_az, s_el), me, p.xel_scale, ep.wind_speed, ep.wind_direction)
         self._extras = cfg.info_state or self._renderer is not None
         self._info_state = cfg.info_state

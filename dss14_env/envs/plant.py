@@ -200,6 +200,7 @@ class Plant:
         P_f = linalg.solve_continuous_lyapunov(A_f, -G_f @ G_f.T)
         self.filter_factor = noise_factor(P_f) / scale[nr:nr + nw, None]
         self._copy_ratio = scale[nr:nr + nw] / scale[nr + nw:]  # balanced x_e from balanced x_a
+        self._episode_steps: dict = {}  # episode_step's results by direction
         self._steady = self._steady_state_operator()
 
     # ------------------------------------------------------------------ construction helpers
@@ -322,6 +323,29 @@ class Plant:
         """Noise factor ``L = kappa_az L_a + kappa_el L_e`` ``(n, 4)`` of one direction."""
         return kappa[0] * self.L_a + kappa[1] * self.L_e
 
+    def episode_step(self, kappa: np.ndarray, t_mean: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """What the single environment steps an episode of one direction with, made once per
+        direction (:data:`EPISODE_STEPS_KEPT` kept) and shared, read-only, by its episodes:
+        ``(M^T, T, P, C T)`` -- :meth:`episode_map`'s map transposed and C-contiguous (the
+        scalar step's form, ``input @ M^T``), its maps between the joint and the one-copy state,
+        and the outputs of the one-copy state.
+
+        :param kappa: direction factors (:meth:`kappa`)
+        :param t_mean: mean wind torques, N*m (:meth:`mean_torque`)
+        """
+        key = (np.asarray(kappa, float).tobytes(), np.asarray(t_mean, float).tobytes())
+        kept = self._episode_steps.get(key)
+        if kept is None:
+            if len(self._episode_steps) >= EPISODE_STEPS_KEPT:
+                self._episode_steps.clear()
+            M, T, P = self.episode_map(kappa, t_mean)
+            kept = (np.ascontiguousarray(M.T), T, P, self.C @ T)
+            for a in kept:
+                a.flags.writeable = False
+            self._episode_steps[key] = kept
+        return kept
+
     @single_threaded
     def episode_map(self, kappa: np.ndarray, t_mean: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The fused one-step map of one episode in the 64-state one-copy form (the single env).
@@ -375,6 +399,10 @@ class Plant:
 def _batch_step_matrix(p: Plant) -> np.ndarray:
     top = np.hstack([p.Ad, p.Bd_r, p.Bd_T, p.L_a, p.L_e])
     return np.vstack([top, p.C @ top]).T.copy()
+
+
+#: directions whose :meth:`Plant.episode_step` a plant keeps (a wind-direction grid's size)
+EPISODE_STEPS_KEPT = 16
 
 
 # ---------------------------------------------------------------------- one episode's step
