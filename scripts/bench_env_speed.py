@@ -8,11 +8,17 @@ Run it from the repository (it imports the repository's ``dss14_env``)::
 
 How it measures.  The single environments are made with ``gymnasium.make`` (so all carry the
 same standard wrappers) and stepped with actions drawn beforehand (uniform over the action
-space); an episode end triggers a reset, which is counted in the time.  The environments run
-in turn, ``--repeats`` rounds, so a change of the machine's load affects them alike; the ratio
+space); an episode end triggers a reset, which is counted in the time.  In each of
+``--repeats`` rounds every environment makes ``--steps`` steps, the environments taking turns
+every 1 000 steps (in reverse order every other round), so that a change of the machine's load
+affects them alike; the ratio
 to Pendulum-v1 is taken per round (same load) and summarised by its median over the rounds with
 a 95 % bootstrap interval over the rounds (:func:`dss14_env.core.stats.bootstrap_ci`).  The
-vector env's rate is summarised the same way over its repeats, and set against the **raw
+vector env's rate is summarised the same way over its repeats -- each of ``--vec-steps`` steps,
+by default one episode length of the registration (``max_episode_steps``), so that every repeat
+holds the same share of autoresets (all sub-environments start together and are truncated
+together: with shorter repeats, the repeats that hold the autoreset are the slow ones) -- and
+set against the **raw
 matmul** of its plant size measured in the same repeat (same load): ``(N x K) @ (K x n+4)``,
 the plant's batch step map (``Plant.vector_step_matrix``: ``Plant.batch_step_matrix``
 restricted to the state and the step outputs, the map the vector env steps with) into a
@@ -53,6 +59,8 @@ TARGET_RATIO = 2.0
 #: the vector env's target: at least this share of the raw matmul rate of its plant size
 TARGET_MATMUL_SHARE = 0.5
 CLOCKS = {"wall": time.perf_counter, "cpu": time.process_time}
+#: single-env steps each environment runs before the next takes its turn, within a round
+SINGLE_CHUNK = 1000
 
 
 class _SingleRun:
@@ -69,24 +77,37 @@ class _SingleRun:
             self.env.step(a)
         self.env.reset(seed=seed)
 
-    def rate(self, clock) -> float:
-        """Steps/s of one pass over the actions (episode ends reset, inside the timing)."""
-        env, actions = self.env, self.actions
+    def seconds(self, clock, start: int, stop: int) -> float:
+        """Seconds of the steps ``start:stop`` of the actions (episode ends reset, inside the
+        timing).
+        """
+        env, actions = self.env, self.actions[start:stop]
         t0 = clock()
         for a in actions:
             _, _, term, trunc, _ = env.step(a)
             if term or trunc:
                 env.reset()
-        return actions.shape[0] / (clock() - t0)
+        return clock() - t0
 
 
-def single_env_rates(env_ids: tuple[str, ...], n_steps: int, repeats: int, clock) -> dict[str, list[float]]:
-    """Steps/s of each environment per round; the rounds interleave the ids."""
+def single_env_rates(env_ids: tuple[str, ...], n_steps: int, repeats: int, clock,
+                     chunk: int = SINGLE_CHUNK) -> dict[str, list[float]]:
+    """Steps/s of each environment per round (one pass over its ``n_steps`` actions); within a
+    round the ids take turns every ``chunk`` steps, so that the rates of a round are measured
+    under the same load, in the order given in even rounds and reversed in odd ones (an
+    environment runs a little slower right after another one's code ran: each follows each
+    other equally often).
+    """
     runs = {env_id: _SingleRun(env_id, n_steps) for env_id in env_ids}
     rates: dict[str, list[float]] = {env_id: [] for env_id in env_ids}
-    for _ in range(repeats):
-        for env_id, run in runs.items():
-            rates[env_id].append(run.rate(clock))
+    for r in range(repeats):
+        seconds = dict.fromkeys(env_ids, 0.0)
+        order = env_ids if r % 2 == 0 else env_ids[::-1]
+        for start in range(0, n_steps, chunk):
+            for env_id in order:
+                seconds[env_id] += runs[env_id].seconds(clock, start, min(start + chunk, n_steps))
+        for env_id in env_ids:
+            rates[env_id].append(n_steps / seconds[env_id])
     return rates
 
 
@@ -100,13 +121,16 @@ def plant_product(envs, num_envs: int, seed: int = 0) -> tuple[np.ndarray, np.nd
     return Z, M, np.empty((num_envs, M.shape[1]))
 
 
-def vector_env_rates(env_id: str, num_envs: int, n_steps: int, repeats: int, clock,
-                     seed: int = 0) -> tuple[list[float], list[float], list[int]]:
+def vector_env_rates(env_id: str, num_envs: int, n_steps: int | None, repeats: int, clock,
+                     seed: int = 0) -> tuple[list[float], list[float], list[int], int]:
     """Env-steps/s of the ``vector_entry_point`` vector env and rows/s of the raw matmul of
-    its plant size (:func:`plant_product`), measured back to back in every repeat, and the
-    product's shape ``[N, K, n+4]``.
+    its plant size (:func:`plant_product`), measured back to back in every repeat of ``n_steps``
+    steps (None: the registration's episode length), the product's shape ``[N, K, n+4]`` and
+    the steps per repeat.
     """
     envs = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point")
+    if n_steps is None:  # one episode length: every repeat holds one autoreset of all
+        n_steps = gym.spec(env_id).max_episode_steps or 1000
     rng = np.random.default_rng(seed)
     actions = rng.uniform(-0.01, 0.01, (64, num_envs, 2)).astype(np.float32)
     envs.reset(seed=seed)
@@ -124,7 +148,7 @@ def vector_env_rates(env_id: str, num_envs: int, n_steps: int, repeats: int, clo
             np.matmul(Z, M, out=out)
         raw.append(num_envs * n_steps / (clock() - t0))
     envs.close()
-    return rates, raw, [num_envs, M.shape[0], M.shape[1]]
+    return rates, raw, [num_envs, M.shape[0], M.shape[1]], n_steps
 
 
 def summary(values: list[float]) -> dict:
@@ -151,8 +175,9 @@ def run(args: argparse.Namespace) -> dict:
         out["ratio_to_pendulum"][env_id] = s
     with threadpool_limits(limits=args.blas_threads, user_api="blas"):
         for env_id in VECTOR_IDS:
-            vec, raw, shape = vector_env_rates(env_id, args.num_envs, args.vec_steps, args.repeats, clock)
-            out["vector"][env_id] = summary(vec)
+            vec, raw, shape, n_steps = vector_env_rates(env_id, args.num_envs, args.vec_steps, args.repeats,
+                                                        clock)
+            out["vector"][env_id] = {**summary(vec), "steps_per_repeat": n_steps}
             out["matmul"][env_id] = {**summary(raw), "shape": shape}
             s = summary((np.asarray(vec) / np.asarray(raw)).tolist())  # per repeat: the same load
             s["target"] = TARGET_MATMUL_SHARE
@@ -224,9 +249,10 @@ def main() -> int:
     """
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--steps", type=int, default=30000, help="single-env steps per round")
-    ap.add_argument("--vec-steps", type=int, default=1000, help="vector-env steps per repeat")
+    ap.add_argument("--vec-steps", type=int, default=None,
+                    help="vector-env steps per repeat (default: the registration's episode length)")
     ap.add_argument("--num-envs", type=int, default=1024)
-    ap.add_argument("--repeats", type=int, default=9, help="rounds (at least 3 for an interval)")
+    ap.add_argument("--repeats", type=int, default=16, help="rounds (at least 3 for an interval)")
     ap.add_argument("--clock", choices=sorted(CLOCKS), default="wall")
     ap.add_argument("--blas-threads", type=int, default=None,
                     help="limit the BLAS threads of the vector env's matrix products (default: as is)")
@@ -234,7 +260,8 @@ def main() -> int:
     ap.add_argument("--check", action="store_true",
                     help="exit with status 1 when a ratio misses its target (the CI's lower end)")
     args = ap.parse_args()
-    if args.repeats < 1 or args.steps < 1 or args.vec_steps < 1 or args.num_envs < 1 or (
+    if args.repeats < 1 or args.steps < 1 or (args.vec_steps is not None and args.vec_steps < 1) or (
+            args.num_envs < 1) or (
             args.blas_threads is not None and args.blas_threads < 1):
         ap.error("--repeats, --steps, --vec-steps, --num-envs and --blas-threads must be positive")
     if args.json is not None and not (args.json.parent.is_dir() and os.access(args.json.parent, os.W_OK)):

@@ -71,8 +71,11 @@ def speed_table(path: Path = SPEED) -> str:
                      + ("—" if mm is None else f"{mm['median']:,.0f}{ci(mm, ',.0f')}{shape}") + " | "
                      + ("—" if r is None else f"{r['median']:.2f}{ci(r, '.2f')}") + " |")
     blas = f", BLAS threads limited to {st['blas_threads']}" if st.get("blas_threads") else ""
+    per_repeat = {s.get("steps_per_repeat", st["vec_steps"]) for s in res["vector"].values()}
+    vec_steps = " / ".join(f"{n:,}" for n in sorted(per_repeat))
+    cycle = " (one episode length: each round holds one autoreset of all)" if st["vec_steps"] is None else ""
     lines += ["", f"Measured {res['when']} with the {st['clock']} clock{blas}, {st['repeats']} rounds of "
-              f"{st['steps']:,} single-env and {st['vec_steps']:,} vector-env steps, on {m['cpus']} CPUs at "
+              f"{st['steps']:,} single-env and {vec_steps} vector-env steps{cycle}, on {m['cpus']} CPUs at "
               f"load average {m['load_average_1_5_15'][0]:.1f} (Python {m['python']}, numpy {m['numpy']}, "
               f"gymnasium {m['gymnasium']}); intervals are bootstrap intervals of the median over the "
               "rounds."]
