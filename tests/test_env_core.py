@@ -112,7 +112,8 @@ def _run_both(d: dict) -> None:
     sc = step_constants(k, tuple(start), d["me"], d["xel"], *d["wind"])
     st_in = ScalarState(*d["rp"].tolist(), *d["ap"].tolist(), *d["em0"].tolist(), *d["hits"], 3)
     a = d["a"]
-    obs1, rew1, term1, info1, st1 = step_1(a, views[0], st_in, np.ascontiguousarray(M.T), row, sc)
+    (obs1, rew1, term1, trunc1, info1), st1 = step_1(a, views[0], st_in, np.ascontiguousarray(M.T), row, sc)
+    assert trunc1 is False
 
     # the plant map: one exact matrix product
     z_in = np.concatenate([(st1.r_az, st1.r_el), [1.0], d["xi"], d["x0"]])

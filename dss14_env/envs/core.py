@@ -611,7 +611,7 @@ _F32, _F64 = np.dtype(np.float32), np.dtype(np.float64)
 
 
 def step_1(action: Any, views: tuple, st: ScalarState, MT: np.ndarray, row: list, sc: EpisodeConstants
-           ) -> tuple[np.ndarray, float, bool, dict[str, Any], ScalarState]:
+           ) -> tuple[tuple[np.ndarray, float, bool, bool, dict[str, Any]], ScalarState]:
     """One step of one environment on floats: :func:`as_actions` (a fast path for float32 and
     float64 arrays of shape (2,), the same rule), :func:`limit_commands`, the plant map
     (:meth:`dss14_env.envs.plant.Plant.episode_map`), :func:`read_encoders`, :func:`servo_errors`,
@@ -629,7 +629,9 @@ def step_1(action: Any, views: tuple, st: ScalarState, MT: np.ndarray, row: list
         :func:`dss14_env.envs.scenarios.block_rows`: command at the step's end (rad, deg), its
         rate in units of the rate limit, encoder noise (rad)
     :param sc: :func:`step_constants`
-    :return: ``(obs, reward, terminated, info, st_next)``
+    :return: ``((obs, reward, terminated, False, info), st_next)``: the step's result as
+        ``Env.step`` returns it (never truncated: the time limit is the wrapper's) and the next
+        state
     :raises ValueError: a bad action (:func:`as_actions`), before anything changes
     :raises FloatingPointError: the plant state became non-finite (it left the range it is
         meant for)
@@ -717,5 +719,5 @@ def step_1(action: Any, views: tuple, st: ScalarState, MT: np.ndarray, row: list
             "action_unclipped": (a0, a1), "rate_command_az_deg_s": r0 * R2D,
             "rate_command_el_deg_s": r1 * R2D, "rate_limited": rate_hit, "accel_limited": acc_hit,
             "n_rate_limited": n_rate, "n_accel_limited": n_acc}
-    return obs, -cost, term, info, _tuple_new(ScalarState, (r0, r1, c0, c1, em_az, em_el, n_rate, n_acc,
-                                                            j + 1))
+    return (obs, -cost, term, False, info), _tuple_new(ScalarState, (r0, r1, c0, c1, em_az, em_el, n_rate,
+                                                                    n_acc, j + 1))

@@ -517,10 +517,10 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
             as_actions(action, (2,))  # checked before the next noise block changes the generator
             self._next_block(self._k0 + j)
             st, j = st._replace(j=0), 0
-        obs, rew, term, info, self._st = step_1(action, self._views[j], st, self._M, self._rows[j], self._sc)
+        result, self._st = step_1(action, self._views[j], st, self._M, self._rows[j], self._sc)
         if self._extras:
-            self._step_extras(info)
-        return obs, rew, term, False, info
+            self._step_extras(result[4])
+        return result
 
     def _step_extras(self, info: dict) -> None:
         """``info["plant_state"]`` and the render history, when asked for."""
