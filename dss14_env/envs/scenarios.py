@@ -292,9 +292,9 @@ def start_elevation(cfg: EnvConfig, rng: np.random.Generator, plants: PlantFacto
 
 
 def block_rows(tr: Mapping[str, np.ndarray], k0: int, dt: float, rate_limit: float,
-               normals: np.ndarray, encoder_sigma: float, out: np.ndarray | None = None,
+               normals: np.ndarray, encoder_sigma: float,
                parts: tuple[bool, bool, bool] | None = None) -> np.ndarray:
-    """Per-step rows of the steps ``k0 .. k0 + NOISE_BLOCK - 1`` of one or more episodes.
+    """Per-step rows of the steps ``k0 .. k0 + NOISE_BLOCK - 1`` of one episode.
 
     Row ``j`` is ``[c (2), c in deg (2), c_dot / rate_limit (2), encoder noise (2)]``: the
     command at the end of step ``k0 + j`` (``t = (k0 + j + 1) dt``; rad, deg and scaled rate)
@@ -304,44 +304,27 @@ def block_rows(tr: Mapping[str, np.ndarray], k0: int, dt: float, rate_limit: flo
     environment evaluates :func:`command` at each step's ``t`` for all its sub-environments with
     the same operations, so they agree exactly.
 
-    :param tr: trajectory parameters, arrays ``(2,)`` for one episode, or ``(1, N, 2)`` for N
-        stacked episodes (then the block is time-major: ``(NOISE_BLOCK, N, ...)``)
+    :param tr: trajectory parameters, arrays ``(2,)``
     :param k0: first step of the block
     :param dt: control period, s
     :param rate_limit: rate limit, rad/s (scales c_dot)
-    :param normals: :func:`draw_noise_block` output ``(NOISE_BLOCK, k [+ 2])``, or
-        ``(NOISE_BLOCK, N, k [+ 2])`` for stacked episodes
+    :param normals: :func:`draw_noise_block` output ``(NOISE_BLOCK, k [+ 2])``
     :param encoder_sigma: encoder noise std, rad (0: the normals have no encoder columns)
-    :param out: array to write the rows to (default: a new one; for one episode a transposed
-        view of one, its rows are read as lists)
     :param parts: :func:`command_parts` of ``tr`` (computed here if None)
-    :return: ``(NOISE_BLOCK, [N,] 8)``
+    :return: ``(NOISE_BLOCK, 8)``, a transposed view (its rows are read as lists)
     """
-    t = (np.arange(k0 + 1, k0 + 1 + NOISE_BLOCK) * dt).reshape((NOISE_BLOCK,) + (1,) * (normals.ndim - 2))
-    k = normals.shape[-1] - (2 if encoder_sigma else 0)
-    if normals.ndim == 2 and out is None:
-        # one episode: entries first, so that every operation runs along the block
-        c, cd = command({key: v[:, None, None] for key, v in tr.items()}, t, parts)
-        rows = np.empty((8, NOISE_BLOCK))
-        rows[0:2] = c[..., 0]
-        np.multiply(c[..., 0], R2D, out=rows[2:4])
-        np.multiply(cd[..., 0], 1.0 / rate_limit, out=rows[4:6])
-        if encoder_sigma:
-            np.multiply(normals[:, k:].T, encoder_sigma, out=rows[6:8])
-        else:
-            rows[6:8] = 0.0
-        return rows.T
-    c, cd = command(tr, t, parts)
-    if out is None:
-        out = np.empty(normals.shape[:-1] + (8,))
-    out[..., 0:2] = c
-    np.multiply(c, R2D, out=out[..., 2:4])
-    np.multiply(cd, 1.0 / rate_limit, out=out[..., 4:6])
+    t = np.arange(k0 + 1, k0 + 1 + NOISE_BLOCK) * dt
+    # the axes first, so that every operation runs along the block
+    c, cd = command({key: v[:, None, None] for key, v in tr.items()}, t, parts)
+    rows = np.empty((8, NOISE_BLOCK))
+    rows[0:2] = c[..., 0]
+    np.multiply(c[..., 0], R2D, out=rows[2:4])
+    np.multiply(cd[..., 0], 1.0 / rate_limit, out=rows[4:6])
     if encoder_sigma:
-        np.multiply(normals[..., k:], encoder_sigma, out=out[..., 6:8])
+        np.multiply(normals[:, -2:].T, encoder_sigma, out=rows[6:8])
     else:
-        out[..., 6:8] = 0.0
-    return out
+        rows[6:8] = 0.0
+    return rows.T
 
 
 def draw_noise_block(rng: np.random.Generator, noise_rank: int, encoder_noise: bool,
