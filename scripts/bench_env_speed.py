@@ -24,6 +24,8 @@ the plant's batch step map (``Plant.vector_step_matrix``: ``Plant.batch_step_mat
 restricted to the state and the step outputs, the map the vector env steps with) into a
 preallocated output, rows per second -- the
 limit of a step that is one such product plus per-row work; the ratio is taken per repeat.
+The result file records whether the vector env's step ran compiled (numba, the ``fast``
+extra: :mod:`dss14_env.envs.fused`) or as numpy pieces.
 ``--check`` exits with status 1 when a ratio misses its target (single env >= 2x
 Pendulum-v1, vector env >= 0.5x the raw matmul), judged on the lower end of its interval.
 ``--clock cpu`` times with the process's CPU time instead of the wall clock: on a machine
@@ -122,13 +124,14 @@ def plant_product(envs, num_envs: int, seed: int = 0) -> tuple[np.ndarray, np.nd
 
 
 def vector_env_rates(env_id: str, num_envs: int, n_steps: int | None, repeats: int, clock,
-                     seed: int = 0) -> tuple[list[float], list[float], list[int], int]:
+                     seed: int = 0) -> tuple[list[float], list[float], list[int], int, bool]:
     """Env-steps/s of the ``vector_entry_point`` vector env and rows/s of the raw matmul of
     its plant size (:func:`plant_product`), measured back to back in every repeat of ``n_steps``
-    steps (None: the registration's episode length), the product's shape ``[N, K, n+4]`` and
-    the steps per repeat.
+    steps (None: the registration's episode length), the product's shape ``[N, K, n+4]``, the
+    steps per repeat and whether the env's step ran compiled (``DSS14VectorEnv.compiled``).
     """
     envs = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point")
+    compiled = bool(getattr(envs.unwrapped, "compiled", False))
     if n_steps is None:  # one episode length: every repeat holds one autoreset of all
         n_steps = gym.spec(env_id).max_episode_steps or 1000
     rng = np.random.default_rng(seed)
@@ -148,7 +151,7 @@ def vector_env_rates(env_id: str, num_envs: int, n_steps: int | None, repeats: i
             np.matmul(Z, M, out=out)
         raw.append(num_envs * n_steps / (clock() - t0))
     envs.close()
-    return rates, raw, [num_envs, M.shape[0], M.shape[1]], n_steps
+    return rates, raw, [num_envs, M.shape[0], M.shape[1]], n_steps, compiled
 
 
 def summary(values: list[float]) -> dict:
@@ -175,9 +178,9 @@ def run(args: argparse.Namespace) -> dict:
         out["ratio_to_pendulum"][env_id] = s
     with threadpool_limits(limits=args.blas_threads, user_api="blas"):
         for env_id in VECTOR_IDS:
-            vec, raw, shape, n_steps = vector_env_rates(env_id, args.num_envs, args.vec_steps, args.repeats,
-                                                        clock)
-            out["vector"][env_id] = {**summary(vec), "steps_per_repeat": n_steps}
+            vec, raw, shape, n_steps, compiled = vector_env_rates(env_id, args.num_envs, args.vec_steps,
+                                                                  args.repeats, clock)
+            out["vector"][env_id] = {**summary(vec), "steps_per_repeat": n_steps, "compiled": compiled}
             out["matmul"][env_id] = {**summary(raw), "shape": shape}
             s = summary((np.asarray(vec) / np.asarray(raw)).tolist())  # per repeat: the same load
             s["target"] = TARGET_MATMUL_SHARE
@@ -224,8 +227,9 @@ def report(res: dict) -> str:
         lines.append(f"{env_id:15s} ratio to Pendulum-v1: median {s['median']:.2f}x{_fmt_ci(s, '.2f')}, "
                      f"best-round {s['best']:.2f}x; {verdict} the target >= {s['target']:g}")
     for env_id, s in res["vector"].items():
+        step = {True: ", compiled step", False: ", numpy step"}.get(s.get("compiled"), "")
         lines.append(f"{env_id:15s} vector env N={res['settings']['num_envs']}: median {s['median']:12,.0f} "
-                     f"env-steps/s{_fmt_ci(s, ',.0f')}, best {s['best']:,.0f}")
+                     f"env-steps/s{_fmt_ci(s, ',.0f')}, best {s['best']:,.0f}{step}")
     for env_id, s in res.get("ratio_to_matmul", {}).items():
         mm = res["matmul"][env_id]
         n, k, m = mm["shape"]

@@ -3,6 +3,7 @@ ratios taken per repeat, and --check's exit status following the targets (no tim
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import subprocess
 import sys
@@ -26,6 +27,8 @@ def test_the_speed_script_reports_its_ratios_and_checks_them(tmp_path: Path) -> 
         assert [round(a / b, 12) for a, b in zip(vec["values"], mm["values"], strict=True)] == \
             [round(x, 12) for x in r["values"]]
         assert r["target"] == 0.5 and r["meets_target"] == (r["ci95"][0] >= 0.5)
+        # which step ran is recorded: compiled where numba is installed
+        assert vec["compiled"] is (importlib.util.find_spec("numba") is not None)
     missed = [s for kind in ("ratio_to_pendulum", "ratio_to_matmul") for s in res[kind].values()
               if not s["meets_target"]]
     assert done.returncode == (1 if missed else 0), done.stderr
