@@ -19,12 +19,12 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from scipy import linalg
 
 from dss14_env.baselines.design import DesignModel
 from dss14_env.baselines.interface import Weights
 from dss14_env.baselines.pi import gains_per_axis
 from dss14_env.core.units import R2MD
+from dss14_env.model.linsys import stationary_covariance
 
 if TYPE_CHECKING:  # the design type only; lqg.py imports this module
     from dss14_env.baselines.lqg import LQGDesign
@@ -178,7 +178,7 @@ def closed_loop(plant: DesignModel, ctrl: LinearController) -> ClosedLoop:
 def stationary_performance(cl: ClosedLoop, weights: Weights) -> dict[str, Any]:
     """Stationary servo-error statistics and expected per-step cost of a closed loop.
 
-    Solves ``X = A X A' + W`` (:func:`scipy.linalg.solve_discrete_lyapunov`).
+    Solves ``X = A X A' + W`` (:func:`dss14_env.model.linsys.stationary_covariance`).
 
     :return: dict with ``three_sigma_mdeg`` ([az, el]), ``rms_mdeg``, ``rate_rms`` (rad/s),
         ``command_change_rms_rad_s`` (rms of the rate command's change per period, per axis),
@@ -191,8 +191,7 @@ def stationary_performance(cl: ClosedLoop, weights: Weights) -> dict[str, Any]:
     rho = cl.spectral_radius()
     if rho >= 1.0:
         raise ValueError(f"closed loop unstable (spectral radius {rho:.6f}): no stationary error")
-    X = linalg.solve_discrete_lyapunov(cl.A, cl.W)
-    X = 0.5 * (X + X.T)
+    X = stationary_covariance(cl.A, cl.W)
     var_e = np.diag(cl.C_e @ X @ cl.C_e.T)
     Cd = cl.C_r - cl.C_rprev
     var_da = np.diag(Cd @ X @ Cd.T + cl.D_rv @ cl.R @ cl.D_rv.T) / weights.action_scale ** 2
@@ -261,5 +260,5 @@ def sampled_three_sigma_mdeg(plant: Any, direction: float, gains: str | tuple = 
     rho = float(np.max(np.abs(np.linalg.eigvals(Phi))))
     if rho >= 1.0:
         raise ValueError(f"the sampled PI loop is unstable (spectral radius {rho:.6f})")
-    S = linalg.solve_discrete_lyapunov(Phi, W @ W.T)
+    S = stationary_covariance(Phi, W @ W.T)
     return 3.0 * np.sqrt(np.diag(Ce @ S @ Ce.T)) * R2MD

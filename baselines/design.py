@@ -25,7 +25,8 @@ method, Lyapunov gramians from :func:`scipy.linalg.solve_continuous_lyapunov`) a
 states are set to their quasi-steady values, so the DC gain -- the rate loop's 0.74 -- is kept
 exactly; the additive error bound ``2 sum(sigma_i, i > order)`` of balanced truncation holds).
 python-control's ``balred`` does the same but needs slycot, which the project does not depend
-on.  ``order = None`` keeps all 58 states (the full-order model of the yardstick).
+on.  ``order = None`` keeps all 58 states as they are (the full-order model of the yardstick;
+no balancing, which for the weakest states is not resolved in double precision).
 
 Wind.  ``wind=("design", speed)`` (LQG, MPC): a direction-free model, the front and the side
 gust as two independent coherent components, ``T_w = g_front u_1 + g_side u_2`` with ``u_1``,
@@ -274,7 +275,13 @@ def balanced_reduction(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarra
     :param B: (n, m) input matrix (inputs already scaled to comparable size)
     :param C: (p, n) output matrix (outputs already scaled)
     :param D: (p, m) feedthrough
-    :param order: states kept; ``None`` keeps every state (balanced realisation, exact)
+    :param order: states kept; ``None`` keeps every state: with ``"residualise"`` the system
+        itself (exact), with ``"truncate"`` the balanced realisation of its minimal part.  (A
+        balanced realisation of every state divides by the square roots of Hankel singular
+        values down to 1e-13 of the largest, below what Gramians solved in double precision
+        resolve: with OpenBLAS's Haswell kernel it came out unstable.)  A reduced order keeps
+        the balanced coordinates of its states only; the residualised ones are taken in an
+        orthonormal basis of their subspace, which gives the same reduced system
     :param method: ``"residualise"`` (singular perturbation, DC gain exact) or ``"truncate"``
     :return: ``(A_r, B_r, C_r, D_r, hsv)`` with the Hankel singular values of the full system
     :raises ValueError: if ``A`` is not Hurwitz, the order is out of range or the method unknown
@@ -291,21 +298,26 @@ def balanced_reduction(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarra
     k = n if order is None else int(order)
     if not 1 <= k <= n:
         raise ValueError(f"reduced order must be in [1, {n}], got {order}")
-    keep = n if method == "residualise" else k
-    nz = int(np.sum(s > s[0] * 1e-13))  # balanced realisation of the minimal part
-    keep = min(keep, nz)
-    k = min(k, nz)
-    sq = np.sqrt(s[:keep])
-    T = Lc @ Vt[:keep].T / sq
-    Ti = (U[:, :keep] / sq).T @ Lo.T
-    Ab, Bb, Cb = Ti @ A @ T, Ti @ B, C @ T
-    if method == "truncate" or k == keep:
-        return Ab[:k, :k], Bb[:k], Cb[:, :k], D.copy(), s
-    A11, A12, A21, A22 = Ab[:k, :k], Ab[:k, k:], Ab[k:, :k], Ab[k:, k:]
-    X = np.linalg.solve(A22, np.hstack([A21, Bb[k:]]))
+    if order is None and method == "residualise":
+        return A.copy(), B.copy(), C.copy(), D.copy(), s
+    k = min(k, int(np.sum(s > s[0] * 1e-13)))  # at most the minimal part
+    sq = np.sqrt(s[:k])
+    T1 = Lc @ Vt[:k].T / sq
+    Ti1 = (U[:, :k] / sq).T @ Lo.T
+    A11, B1, C1 = Ti1 @ A @ T1, Ti1 @ B, C @ T1
+    if method == "truncate" or k == n:
+        return A11, B1, C1, D.copy(), s
+    # the residualised states: any basis of the complement (the result does not depend on it),
+    # T2 spanning the null space of Ti1 and Ti2 that of T1' (never the balanced coordinates of
+    # the weak states, which divide by the square roots of their tiny singular values)
+    T2 = linalg.null_space(Ti1)
+    W = linalg.null_space(T1.T)
+    Ti2 = np.linalg.solve(W.T @ T2, W.T)
+    A12, A21, A22 = Ti1 @ A @ T2, Ti2 @ A @ T1, Ti2 @ A @ T2
+    X = np.linalg.solve(A22, np.hstack([A21, Ti2 @ B]))
     X21, X2b = X[:, :k], X[:, k:]
-    return (A11 - A12 @ X21, Bb[:k] - A12 @ X2b, Cb[:, :k] - Cb[:, k:] @ X21,
-            D - Cb[:, k:] @ X2b, s)
+    C2 = C @ T2
+    return A11 - A12 @ X21, B1 - A12 @ X2b, C1 - C2 @ X21, D - C2 @ X2b, s
 
 
 def gust_torque_std(loads: WindLoads, speed: float, direction: str | float) -> np.ndarray:

@@ -29,7 +29,7 @@ from dss14_env.core.schema import ConfigError
 from dss14_env.core.units import DEG, KMH, MDEG
 from dss14_env.envs.plant import get_plant
 from dss14_env.model.assembly import default_model
-from dss14_env.model.linsys import freqresp
+from dss14_env.model.linsys import freqresp, stationary_covariance
 
 DT = 0.02
 
@@ -86,6 +86,66 @@ def test_balanced_reduction_hsv_match_gramians() -> None:
     Wo = linalg.solve_continuous_lyapunov(A.T, -C.T @ C)
     ref = np.sort(np.sqrt(np.abs(np.linalg.eigvals(Wc @ Wo))))[::-1]
     assert hsv[:10] == pytest.approx(ref[:10], rel=1e-6)
+
+
+def _balanced_spa(A, B, C, D, k):
+    """The textbook singular-perturbation approximation in balanced coordinates (for systems
+    whose balancing is well conditioned)."""
+    Wc = linalg.solve_continuous_lyapunov(A, -B @ B.T)
+    Wo = linalg.solve_continuous_lyapunov(A.T, -C.T @ C)
+    Lc, Lo = linalg.cholesky(Wc, lower=True), linalg.cholesky(Wo, lower=True)
+    U, s, Vt = np.linalg.svd(Lo.T @ Lc)
+    T, Ti = Lc @ Vt.T / np.sqrt(s), (U / np.sqrt(s)).T @ Lo.T
+    Ab, Bb, Cb = Ti @ A @ T, Ti @ B, C @ T
+    X = np.linalg.solve(Ab[k:, k:], np.hstack([Ab[k:, :k], Bb[k:]]))
+    return (Ab[:k, :k] - Ab[:k, k:] @ X[:, :k], Bb[:k] - Ab[:k, k:] @ X[:, k:],
+            Cb[:, :k] - Cb[:, k:] @ X[:, :k], D - Cb[:, k:] @ X[:, k:])
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_residualisation_equals_the_balanced_singular_perturbation(seed: int) -> None:
+    # the residualised states are taken in a well-conditioned basis of their subspace, never in
+    # balanced coordinates: the same reduced system, up to a similarity of the kept states
+    rng = np.random.default_rng(seed)
+    n, k = 8, 3
+    A = rng.normal(size=(n, n))
+    A -= (np.max(np.linalg.eigvals(A).real) + 0.5) * np.eye(n)
+    B, C, D = rng.normal(size=(n, 2)), rng.normal(size=(2, n)), rng.normal(size=(2, 2))
+    got, want = balanced_reduction(A, B, C, D, k)[:4], _balanced_spa(A, B, C, D, k)
+    for f in (0.0, 0.05, 0.5, 5.0):  # transfer functions (invariant to the kept states' basis)
+        s = 2j * np.pi * f
+        G = [c @ np.linalg.solve(s * np.eye(k) - a, b) + d for a, b, c, d in (got, want)]
+        np.testing.assert_allclose(G[0], G[1], rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize("order, pointing", [("config", False), (None, False), (None, True),
+                                             ("config", True)])
+@pytest.mark.parametrize("wind", [(50 * KMH, "front"), (50 * KMH, "side")])
+def test_full_and_reduced_design_models_are_stable_whatever_the_blas_kernel(wind, order, pointing) -> None:
+    # balancing the full rate loop divides by the square roots of Hankel singular values down to
+    # 1e-13 of the largest; with OpenBLAS's Haswell kernel that made the full-order realisation
+    # unstable (a pole at +99 rad/s).  Full order is now the system itself, reduced orders
+    # residualise in a well-conditioned basis
+    m = build_design_model(DT, order=order, wind=wind, pointing=pointing)
+    mags = np.sort(np.abs(np.linalg.eigvals(m.Ad)))
+    assert mags[-2:] == pytest.approx([1.0, 1.0], abs=1e-12)
+    assert mags[-3] < 1.0
+
+
+@pytest.mark.parametrize("rho", [0.5, 0.999, 0.99999])
+def test_stationary_covariance_is_exact_near_the_unit_circle(rho: float) -> None:
+    # a rotation shrunk by rho: X = w / (1 - rho^2) I in closed form, and a non-normal coupling
+    th = 0.3
+    A = rho * np.array([[math.cos(th), -math.sin(th)], [math.sin(th), math.cos(th)]])
+    X = stationary_covariance(A, np.eye(2))
+    want = np.eye(2) / (1.0 - rho * rho)
+    np.testing.assert_allclose(X, want, rtol=1e-11, atol=1e-11 * want.max())
+    A3 = np.array([[rho, 50.0, 0.0], [0.0, 0.5, 1.0], [0.0, 0.0, -0.7]])
+    W = np.diag([1.0, 2.0, 3.0])
+    X3 = stationary_covariance(A3, W)
+    assert np.abs(X3 - A3 @ X3 @ A3.T - W).max() < 1e-13 * np.abs(X3).max()
+    with pytest.raises(ValueError, match="not stable"):
+        stationary_covariance(np.array([[1.0001]]), np.eye(1))
 
 
 def test_configured_order_is_the_smallest_within_the_error_budget() -> None:

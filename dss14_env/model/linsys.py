@@ -123,6 +123,38 @@ def discretize(A: np.ndarray, B: np.ndarray, dt: float, G: np.ndarray | None = N
     return Ad, Bd, 0.5 * (Qd + Qd.T)
 
 
+def stationary_covariance(A: np.ndarray, W: np.ndarray, max_doublings: int = 64) -> np.ndarray:
+    """The solution ``X`` of ``X = A X A^T + W`` for a stable ``A`` (spectral radius < 1): the
+    stationary covariance of ``x+ = A x + w``, ``cov(w) = W``.
+
+    By doubling (Smith's method): ``X = sum_k A^k W A^Tk``, each step adding the next as many
+    terms as there are (``X += A_j X A_j^T``, ``A_j = A^(2^j)``) until they no longer change
+    ``X``.  A sum of positive terms, accurate to rounding however close the spectral radius
+    is to 1, where :func:`scipy.linalg.solve_discrete_lyapunov` (bilinear transform) is not:
+    a closed loop with a pole at 0.99996 gave residuals of 1e-7 to 3e-7 and costs 0.2-0.4 %
+    apart between two BLAS kernels, against 1e-14 and equal costs by doubling.
+
+    :raises ValueError: if the sum does not converge within ``max_doublings`` (not stable)
+
+    >>> A = np.array([[0.5, 1.0], [0.0, 0.9]])
+    >>> X = stationary_covariance(A, np.eye(2))
+    >>> bool(np.allclose(X, A @ X @ A.T + np.eye(2), rtol=1e-14, atol=0))
+    True
+    """
+    X, Aj = np.array(W, float), np.array(A, float)
+    with np.errstate(over="ignore", invalid="ignore"):  # an unstable A: the sum grows to inf
+        for _ in range(max_doublings):
+            dX = Aj @ X @ Aj.T
+            X = X + dX
+            size = np.abs(X).max()
+            if not np.isfinite(size):
+                break
+            if np.abs(dX).max() <= np.finfo(float).eps * 1e-3 * size:
+                return 0.5 * (X + X.T)
+            Aj = Aj @ Aj
+    raise ValueError(f"X = A X A' + W: no convergence in {max_doublings} doublings (A not stable)")
+
+
 def noise_factor(Q: np.ndarray) -> np.ndarray:
     """A factor ``L`` with ``L L^T = Q`` for a symmetric positive semi-definite ``Q``.
 
