@@ -62,7 +62,10 @@ def test_vector_env_pointing_reward_equals_the_single_env() -> None:
         env = DSS14Env(reward="pointing", **KW)
         env.reset(seed=3 + i)
         s = np.array([env.step(acts[t, i])[1] for t in range(T)])
-        np.testing.assert_allclose(s, v[:, i], rtol=1e-9, atol=1e-12)
+        # the single env steps the 64-state restriction of the vector env's plant: rounding
+        # apart, largest relative difference 1.6e-11 / 1.5e-10 / 1.2e-9 under OpenBLAS's
+        # Haswell / SkylakeX / Sandybridge kernels
+        np.testing.assert_allclose(s, v[:, i], rtol=1e-8, atol=1e-12)
 
 
 @pytest.mark.parametrize("env_id", [p.env_id for p in PRESETS.values()] + list(WRAPPED_IDS))

@@ -21,8 +21,8 @@ for a sequence; fresh entropy for None on the first reset, continued otherwise).
 sub-environment ``i`` -- its episodes (:func:`dss14_env.envs.scenarios.draw_episode`) and its
 noise blocks -- comes from that generator in the same order as in a single environment, so the
 results equal those of N single environments reset with seeds ``seed + i`` and stepped with
-the same actions (up to floating-point rounding, about 1e-10 relative: the single environment
-steps the exact 64-state restriction of the same plant).
+the same actions (up to floating-point rounding, 1e-11 to 1e-9 relative depending on the BLAS
+kernel: the single environment steps the exact 64-state restriction of the same plant).
 
 Autoreset: ``AutoresetMode.NEXT_STEP``, as gymnasium's classic-control vector environments:
 the step after a sub-environment terminated or truncated resets it (with the configuration's
