@@ -59,12 +59,12 @@ def constants(k: StepConstants, xel_scale: float) -> np.ndarray:
     c = np.zeros(_N_CONSTANTS)
     c[_SCALE], c[_RATE_CLIP], c[_RL], c[_DR] = k.action_scale, k.rate_clip, k.rate_limit, k.rate_step
     c[_SIGMA], c[_QUANTUM] = k.encoder_sigma, k.quantum
-    c[_INV_Q] = 1.0 / k.quantum if k.quantum else 0.0  # as quantise
+    c[_INV_Q] = k.inv_quantum
     c[_AZ_CENTRE], (c[_EL_LO], c[_EL_HI]), c[_AZ_H] = k.az_centre, k.el_limits, k.az_half_range
     c[_XEL] = xel_scale
     c[_INV_ES2], c[_W] = k.inv_error_scale * k.inv_error_scale, k.action_change_weight
     c[_PENALTY], c[_POINTING] = k.termination_penalty, k.pointing_reward
-    c[_INV_ES], c[_RATE_SCALE], c[_INV_RL] = 1.0 / k.error_scale, k.error_rate_scale, 1.0 / k.rate_limit
+    c[_INV_ES], c[_RATE_SCALE], c[_INV_RL] = k.inv_error_scale, k.error_rate_scale, k.inv_rate_limit
     return c
 
 

@@ -436,8 +436,7 @@ class DSS14VectorEnv(VectorEnv):
         kc = self.constants
         A = as_actions(actions, (self.num_envs, 2))
         if self.compiled:
-            obs, rew, term, trunc, info = self._step_fused(A)
-            return self._autoreset(obs, rew, term, trunc, info)
+            return self._autoreset(*self._step_fused(A))
         done, s = self._prev_done, self._s
         a, R, rate_hit, acc_hit = limit_commands(A, s.r_prev, kc)
         normals = self._normals(done)
@@ -455,20 +454,29 @@ class DSS14VectorEnv(VectorEnv):
         obs = observation(em, s.em_prev, c * R2D, cd * (1.0 / kc.rate_limit), rel, R,
                           any_term or self._clamp_always, kc)
         if not np.isfinite(rew.sum()):
-            bad = np.flatnonzero(~np.isfinite(rew)).tolist()
-            raise FloatingPointError(f"the reward became non-finite in sub-environment(s) {bad}: the plant "
-                                     "left the range it is meant for")
-        trunc = (self._k >= self.max_episode_steps) if self.max_episode_steps is not None else np.zeros(
-            self.num_envs, bool)
+            self._refuse_non_finite(rew)
+        trunc = self._truncated()
         s.hits[:, 0] += rate_hit
         s.hits[:, 1] += acc_hit
         self._s = s = StepState(R, a, em, s.hits, s.j)
         info = step_info(e, em, pe, self._wind, A, R, rate_hit, acc_hit, s.hits)
-        return self._autoreset(obs, rew, term, trunc, info)
+        return self._autoreset(obs, rew, term, trunc, info, any_term)
 
-    def _step_fused(self, A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
+    def _refuse_non_finite(self, rew: np.ndarray) -> None:
+        """Raise for the sub-environments whose reward is NaN or infinite."""
+        bad = np.flatnonzero(~np.isfinite(rew)).tolist()
+        raise FloatingPointError(f"the reward became non-finite in sub-environment(s) {bad}: the plant "
+                                 "left the range it is meant for")
+
+    def _truncated(self) -> np.ndarray:
+        """Which sub-environments reach ``max_episode_steps`` with this step."""
+        if self.max_episode_steps is None:
+            return np.zeros(self.num_envs, bool)
+        return self._k >= self.max_episode_steps
+
+    def _step_fused(self, A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict, bool]:
         """The step of :meth:`step` before the autoreset, compiled (:mod:`dss14_env.envs.fused`):
-        the same results, bit for bit.
+        the same results, bit for bit (and whether a sub-environment terminated).
         """
         N, n, k, s = self.num_envs, self._n, self._k_rank, self._s
         a, R = np.empty((N, 2)), np.empty((N, 2))
@@ -489,20 +497,20 @@ class DSS14VectorEnv(VectorEnv):
                                     self._fused_constants, self._clamp_always, obs, rew, term, em, info_f,
                                     info_i)
         if flags & fused.NON_FINITE:
-            bad = np.flatnonzero(~np.isfinite(rew)).tolist()
-            raise FloatingPointError(f"the reward became non-finite in sub-environment(s) {bad}: the plant "
-                                     "left the range it is meant for")
-        trunc = np.zeros(N, bool) if self.max_episode_steps is None else self._k >= self.max_episode_steps
+            self._refuse_non_finite(rew)
+        trunc = self._truncated()
         self._s = StepState(R, a, em, s.hits, s.j)
         info = {**dict(zip(fused.INFO_FLOAT_ROWS, info_f, strict=True)),
                 **dict(zip(fused.INFO_INT_ROWS, info_i, strict=True)),
                 "action_unclipped": A, "rate_limited": rate_hit, "accel_limited": acc_hit}
-        return obs, rew, term, trunc, {key: info[key] for key in INFO_KEYS}
+        return (obs, rew, term, trunc, {key: info[key] for key in INFO_KEYS},
+                bool(flags & fused.ANY_TERMINATED))
 
-    def _autoreset(self, obs: np.ndarray, rew: np.ndarray, term: np.ndarray, trunc: np.ndarray, info: dict
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
+    def _autoreset(self, obs: np.ndarray, rew: np.ndarray, term: np.ndarray, trunc: np.ndarray, info: dict,
+                   any_term: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
         """Reset the sub-environments that ended on the previous step (``AutoresetMode.NEXT_STEP``)
-        into this step's results; keep which end on this one.
+        into this step's results; keep which end on this one (``any_term``: whether one
+        terminated).
         """
         done = self._prev_done
         if done.any():
@@ -517,7 +525,7 @@ class DSS14VectorEnv(VectorEnv):
             info["rate_limited"][idx] = info["accel_limited"][idx] = False
             info["n_rate_limited"][idx] = info["n_accel_limited"][idx] = 0
             self._prev_done = term | trunc
-        elif term.any() or trunc.any():
+        elif any_term or trunc.any():
             self._prev_done = term | trunc
         if self.config.info_state:
             info["plant_state"] = self.plant_states()
