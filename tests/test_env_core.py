@@ -191,6 +191,18 @@ def test_quantiser_rounds_half_counts_up_and_reads_relative_to_the_start() -> No
     np.testing.assert_allclose(rel / q, [[0.8, 0.0]], atol=1e-9)  # 10.6 counts read as 11
 
 
+@pytest.mark.parametrize("quantum", [0.0, 2 * math.pi / 2**20])
+@pytest.mark.parametrize("bad", [math.nan, math.inf])
+def test_a_non_finite_plant_output_raises_floating_point_error(quantum: float, bad: float) -> None:
+    """With quantised encoders too: the floor of NaN or inf must not surface as another error."""
+    d = dict(k=_k(quantum=quantum), start=np.array([0.3, 0.8]), theta=np.array([bad, 0.0]), point=np.zeros(2),
+             c=np.zeros(2), cd=np.zeros(2), me=1e3, rp=np.zeros(2), ap=np.zeros(2), em0=np.zeros(2),
+             a=np.zeros(2), noise=np.zeros(2), xi=[0.0] * 4, x0=[0.0] * M_STATES, hits=(0, 0), xel=0.7,
+             wind=(0.0, 0.0))
+    with pytest.raises(FloatingPointError, match="the plant left the range it is meant for"):
+        _run_both(d)
+
+
 def test_termination_is_strictly_beyond_the_bounds() -> None:
     k = _k()
     me = 1000.0

@@ -687,8 +687,11 @@ def step_1(action: Any, views: tuple, st: ScalarState, MT: np.ndarray, row: list
     else:
         a_az, a_el = s_az + th_az, s_el + th_el
     if quantum:
-        a_az = quantum * _floor(a_az * inv_q + 0.5)
-        a_el = quantum * _floor(a_el * inv_q + 0.5)
+        try:
+            a_az = quantum * _floor(a_az * inv_q + 0.5)
+            a_el = quantum * _floor(a_el * inv_q + 0.5)
+        except (ValueError, OverflowError):  # floor of NaN or inf: the reward's check below raises
+            a_az = a_el = math.nan
     rel_az, rel_el = a_az - s_az, a_el - s_el
     em_az, em_el = (c_az - rel_az) * R2MD, (c_el - rel_el) * R2MD
     e_az, e_el = (c_az - th_az) * R2MD, (c_el - th_el) * R2MD
