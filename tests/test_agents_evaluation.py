@@ -153,11 +153,12 @@ def test_bench_scenario_budgets_are_the_catalogs() -> None:
 @pytest.mark.slow
 @pytest.mark.parametrize("row", ["ppo", "ppo_residual_lqg"])
 @pytest.mark.parametrize("scenario", ["track", "step", "slew"])
-def test_shipped_residual_policies_score_their_committed_bench_figures(row: str, scenario: str) -> None:
-    """A shipped residual policy scored by run_task in the track, step and slew (the default
-    bench lengths, first 8 seeds) gives the committed bench run's episodes (stored to 6
-    significant digits; a residual policy's small output keeps float32 rounding far below
-    that, whatever the batch)."""
+def test_regression_shipped_residual_policies_score_their_committed_bench_figures(row: str, scenario: str,
+                                                                                 check_rescored) -> None:
+    """Regression check: a shipped residual policy scored by run_task in the track, step and
+    slew (the default bench lengths, first 8 seeds) gives the committed bench run's episodes
+    within the scatter between CPU kinds (``tests/conftest.py``; on the machine kind of the
+    committed run they reproduce to its 6 significant digits), and none terminates."""
     import json
     from pathlib import Path
 
@@ -169,7 +170,6 @@ def test_shipped_residual_policies_score_their_committed_bench_figures(row: str,
     seeds = list(col["seed"])[:8]
     (task,) = dss14_tasks(scenarios=[scenario])
     res = run_task(CONTROLLERS[row].make(DSS14Env(**PRESETS[task.preset].kwargs)), task, seeds)
-    for ax in ("az", "el"):
-        want = np.asarray(col[f"servo_error_mdeg.{ax}.three_sigma"][:8], float)
-        np.testing.assert_allclose(res[f"servo_three_sigma_mdeg_{ax}"], want, rtol=2e-5, err_msg=ax)
+    check_rescored({ax: (res[f"servo_three_sigma_mdeg_{ax}"], col[f"servo_error_mdeg.{ax}.three_sigma"][:8])
+                    for ax in ("az", "el")})
     assert not res["terminated"].any()

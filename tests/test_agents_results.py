@@ -175,13 +175,15 @@ def test_every_shipped_policy_is_a_campaign_seed_chosen_on_validation(results: d
 
 
 @pytest.mark.slow
-def test_shipped_policies_reproduce_their_test_scores(results: dict) -> None:
-    """Every shipped folder, scored again on the test seeds, gives the results file's numbers:
-    its campaign row's, or, when that row is kept from earlier results (scored on the code of
-    its time), the shipped policy's own row (``<key>_shipped``, scored when the file was built),
-    servo and pointing errors."""
+def test_regression_shipped_policies_reproduce_their_test_scores(results: dict, check_rescored) -> None:
+    """Regression check: every shipped folder, scored again on the test seeds, gives the results
+    file's numbers -- its campaign row's, or, when that row is kept from earlier results (scored
+    on the code of its time), the shipped policy's own row (``<key>_shipped``, scored when the
+    file was built), servo and pointing errors -- within the scatter between CPU kinds
+    (``tests/conftest.py``)."""
     shipped = _shipped(results)
     assert shipped
+    groups = {}
     for key, row in shipped:
         ctrl = load_policy(ROOT / row["shipped"]["folder"])
         if row.get("kept_from"):
@@ -197,8 +199,7 @@ def test_shipped_policies_reproduce_their_test_scores(results: dict) -> None:
         for task in DSS14_TASKS:
             got = run_task(ctrl, task, results["test_seeds"], 3000)
             servo, pointing = pick[task.name]
-            np.testing.assert_allclose(got["three_sigma_mdeg"], servo, rtol=1e-6,
-                                       err_msg=f"{key} {task.name}")
+            groups[f"{key} {task.name}"] = (got["three_sigma_mdeg"], servo)
             if pointing is not None:
-                np.testing.assert_allclose(got["pointing_three_sigma_mdeg"], pointing, rtol=1e-6,
-                                           err_msg=f"{key} {task.name} pointing")
+                groups[f"{key} {task.name} pointing"] = (got["pointing_three_sigma_mdeg"], pointing)
+    check_rescored(groups)

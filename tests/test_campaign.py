@@ -355,7 +355,7 @@ def test_killed_command_resumes_to_the_same_result(fresh, tmp_path) -> None:
     assert not (out / "results.json").exists() and 2 <= len(done) < 3
     r = subprocess.run(cmd + ["--resume"], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
-    assert f"1 chunks computed, {len(done)} read back" in r.stdout
+    assert f"1 chunk computed, {len(done)} read back" in r.stdout
     res = json.loads((out / "results.json").read_text())
     assert numbers(res) == numbers(fresh)
 
