@@ -74,14 +74,13 @@ def speed_table(path: Path = SPEED) -> str:
     per_repeat = {s.get("steps_per_repeat", st["vec_steps"]) for s in res["vector"].values()}
     vec_steps = " / ".join(f"{n:,}" for n in sorted(per_repeat))
     cycle = " (one episode length: each round holds one autoreset of all)" if st["vec_steps"] is None else ""
-    kinds = {s.get("compiled") for s in res["vector"].values()}
-    step = {frozenset([True]): ", the vector env's step compiled (numba)",
-            frozenset([False]): ", the vector env's step as numpy pieces (no numba)"}.get(frozenset(kinds),
-                                                                                              "")
+    kinds = {s.get("compiled") for s in res["vector"].values()}  # said when one for all ids
+    step = {True: ", the vector env's step compiled (numba)", False: ", the vector env's step as numpy "
+            "pieces (no numba)"}.get(kinds.pop(), "") if len(kinds) == 1 else ""
     lines += ["", f"Measured {res['when']} with the {st['clock']} clock{blas}, {st['repeats']} rounds of "
               f"{st['steps']:,} single-env and {vec_steps} vector-env steps{cycle}{step}, on {m['cpus']} "
-              f"CPUs at "
-              f"load average {m['load_average_1_5_15'][0]:.1f} (Python {m['python']}, numpy {m['numpy']}, "
+              f"CPUs at load average {m['load_average_1_5_15'][0]:.1f} (Python {m['python']}, "
+              f"numpy {m['numpy']}, "
               f"gymnasium {m['gymnasium']}); intervals are bootstrap intervals of the median over the "
               "rounds."]
     return "\n".join(lines)
