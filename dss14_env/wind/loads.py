@@ -299,6 +299,11 @@ class WindCalibrationError(RuntimeError):
 ACCEPT_RTOL = 1e-9
 
 
+#: floor of a 3-sigma figure in the calibration's log misfit (a zero coefficient on an
+#: uncoupled axis gives 0 mdeg)
+TINY_MDEG = 1e-12
+
+
 def within_accepted(value: float, lo: float, hi: float, rtol: float = ACCEPT_RTOL) -> bool:
     """``lo <= value <= hi`` up to the relative slack ``rtol`` of the range ends."""
     return bool(lo - rtol * abs(lo) <= value <= hi + rtol * abs(hi))
@@ -310,10 +315,15 @@ def calibrate_wind_loads(model: DSS14Model | None = None, wcfg: WindConfig | Non
     """Solve the four moment coefficients so the PI loop reproduces [R] Table 4.
 
     For each direction the two coefficients ``[C_az, C_el]`` (>= 0) are found by
-    least squares on the relative misfit of the two 3-sigma encoder errors, computed exactly
-    by :func:`three_sigma_mdeg` at the table's speed.  Since the gust torque is linear in the
-    coefficients and the loop is linear, each 3-sigma value is a norm ``3 sqrt(c^T M c)``;
-    the weak az-el coupling makes the problem nearly diagonal and well posed.
+    least squares on the misfit of the two 3-sigma encoder errors, computed exactly by
+    :func:`three_sigma_mdeg` at the table's speed.  Each misfit is ``log(achieved / report)``
+    over the half-width of the figure's accepted range in the same measure
+    (``log(hi / lo) / 2``): where the four figures can all be met exactly the weights do not
+    matter, and where the drive's az-el coupling makes the two figures of one direction
+    compete (a stiff drive: the el load in front wind also moves az), the figure [R] prints
+    with one significant digit (az in front wind, 0.1 mdeg, accepted 0.05-0.2) yields before
+    the one it prints with two (el, 2.6, accepted 2.2-3).  Since the gust torque is linear in
+    the coefficients and the loop is linear, each 3-sigma value is a norm ``3 sqrt(c^T M c)``.
 
     :param model: calibrated servo model, default :func:`dss14_env.model.default_model`
     :param wcfg: wind configuration, default :func:`load_wind_config`
@@ -329,6 +339,8 @@ def calibrate_wind_loads(model: DSS14Model | None = None, wcfg: WindConfig | Non
     coeffs, fit, missed = {}, {}, []
     for d in DIRECTIONS:
         target = rad_to_mdeg(np.array([getattr(t4, f"az_{d}"), getattr(t4, f"el_{d}")]))
+        width = np.array([0.5 * math.log(hi / lo) for lo, hi in
+                          (wcfg.params[f"table4.{ax}_{d}"].range for ax in ("az", "el"))])
         c0 = np.zeros(2)
 
         def errors(c: np.ndarray, d: str = d, c0: np.ndarray = c0) -> np.ndarray:
@@ -338,8 +350,9 @@ def calibrate_wind_loads(model: DSS14Model | None = None, wcfg: WindConfig | Non
 
         # first guess: each axis alone (the 3-sigma value is proportional to its coefficient)
         unit = np.array([errors(np.array([1.0, 0.0]))[0], errors(np.array([0.0, 1.0]))[1]])
-        sol = optimize.least_squares(lambda c, target=target: errors(c) / target - 1.0, target / unit,
-                                     bounds=(0.0, np.inf), x_scale=target / unit, xtol=1e-12, ftol=1e-12)
+        sol = optimize.least_squares(
+            lambda c, target=target, width=width: np.log(np.maximum(errors(c), TINY_MDEG) / target) / width,
+            target / unit, bounds=(0.0, np.inf), x_scale=target / unit, xtol=1e-12, ftol=1e-12)
         coeffs[d] = sol.x
         achieved = errors(sol.x)
         for k, ax in enumerate(("az", "el")):
