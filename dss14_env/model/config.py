@@ -184,20 +184,54 @@ class GainSetSpec:
     ki: float = spec("1/s^2", lo=0.0, lo_open=True)
 
 
+def _merged(base: Mapping[str, Any], over: Mapping[str, Any]) -> dict[str, Any]:
+    """``base`` with ``over``'s entries laid on top, mappings merged key by key (a leaf written
+    as ``{value: ...}`` keeps the base leaf's unit, range and source unless it gives its own).
+    """
+    out = dict(base)
+    for key, val in over.items():
+        out[key] = (_merged(out[key], val) if isinstance(val, Mapping) and isinstance(out.get(key), Mapping)
+                    else val)
+    return out
+
+
+def _with_base(data: Mapping[str, Any], source: str) -> dict[str, Any]:
+    """A model file's content with its ``base`` (a model file or shipped name, e.g.
+    ``base: model``) read first and the file's own entries laid on top (:func:`_merged`); one
+    level: a base file names no base itself.
+
+    :raises ConfigError: a ``base`` that is not a name, or one with a base of its own
+    """
+    if "base" not in data:
+        return dict(data)
+    name = data["base"]
+    if not isinstance(name, str) or not name:
+        raise ConfigError(f"{source}: field 'base': must name a model file or a shipped model "
+                          f"(e.g. 'model'), got {name!r}")
+    base, base_source = read_config(name)
+    if "base" in base:
+        raise ConfigError(f"{source}: field 'base': {base_source} names a base itself; a model "
+                          f"file builds on one complete model file")
+    return _merged(base, {k: v for k, v in data.items() if k != "base"})
+
+
 def load_model_config(path: str | Path | None = None) -> ModelConfig:
     """Load and validate the model configuration.
 
     :param path: YAML file or shipped configuration name; default: the shipped
-        ``configs/model.yaml``
+        ``configs/model.yaml``.  A file may build on another with ``base: <file or shipped
+        name>`` and give only what differs (the shipped drive variants ``model_soft`` and
+        ``model_stiff`` do)
     :return: the configuration in SI units
     :raises ConfigError: naming the field and file of the first problem found
     """
     data, source = read_config("model" if path is None else path)
+    data = _with_base(data, source)
     registry: dict[str, Param] = {}
     extra = set(data) - set(SECTIONS) - {"position_loop", "recalibrate_wind"}
     if extra:
         raise ConfigError(f"{source}: unknown section(s) {sorted(extra)}; known: "
-                          f"{sorted(SECTIONS) + ['position_loop', 'recalibrate_wind']}")
+                          f"{sorted(SECTIONS) + ['position_loop', 'recalibrate_wind', 'base']}")
     recalibrate = data.get("recalibrate_wind", False)
     if not isinstance(recalibrate, bool):
         raise ConfigError(f"{source}: field 'recalibrate_wind': must be true or false, got {recalibrate!r}")
