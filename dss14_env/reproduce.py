@@ -57,6 +57,7 @@ from dss14_env.model.linsys import freqresp
 from dss14_env.model.loops import position_loop, rate_loop
 from dss14_env.model.reduction import hankel_singular_values, reduce_modes
 from dss14_env.model.uncertainty import stability_sweep
+from dss14_env.wind.evidence import load_wind_evidence
 from dss14_env.wind.loads import (
     DIRECTIONS,
     WindLoads,
@@ -89,14 +90,6 @@ CROSSOVER_ACCEPTED = [0.07, 0.15]
 #: Viscosities (kPa*s) at which :func:`viscosity_sensitivity` recalibrates the model: the ends
 #: of [R] Table 2's range (the nominal 1e-3 is the configuration's own).
 SENSITIVITY_MU_KPAS = (2.8e-4, 2.8e-3)
-#: Moment coefficients of large paraboloidal dishes, orders of magnitude, with the axis and
-#: wind direction in which each dominates: the elevation moment in front wind and the azimuth
-#: moment in side wind.  Source of the data: the JPL wind-tunnel measurements on a scaled
-#: paraboloidal-dish model (R. B. Blaylock, JPL memo CP-6, 1964, the data [R] Section VI
-#: uses), whose torque coefficients Gawronski & Mellstrom, "Field Verification of the Wind
-#: Tunnel Coefficients", TDA PR 42-119 (1994), found within 10 % of field-measured torques of
-#: the DSS-13 34-m antenna.  Only the order of magnitude is claimed here.
-LITERATURE_MOMENT_COEFFICIENTS = {"el_front": 0.10, "az_side": 0.05}
 RATE_CHANNELS = {"az": ("enc_rate_az", "r_a"), "el": ("enc_rate_el", "r_e")}
 #: [R]'s conclusion: the drive encoders limit the PI loop's bandwidth to 0.1 Hz; "master
 #: equatorial or new encoders located close to the axes" would allow 0.7-1.0 Hz
@@ -397,16 +390,35 @@ def compute_wind_metrics(m: DSS14Model, loads: WindLoads | None = None, gain_set
     return rows, records
 
 
-def wind_load_summary(loads: WindLoads) -> dict:
-    """The calibrated moment coefficients, the literature orders of magnitude beside them
-    (:data:`LITERATURE_MOMENT_COEFFICIENTS`) and the gust torques at the Table 4 speed.
+def wind_evidence_rows(loads: WindLoads) -> dict:
+    """The calibrated moment coefficients that the public wind-load evidence bears on, each
+    with the range it accepts (docs/wind.md section 6; ``report`` is the evidence's central
+    estimate): a drive whose Table 4 fit needs coefficients outside it fails ``dss14 reproduce``.
     """
+    rows = {}
+    for key, ev in load_wind_evidence().accepted.items():
+        ax, _, d = key.partition("_")
+        c = (loads.c_front if d == "front" else loads.c_side)[AXES.index(ax)]
+        rows[f"wind_coefficient_{key}"] = _row(
+            ev.nominal, float(c), list(ev.range),
+            f"moment coefficient M/(qAD), {ax} in {d} wind, Table 4 fit; accepted on the public "
+            f"wind-load evidence: {ev.basis}")
+    return rows
+
+
+def wind_load_summary(loads: WindLoads) -> dict:
+    """The calibrated moment coefficients, what the public wind-load evidence admits for each
+    (:func:`dss14_env.wind.evidence.load_wind_evidence`: central estimate and accepted range,
+    None where no public figure exists) and the gust torques at the Table 4 speed.
+    """
+    acc = load_wind_evidence().accepted
     coeff = {}
     for d, c in (("front", loads.c_front), ("side", loads.c_side)):
         for k, ax in enumerate(("az", "el")):
-            lit = LITERATURE_MOMENT_COEFFICIENTS.get(f"{ax}_{d}")
-            coeff[f"{ax}_{d}"] = {"calibrated": float(c[k]), "literature_order": lit,
-                                  "literature_over_calibrated": None if lit is None else lit / float(c[k])}
+            ev = acc.get(f"{ax}_{d}")
+            coeff[f"{ax}_{d}"] = {"calibrated": float(c[k]),
+                                  "evidence_nominal": None if ev is None else ev.nominal,
+                                  "evidence_range": None if ev is None else list(ev.range)}
     return {"c_front_az_el": loads.c_front.tolist(), "c_side_az_el": loads.c_side.tolist(),
             "coefficients": coeff, "gust_torque_sigma_Nm_50kmh": _gust_sigma(loads),
             "table4_missed": list(loads.table4_missed)}
@@ -519,16 +531,19 @@ def viscosity_markdown(sens: dict) -> str:
 
 
 def wind_coefficients_markdown(wl: dict) -> str:
-    """Calibrated moment coefficients beside the literature orders of magnitude."""
+    """Calibrated moment coefficients beside what the public wind-load evidence admits."""
     names = {"el_front": "C_el, front wind", "az_side": "C_az, side wind",
              "az_front": "C_az, front wind", "el_side": "C_el, side wind"}
-    lines = ["| coefficient | calibrated | literature, order of | literature ÷ calibrated |",
-             "|---|---|---|---|"]
+    lines = ["| coefficient | calibrated | evidence, central | accepted on the evidence | "
+             "calibrated ÷ central |", "|---|---|---|---|---|"]
     for key, label in names.items():
         c = wl["coefficients"][key]
-        lit = "—" if c["literature_order"] is None else f"{c['literature_order']:.2g}"
-        ratio = "—" if c["literature_over_calibrated"] is None else f"{c['literature_over_calibrated']:.1f}"
-        lines.append(f"| {label} | {c['calibrated']:#.2g} | {lit} | {ratio} |")
+        if c["evidence_nominal"] is None:
+            lines.append(f"| {label} | {c['calibrated']:#.2g} | — | no public figure | — |")
+            continue
+        lo, hi = c["evidence_range"]
+        lines.append(f"| {label} | {c['calibrated']:#.2g} | {c['evidence_nominal']:.2g} | "
+                     f"{lo:.2g}–{hi:.2g} | {c['calibrated'] / c['evidence_nominal']:.2f} |")
     return "\n".join(lines) + "\n"
 
 
@@ -630,6 +645,12 @@ def readme_table(results: dict) -> str:
         rows.append((f"{enc} encoders, PI at the highest gain with ≥ {MIN_PHASE_MARGIN_DEG:g}° phase margin: "
                      "gain crossover az / el; −3 dB bandwidth az / el, Hz (conclusion)",
                      ENCODER_BANDWIDTH_REPORT[enc].replace("-", "–"), model, keys, ".2f", "no"))
+    for key, label in (("el_front", "C_el, front wind"), ("az_side", "C_az, side wind")):
+        k = f"wind_coefficient_{key}"
+        if k in mt:
+            rows.append((f"wind moment coefficient {label}, Table 4 fit, against the public wind-load "
+                         "evidence (docs/wind.md §6)", f"{mt[k]['report']:.2g} (evidence)",
+                         _v(mt, k, ".3g"), [k], ".3g", "no"))
     keys = [f"stable_position_loop_{g}" for g in gs]
     rows.append(("nominal position loops: largest pole real part kp 1; kp 0.7, 1/s", "stable",
                  "; ".join(_v(mt, k, ".3f") for k in keys), keys, ".0f", "no"))
@@ -892,6 +913,7 @@ def reproduce(out_dir: str | Path, model: DSS14Model | None = None, figures: boo
         loads = calibrate_wind_loads(m, strict=False)
     wind_rows, records = compute_wind_metrics(m, loads)
     metrics.update(wind_rows)
+    metrics.update(wind_evidence_rows(loads))
     results = {"metrics": metrics, "rate_loop_poles": rate_loop_pole_table(m),
                "viscosity_sensitivity": viscosity_sensitivity(m),
                "wind_loads": dict(wind_load_summary(loads),
