@@ -10,7 +10,8 @@ pointing errors (el, xel: the command less the structure's pointing angles, defo
 included), ``sigma_e`` the error scale (10 mdeg), ``a = r / s_a`` the action and ``w`` the
 action-change weight.  The *encoder yardstick* minimises ``J_enc``, the *pointing yardstick*
 ``J_point``; both see the same measurements, the drive encoders.  The plant is the FULL
-nominal model: the 58-state stable part of the rate loop plus the two encoder integrators (the
+nominal model (or, with ``plants=``, a drive variant's model and its wind loads): the 58-state
+stable part of the rate loop plus the two encoder integrators (the
 60-state rate loop, exact, its deformation outputs kept), the scenario's own wind (4-state
 Davenport filter at the scenario speed, coherent gust with the scenario direction's gains) --
 64 states -- plus the previous command (2 states) that the action-change penalty needs,
@@ -88,17 +89,18 @@ def _check_error(error: str) -> str:
 
 
 def yardstick_design(spec: ControlInterface, wind_speed: float, direction: str | float,
-                     runnable: bool = False, error: str = "encoder", action_change: float = 1.0) -> LQGDesign:
+                     runnable: bool = False, error: str = "encoder", action_change: float = 1.0,
+                     plants: Any = None) -> LQGDesign:
     """See :func:`_yardstick_design` (cached)."""
     direction = direction if isinstance(direction, str) else float(direction)
     return _yardstick_design(spec, float(wind_speed), direction, bool(runnable), _check_error(error),
-                             float(action_change))
+                             float(action_change), plants)
 
 
 @lru_cache(maxsize=32)
 def _yardstick_design(spec: ControlInterface, wind_speed: float, direction: str | float,
                       runnable: bool = False, error: str = "encoder",
-                      action_change: float = 1.0) -> LQGDesign:
+                      action_change: float = 1.0, plants: Any = None) -> LQGDesign:
     """The full-order H2-optimal design for one scenario wind.
 
     :param spec: environment interface (period, scales, weight, encoder)
@@ -108,6 +110,9 @@ def _yardstick_design(spec: ControlInterface, wind_speed: float, direction: str 
     :param error: ``"encoder"`` (``J_enc``) or ``"pointing"`` (``J_point``)
     :param action_change: multiplier on the environment's action-change weight (1: the
         benchmark's cost; :data:`ERROR_ONLY_WEIGHT`: the error-only limit)
+    :param plants: the model the yardstick is optimal for: a
+        :class:`~dss14_env.envs.plant.PlantFactory` (its model and wind loads, e.g. a drive
+        variant's), None for the shipped model
     """
     if not (math.isfinite(wind_speed) and wind_speed > 0):
         raise ValueError(f"the yardstick needs a positive wind speed (m/s), got {wind_speed!r}")
@@ -116,7 +121,9 @@ def _yardstick_design(spec: ControlInterface, wind_speed: float, direction: str 
     direction = direction if isinstance(direction, str) else float(direction_angle(direction))
     dm = build_design_model(spec.dt, order=None, wind=(float(wind_speed), direction),
                             encoder_noise=spec.encoder_noise, bits=spec.encoder_bits, pointing=True,
-                            error_output=error, encoders=spec.encoders)
+                            error_output=error, encoders=spec.encoders,
+                            model=None if plants is None else plants.model,
+                            loads=None if plants is None else plants.loads)
     return design_lqg(dm, spec.weights, w_e=1.0, w_a=action_change, w_i=None,
                       input_noise=REGULARISING_INPUT_NOISE,
                       disturbance_drift=RUNNABLE_DRIFT if runnable else None,
@@ -124,17 +131,19 @@ def _yardstick_design(spec: ControlInterface, wind_speed: float, direction: str 
 
 
 def expected_performance(spec: ControlInterface | Any, wind_speed: float, direction: str | float,
-                         error: str = "encoder", action_change: float = 1.0) -> dict:
-    """See :func:`_expected_performance` (cached per interface, wind and cost; a copy is returned)."""
+                         error: str = "encoder", action_change: float = 1.0, plants: Any = None) -> dict:
+    """See :func:`_expected_performance` (cached per interface, wind, cost and model; a copy
+    is returned).
+    """
     spec = as_interface(spec)
     direction = direction if isinstance(direction, str) else float(direction)
     return copy.deepcopy(_expected_performance(spec, float(wind_speed), direction, _check_error(error),
-                                               float(action_change)))
+                                               float(action_change), plants))
 
 
 @lru_cache(maxsize=64)
 def _expected_performance(spec: ControlInterface, wind_speed: float, direction: str | float,
-                          error: str = "encoder", action_change: float = 1.0) -> dict:
+                          error: str = "encoder", action_change: float = 1.0, plants: Any = None) -> dict:
     """A yardstick's expected 3-sigma errors (mdeg), acceleration and per-step cost.
 
     :return: dict (JSON-ready): ``error`` (which cost), ``action_change`` (its multiplier),
@@ -145,7 +154,7 @@ def _expected_performance(spec: ControlInterface, wind_speed: float, direction: 
         ``cost_riccati`` (the design's own cost from the Riccati solutions), ``n_states`` of the
         plant model and the Riccati residuals
     """
-    d = yardstick_design(spec, wind_speed, direction, error=error, action_change=action_change)
+    d = yardstick_design(spec, wind_speed, direction, error=error, action_change=action_change, plants=plants)
     perf = stationary_performance(closed_loop(d.dm, lqg_as_linear(d)), spec.weights)
     acc = [3.0 * x / spec.dt * R2D for x in perf.pop("command_change_rms_rad_s")]
     perf.update({"error": error, "action_change": float(action_change),
@@ -157,17 +166,17 @@ def _expected_performance(spec: ControlInterface, wind_speed: float, direction: 
 
 
 def error_only_limit(spec: ControlInterface | Any, wind_speed: float, direction: str | float,
-                     error: str = "encoder") -> dict:
+                     error: str = "encoder", plants: Any = None) -> dict:
     """The error-only limit of a yardstick: its expected performance with the action-change
     weight taken to zero (:data:`ERROR_ONLY_WEIGHT`), the smallest 3σ error of its kind that a
     linear controller on the drive encoders reaches on the model, with the acceleration it needs
     (``accel_three_sigma_deg_s2`` against ``accel_limit_deg_s2``).
     """
-    return expected_performance(spec, wind_speed, direction, error, ERROR_ONLY_WEIGHT)
+    return expected_performance(spec, wind_speed, direction, error, ERROR_ONLY_WEIGHT, plants)
 
 
 def acceleration_matched(spec: ControlInterface | Any, wind_speed: float, direction: str | float,
-                         error: str = "encoder", iterations: int = 12) -> dict:
+                         error: str = "encoder", iterations: int = 12, plants: Any = None) -> dict:
     """The yardstick of ``error``'s kind whose action-change weight makes its largest 3σ
     acceleration (over the axes) equal the command limiter's acceleration limit: the 3σ
     reference of the family of H2-optimal laws that the limit leaves usable (bisection on
@@ -184,21 +193,23 @@ def acceleration_matched(spec: ControlInterface | Any, wind_speed: float, direct
     limit = spec.accel_limit * R2D
     lo, hi = (math.log(x) for x in MATCH_BRACKET)
     accel = lambda lw: max(expected_performance(spec, wind_speed, direction, error,  # noqa: E731
-                                                math.exp(lw))["accel_three_sigma_deg_s2"])
+                                                math.exp(lw), plants)["accel_three_sigma_deg_s2"])
     if accel(lo) <= limit:
-        return expected_performance(spec, wind_speed, direction, error, MATCH_BRACKET[0])
+        return expected_performance(spec, wind_speed, direction, error, MATCH_BRACKET[0], plants)
     for _ in range(int(iterations)):
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if accel(mid) > limit else (lo, mid)
-    return expected_performance(spec, wind_speed, direction, error, math.exp(hi))
+    return expected_performance(spec, wind_speed, direction, error, math.exp(hi), plants)
 
 
-def references(spec: ControlInterface | Any, wind_speed: float, direction: str | float) -> dict:
+def references(spec: ControlInterface | Any, wind_speed: float, direction: str | float,
+               plants: Any = None) -> dict:
     """The encoder yardstick's :func:`expected_performance` (the keys the runner's
-    ``vs_yardstick`` reads) with the pointing yardstick's under ``"pointing"``.
+    ``vs_yardstick`` reads) with the pointing yardstick's under ``"pointing"``, on the shipped
+    model or ``plants``' (a :class:`~dss14_env.envs.plant.PlantFactory`).
     """
-    out = expected_performance(spec, wind_speed, direction, "encoder")
-    out["pointing"] = expected_performance(spec, wind_speed, direction, "pointing")
+    out = expected_performance(spec, wind_speed, direction, "encoder", plants=plants)
+    out["pointing"] = expected_performance(spec, wind_speed, direction, "pointing", plants=plants)
     return out
 
 

@@ -200,14 +200,17 @@ def yardstick_ratios(summary: Mapping[str, Any], ref: Mapping[str, Any], pointin
 def yardstick_reference(scenario: Scenario, env: Any) -> dict[str, Any] | None:
     """The yardsticks' expected performance for a scenario with one fixed wind, else None: the
     encoder yardstick's, the pointing yardstick's under ``"pointing"``
-    (:func:`dss14_env.baselines.yardstick.references`).
+    (:func:`dss14_env.baselines.yardstick.references`), on the model the environment runs on
+    (a drive variant's, with its wind loads, when the environment runs on a model file).
     """
     kw = scenario.env
     speed, direction = kw.get("wind_speed_kmh"), kw.get("wind_direction")
     if not isinstance(speed, (int, float)) or speed <= 0 or direction in (None, "random"):
         return None
     from dss14_env.baselines.yardstick import references
-    return references(env, speed * KMH, direction)
+    plants = getattr(getattr(env, "unwrapped", env), "plants", None)
+    return references(env, speed * KMH, direction,
+                      None if plants is None or plants.source is None else plants)
 
 
 __all__ = ["ERROR_POOLING", "LEVEL", "N_RESAMPLES", "POOLING", "RATE_POOLING", "STEP_POOLING",
