@@ -11,6 +11,7 @@ from typing import Any
 from dss14_env.agents.config import shipped_training_configs_by_algo
 from dss14_env.bench import catalog
 from dss14_env.core.text import counted
+from dss14_env.model.variants import DRIVE_VARIANTS
 
 
 def _reproduce(args: argparse.Namespace) -> int:
@@ -185,7 +186,8 @@ def _bench(args: argparse.Namespace) -> int:
                       ppo_model=args.ppo_model, randomize=args.randomize, out=args.out,
                       figures=not args.no_figures, sweep=not args.no_sweep,
                       sweep_seeds=args.sweep_seeds, sequential_episodes=args.sequential_episodes,
-                      threads=args.threads, overwrite=args.overwrite, command=cmd)
+                      threads=args.threads, overwrite=args.overwrite, command=cmd,
+                      variants=args.variants)
     prepare_out(plan)  # before any work: a bad --out is a one-line error
     for note in plan.notes:
         print(f"dss14 bench: warning: {note}", file=sys.stderr)
@@ -376,6 +378,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--wind-speeds", nargs="+", metavar="KMH", default=None,
                    help="speeds of the error-vs-wind sweep, km/h (default: 30 40 50 60 70)")
     p.add_argument("--no-sweep", action="store_true", help="skip the error-vs-wind sweep")
+    p.add_argument("--variants", nargs="*", metavar="NAME", default=None,
+                   help="drive variants whose hold scenarios also run "
+                   f"({', '.join(f'{v.name}: {v.description}' for v in DRIVE_VARIANTS.values())}; "
+                   "default: all; --variants alone: none)")
     p.add_argument("--sweep-seeds", type=int, default=None, metavar="N",
                    help="episodes per sweep point of the batched controllers (default 32)")
     p.add_argument("--steps", type=int, default=None,

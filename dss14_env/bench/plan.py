@@ -28,6 +28,7 @@ import numpy as np
 from dss14_env.bench import catalog
 from dss14_env.bench.catalog import SCENARIO_ROWS, Budget, ControllerRow, Scenario
 from dss14_env.core.seeds import parse_seed_list
+from dss14_env.model.variants import DRIVE_VARIANTS
 
 #: per scenario, the default run's budget and the ``--quick`` one (the catalog's rows)
 DEFAULT_BUDGETS: Mapping[str, Budget] = MappingProxyType({r.name: r.default for r in SCENARIO_ROWS})
@@ -44,6 +45,16 @@ DEFAULT_SCENARIOS: tuple[str, ...] = catalog.scenario_names("bench")
 #: wind speeds (km/h) of the error-vs-wind sweep without ``--wind-speeds``
 DEFAULT_WIND_SPEEDS_KMH: tuple[float, ...] = (30.0, 40.0, 50.0, 60.0, 70.0)
 QUICK_WIND_SPEEDS_KMH: tuple[float, ...] = (30.0, 50.0, 70.0)
+#: the drive variants a run scores the pointing error on without ``--variants``
+#: (:data:`dss14_env.model.variants.DRIVE_VARIANTS`), in the selected hold scenarios
+DEFAULT_VARIANTS: tuple[str, ...] = tuple(DRIVE_VARIANTS)
+#: the controllers that run on the drive variants (when selected): the report's PI and the
+#: model-based controllers, all designed on the nominal model (the one-at-a-time MPC is left
+#: out for time)
+VARIANT_CONTROLLERS: tuple[str, ...] = ("pi_kp1", "lqg", "lqg_pointing")
+#: a hold scenario on a drive variant: episodes like a sweep point's
+DEFAULT_VARIANT_RUN = Budget(60.0, 32, 0)
+QUICK_VARIANT_RUN = Budget(15.0, 8, 0)
 #: warm-up of a sweep point, s (the hold scenarios')
 SWEEP_WARMUP_S = 5.0
 #: the sweep's directions, the hold scenario each extends and the axis the wind acts on most
@@ -89,6 +100,9 @@ class BenchPlan:
     :param sweep_directions: ``"front"`` and/or ``"side"`` (those of the selected hold
         scenarios); empty: no sweep
     :param sweep: what a sweep point runs
+    :param variants: drive variants (:data:`dss14_env.model.variants.DRIVE_VARIANTS`) whose
+        hold scenarios run too; empty: none
+    :param variant_run: what a hold scenario on a variant runs
     :param env_kwargs: environment keys on top of every scenario's
     :param rows: the catalog rows that run (:func:`controller_rows`; a ``--ppo-model`` policy
         is a row of its own name)
@@ -110,6 +124,8 @@ class BenchPlan:
     wind_speeds_kmh: list[float]
     sweep_directions: list[str]
     sweep: ScenarioRun
+    variants: list[str] = field(default_factory=list)
+    variant_run: ScenarioRun = ScenarioRun(0, (), 0)
     env_kwargs: dict[str, Any] = field(default_factory=dict)
     rows: tuple[ControllerRow, ...] = ()
     dt: float = 0.02
@@ -133,6 +149,7 @@ class BenchPlan:
         d["out"] = str(self.out)
         d["runs"] = {s: self._run_dict(r, self.scenario(s).warmup_s) for s, r in self.runs.items()}
         d["sweep"] = self._run_dict(self.sweep, SWEEP_WARMUP_S)
+        d["variant_run"] = self._run_dict(self.variant_run, SWEEP_WARMUP_S)
         d["rows"] = [r.name for r in self.rows]
         d["policies"] = {r.name: str(r.policy_path()) for r in self.rows if r.policy is not None}
         return d
@@ -152,9 +169,22 @@ class BenchPlan:
                      f"{', '.join(f'{v:g}' for v in self.wind_speeds_kmh)} km/h "
                      f"({self.sweep.steps * self.dt:g} s x {len(self.sweep.seeds)}, one-at-a-time: "
                      f"{self.sweep.sequential})")
+        if self.variants:
+            line += (f"; drive variants {', '.join(self.variants)} ({', '.join(self.variant_controllers)}; "
+                     f"{self.variant_run.steps * self.dt:g} s x {len(self.variant_run.seeds)})")
         if self.env_kwargs:
             line += f"; env {self.env_kwargs}"
         return line
+
+    @property
+    def variant_scenarios(self) -> list[str]:
+        """The hold scenarios the drive variants run (those of the plan's scenarios)."""
+        return [s for s, _ in SWEEP_DIRECTIONS.values() if s in self.scenarios] if self.variants else []
+
+    @property
+    def variant_controllers(self) -> list[str]:
+        """The plan's controllers that run on the drive variants (:data:`VARIANT_CONTROLLERS`)."""
+        return [c for c in self.controllers if c in VARIANT_CONTROLLERS]
 
 
 # ------------------------------------------------------------------------------ options
@@ -371,7 +401,7 @@ def build_plan(controllers: Sequence[str] | None = None, scenarios: Sequence[str
                out: str | Path = "bench_out", figures: bool = True, sweep: bool = True,
                sweep_seeds: int | None = None, sequential_episodes: int | None = None,
                threads: int | None = DEFAULT_THREADS, overwrite: bool = False,
-               command: str | None = None) -> BenchPlan:
+               command: str | None = None, variants: Sequence[str] | None = None) -> BenchPlan:
     """Resolve and validate the bench options (None: the default of the option).
 
     :param controllers: controller names of the catalog (default :data:`DEFAULT_CONTROLLERS`;
@@ -400,10 +430,15 @@ def build_plan(controllers: Sequence[str] | None = None, scenarios: Sequence[str
     :param threads: BLAS threads while running (default 1; None leaves them alone)
     :param overwrite: replace the results of an earlier bench in ``out``
     :param command: the command line, stored in results.json
+    :param variants: drive variants whose hold scenarios run too (default
+        :data:`DEFAULT_VARIANTS`; empty: none), with :data:`VARIANT_CONTROLLERS` among the
+        selected controllers
     :raises BenchOptionError: a bad option (the message names it)
     """
     ctrl = _names(controllers, catalog.controller_names(), "--controllers", "controller")
     scen = _names(scenarios, catalog.scenario_names(), "--scenarios", "scenario")
+    var = list(DEFAULT_VARIANTS) if variants is None else (
+        _names(variants, tuple(DRIVE_VARIANTS), "--variants", "drive variant") if variants else [])
     seed_list = _seed_option(seeds)
     speeds = parse_wind_speeds(wind_speeds)
     steps = _count(steps, "--steps", 1, "the episode length")
@@ -423,6 +458,15 @@ def build_plan(controllers: Sequence[str] | None = None, scenarios: Sequence[str
     sweep_run = _run_for(sb, list(range(sweep_n)) if sweep_n is not None else None, steps, seq,
                          "a sweep point", dt)
     directions = [d for d, (s, _) in SWEEP_DIRECTIONS.items() if s in scen] if sweep else []
+    variant_run = _run_for(QUICK_VARIANT_RUN if quick else DEFAULT_VARIANT_RUN, seed_list, steps, 0,
+                           "a drive variant", dt)
+    if var and (randomize or not any(s in scen for s, _ in SWEEP_DIRECTIONS.values())
+                or not any(r.name in VARIANT_CONTROLLERS for r in rows)):
+        if variants:
+            notes.append("--variants ignored: the drive variants run the hold scenarios "
+                         f"({', '.join(s for s, _ in SWEEP_DIRECTIONS.values())}) with "
+                         f"{', '.join(VARIANT_CONTROLLERS)} on the nominal plant parameters")
+        var = []
     if sweep and not directions and speeds is not None:
         anchors = " nor ".join(s for s, _ in SWEEP_DIRECTIONS.values())
         notes.append(f"--wind-speeds ignored: the wind sweep extends the hold scenarios, and "
@@ -430,7 +474,7 @@ def build_plan(controllers: Sequence[str] | None = None, scenarios: Sequence[str
     if speeds is None:
         speeds = list(QUICK_WIND_SPEEDS_KMH if quick else DEFAULT_WIND_SPEEDS_KMH)
     return BenchPlan(controllers=[r.name for r in rows], scenarios=scen, runs=runs, wind_speeds_kmh=speeds,
-                     sweep_directions=directions, sweep=sweep_run,
+                     sweep_directions=directions, sweep=sweep_run, variants=var, variant_run=variant_run,
                      env_kwargs=env_kwargs, rows=tuple(rows), dt=dt,
                      ppo_model=None if ppo_model is None else str(ppo_model), out=Path(out),
                      overwrite=bool(overwrite), figures=bool(figures), threads=threads,
@@ -455,7 +499,8 @@ def sweep_name(direction: str, speed_kmh: float) -> str:
 
 
 __all__ = ["BenchOptionError", "BenchPlan", "Budget", "DEFAULT_BUDGETS", "DEFAULT_CONTROLLERS",
-           "DEFAULT_SCENARIOS", "DEFAULT_SWEEP", "DEFAULT_WIND_SPEEDS_KMH", "LOADED_AXES",
+           "DEFAULT_SCENARIOS", "DEFAULT_SWEEP", "DEFAULT_VARIANTS", "VARIANT_CONTROLLERS",
+           "DEFAULT_WIND_SPEEDS_KMH", "LOADED_AXES",
            "QUICK_BUDGETS", "QUICK_SWEEP", "ScenarioRun", "SWEEP_DIRECTIONS", "build_plan",
            "check_names", "control_period", "controller_rows", "parse_episodes", "parse_seeds",
            "parse_wind_speeds", "sweep_name", "sweep_scenario"]

@@ -191,6 +191,16 @@ def assemble_results(plan: BenchPlan, ran: Mapping[str, Any], wall_time_s: float
                  "summary": s["summary"] if s else {}, "yardstick": s["yardstick"] if s else {},
                  "episodes": episode_columns(s["episodes"]) if s else {}}
     meta = {k: v for k, v in main["meta"].items() if k != "statistics"}
+    var = ran.get("variants")
+    variants: dict[str, Any] | None = None
+    if var is not None:
+        variants = {"variants": list(plan.variants), "scenarios": list(plan.variant_scenarios),
+                    "steps": plan.variant_run.steps, "seconds": plan.variant_run.steps * plan.dt,
+                    "seeds": list(plan.variant_run.seeds),
+                    "points": {n: {"scenario": sc, "variant": v} for n, sc, v in ran["variant_points"]},
+                    "meta": {k: v for k, v in var["meta"].items() if k != "statistics"},
+                    "summary": var["summary"], "yardstick": var["yardstick"],
+                    "episodes": episode_columns(var["episodes"])}
     return {
         "bench": {"command": plan.command, "config": plan.as_dict(), "notes": list(plan.notes),
                   "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
@@ -204,6 +214,7 @@ def assemble_results(plan: BenchPlan, ran: Mapping[str, Any], wall_time_s: float
         "summary": main["summary"],
         "yardstick": main["yardstick"],
         "wind_sweep": sweep,
+        "drive_variants": variants,
         "episodes": episode_columns(main["episodes"]),
     }
 
@@ -345,7 +356,7 @@ def loaded_axes(scenario: str, quantity: str = SERVO) -> tuple[str, ...]:
     """The axes of ``quantity`` the scenario's wind loads (bold in the tables): the drive
     axes of the catalog, or the pointing axes they move the beam on (azimuth: cross-elevation).
     """
-    axes = LOADED_AXES.get(scenario, ())
+    axes = LOADED_AXES.get(scenario.partition("@")[0], ())  # a drive variant's: its hold scenario's
     return axes if quantity == SERVO else tuple(POINTING_AXIS_OF[ax] for ax in axes)
 
 
@@ -534,6 +545,29 @@ def sweep_tables(results: Mapping[str, Any]) -> list[str]:
     return out
 
 
+def variant_tables(results: Mapping[str, Any]) -> list[str]:
+    """The pointing error on the nominal model and the drive variants: the 3σ table of the hold
+    scenarios (nominal columns from the main run, its controllers those that ran on the
+    variants), then the ratios to the reference on the same seeds; empty when no variant ran.
+    """
+    dv = results.get("drive_variants")
+    if not dv:
+        return []
+    ctrls = list(dv["meta"]["controllers"])
+    names = [s for s in dv["scenarios"] if s in results["summary"].get(ctrls[0], {})]
+    merged = {"meta": {"controllers": ctrls, "scenarios": names + list(dv["meta"]["scenarios"]),
+                       "reference": dv["meta"].get("reference")},
+              "summary": {c: {**{s: x for s, x in results["summary"].get(c, {}).items() if s in names},
+                              **dv["summary"].get(c, {})} for c in ctrls},
+              "yardstick": {**{s: y for s, y in results.get("yardstick", {}).items() if s in names},
+                            **dv.get("yardstick", {})}}
+    out = [pointing_table(merged)]
+    pr = pointing_ratio_table(merged)
+    if pr:
+        out.append(pr)
+    return out
+
+
 def error_table(results: Mapping[str, Any]) -> str:
     """Detail: servo errors (3σ, rms, peak) and the dish's true pointing error per controller
     and scenario.
@@ -676,6 +710,15 @@ def results_markdown(results: Mapping[str, Any]) -> str:
         parts += [f"## 3σ error vs wind speed (hold, {s['seconds']:g}-s episodes, {len(s['seeds'])} "
                   f"per point; the 50 km/h points are the hold scenarios)", ""]
         for t in sw:
+            parts += [t, ""]
+    vt = variant_tables(results)
+    if vt:
+        dv = results["drive_variants"]
+        parts += [f"## The drive/structure split: pointing error on the nominal model and the drive "
+                  f"variants ({', '.join(dv['variants'])}; `name@variant`; {dv['seconds']:g}-s episodes, "
+                  f"{len(dv['seeds'])} per scenario on a variant; controllers designed on the nominal "
+                  f"model; the pointing yardstick is each model's own)", ""]
+        for t in vt:
             parts += [t, ""]
     parts += ["## Errors in detail (mdeg)", "", error_table(results), "",
               "## Commands, limits, timing, health", "", command_table(results), ""]

@@ -16,6 +16,7 @@ from dss14_env.bench import runner
 from dss14_env.bench.catalog import SCENARIO_ROWS
 from dss14_env.bench.plan import SWEEP_DIRECTIONS, BenchPlan, ScenarioRun, sweep_name, sweep_scenario
 from dss14_env.bench.runner import Scenario
+from dss14_env.model.variants import DRIVE_VARIANTS
 
 #: scenarios whose first seed's time histories the figures draw (the catalog's traced rows)
 TRACED = tuple(r.name for r in SCENARIO_ROWS if r.traced)
@@ -38,6 +39,25 @@ def sweep_points(plan: BenchPlan) -> list[tuple[str, str, float, Scenario, str |
                          and plan.runs[s].steps == sc.steps and plan.scenario(s).warmup_s == sc.warmup_s),
                         None)
             pts.append((sweep_name(d, v), d, v, sc, same))
+    return pts
+
+
+def variant_name(scenario: str, variant: str) -> str:
+    """Name of a hold scenario on a drive variant, e.g. ``hold_front@stiff``."""
+    return f"{scenario}@{variant}"
+
+
+def variant_points(plan: BenchPlan) -> list[tuple[str, str, str, Scenario]]:
+    """(name, scenario, variant, runner scenario) per hold scenario on a drive variant: the
+    scenario's environment on the variant's model file, the variant run's episode length.
+    """
+    pts = []
+    for v in plan.variants:
+        for s in plan.variant_scenarios:
+            base = plan.scenario(s)
+            sc = Scenario({**base.env, "model_config": DRIVE_VARIANTS[v].config}, plan.variant_run.steps,
+                          base.warmup_s, f"{base.description} on the {v} drive variant")
+            pts.append((variant_name(s, v), s, v, sc))
     return pts
 
 
@@ -86,15 +106,20 @@ def run_plan(plan: BenchPlan, progress: bool = True) -> dict[str, Any]:
     :param plan: the plan (:func:`dss14_env.bench.plan.build_plan`)
     :param progress: show a tqdm progress bar (stderr), one tick per episode
     :return: ``{"main": runner result (episodes with ``trace``), "sweep": runner result of the
-        sweep points that ran (or None), "sweep_points": [(name, direction, speed, same_as)],
-        "wall_time_s": {"main", "sweep"}}``
+        sweep points that ran (or None), "variants": runner result of the hold scenarios on the
+        drive variants (or None), "sweep_points": [(name, direction, speed, same_as)],
+        "variant_points": [(name, scenario, variant)], "wall_time_s": {"main", "sweep",
+        "variants"}}``
     """
     from tqdm.auto import tqdm
 
     ctrls = controller_entries(plan)
     points = sweep_points(plan)
     to_run = [(n, sc) for n, _, _, sc, same in points if same is None]
-    total = _expected_episodes(plan, list(plan.runs.values()) + [plan.sweep] * len(to_run))
+    variants = variant_points(plan)
+    v_ctrls = [r for r in ctrls if r.name in plan.variant_controllers]
+    total = (_expected_episodes(plan, list(plan.runs.values()) + [plan.sweep] * len(to_run))
+             + len(variants) * len(v_ctrls) * len(plan.variant_run.seeds))
     t0 = time.perf_counter()
     with tqdm(total=total, unit="ep", disable=not progress, dynamic_ncols=True,
               desc="building the model") as bar:
@@ -111,11 +136,16 @@ def run_plan(plan: BenchPlan, progress: bool = True) -> dict[str, Any]:
         t1 = time.perf_counter()
         sweep = _merge([_run_one(plan, ctrls, n, sc, plan.sweep, tick, False) for n, sc in to_run]) \
             if to_run else None
+        t2 = time.perf_counter()
+        var = _merge([_run_one(plan, v_ctrls, n, sc, plan.variant_run, tick, False)
+                      for n, _, _, sc in variants]) if variants else None
         bar.total = bar.n
-    t2 = time.perf_counter()
-    return {"main": main, "sweep": sweep,
+    t3 = time.perf_counter()
+    return {"main": main, "sweep": sweep, "variants": var,
             "sweep_points": [(n, d, v, same) for n, d, v, _, same in points],
-            "wall_time_s": {"main": t1 - t0, "sweep": t2 - t1}}
+            "variant_points": [(n, s, v) for n, s, v, _ in variants],
+            "wall_time_s": {"main": t1 - t0, "sweep": t2 - t1, "variants": t3 - t2}}
 
 
-__all__ = ["TRACED", "controller_entries", "run_plan", "sweep_points", "SWEEP_DIRECTIONS"]
+__all__ = ["TRACED", "controller_entries", "run_plan", "sweep_points", "SWEEP_DIRECTIONS", "variant_name",
+           "variant_points"]
