@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy import signal
 
 from dss14_env.core.outdir import atomic_write_text
 from dss14_env.core.results import ErrorStats
@@ -85,6 +86,11 @@ WIND_SEED = 20261122
 #: definition; an ideal flat 0.74 rate loop with kp 1 already has its -3 dB point at 0.16 Hz,
 #: so the figure is not a literal -3 dB point (docs/model.md section 8).
 BANDWIDTH_ACCEPTED = [0.08, 0.25]
+#: The 2 % settling a PI loop may take, as a multiple of the ideal flat rate loop's with the same
+#: gains (:func:`ideal_flat_settling_s`): [R]'s 7-9 s is shorter than any flat loop of its Fig. 17
+#: gain (0.74) gives (10.7 s with kp 1, 12.6 s with kp 0.7), so the model is judged against that
+#: floor, with 10 % for the real loop's droop and resonances (docs/model.md section 8).
+SETTLING_OVER_IDEAL = 1.1
 #: Accepted range of the open-loop gain crossover, Hz: the primary match to [R]'s "0.1 Hz".
 CROSSOVER_ACCEPTED = [0.07, 0.15]
 #: Viscosities (kPa*s) at which :func:`viscosity_sensitivity` recalibrates the model: the ends
@@ -97,6 +103,17 @@ ENCODER_BANDWIDTH_REPORT = {"drive": "0.1", "axis": "0.7-1.0"}
 #: the phase margin the highest-gain PI loops keep, deg
 MIN_PHASE_MARGIN_DEG = 45.0
 _LOOP_CHANNELS = (("az", "c_a", "enc_az", "enc_el"), ("el", "c_e", "enc_el", "enc_az"))
+
+
+def ideal_flat_settling_s(kp: float, ki: float, dc: float, band: float = 0.02) -> float:
+    """Settling time (s, within ``band`` of the final value) of the PI loop around an ideal flat
+    rate loop of gain ``dc``: open loop ``dc (kp s + ki) / s^2``, step response from the
+    closed loop by :func:`dss14_env.model.analysis.step_metrics`.
+    """
+    num, den = [dc * kp, dc * ki], [1.0, dc * kp, dc * ki]
+    t = np.linspace(0.0, STEP_T_END, 20 * STEP_N)
+    _, y = signal.step(signal.lti(num, den), T=t)
+    return float(step_metrics(t, y)[f"settling_{round(100 * band)}pct_s"])
 
 
 def _row(report, model, accepted, note: str = "", calibrated: bool = False) -> dict:
@@ -143,7 +160,10 @@ def loop_rows(m: DSS14Model, gain_set: str) -> dict:
         t, y = step(pl, c_in, [enc, other], STEP_T_END, STEP_N)
         sm = step_metrics(t, y[:, 0])
         out[f"pi_overshoot_pct_{tag}"] = _row("20-30", sm["overshoot_pct"], [15, 35], "Fig. 21")
-        out[f"pi_settling_2pct_s_{tag}"] = _row("7-9", sm["settling_2pct_s"], [0, 12], "Fig. 21, 2 %")
+        limit = SETTLING_OVER_IDEAL * ideal_flat_settling_s(kp[k], ki[k], m.cfg.calibration.rate_loop_dc)
+        out[f"pi_settling_2pct_s_{tag}"] = _row("7-9", sm["settling_2pct_s"], [0, round(limit, 1)],
+                                                f"Fig. 21, 2 %; at most {SETTLING_OVER_IDEAL:g} x the ideal "
+                                                "flat 0.74 rate loop's settling with the same gains")
         out[f"pi_settling_5pct_s_{tag}"] = _row("7-9", sm["settling_5pct_s"], None,
                                                "Fig. 21, 5 % (reported only)")
         cal = first and ax == "az"
