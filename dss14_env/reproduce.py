@@ -94,7 +94,7 @@ SETTLING_OVER_IDEAL = 1.1
 #: Accepted range of the open-loop gain crossover, Hz: the primary match to [R]'s "0.1 Hz".
 CROSSOVER_ACCEPTED = [0.07, 0.15]
 #: Viscosities (kPa*s) at which :func:`viscosity_sensitivity` recalibrates the model: the ends
-#: of [R] Table 2's range (the nominal 1e-3 is the configuration's own).
+#: of [R] Table 2's range (the nominal is the configuration's own).
 SENSITIVITY_MU_KPAS = (2.8e-4, 2.8e-3)
 RATE_CHANNELS = {"az": ("enc_rate_az", "r_a"), "el": ("enc_rate_el", "r_e")}
 #: [R]'s conclusion: the drive encoders limit the PI loop's bandwidth to 0.1 Hz; "master
@@ -651,7 +651,7 @@ def readme_table(results: dict) -> str:
             ("closed-loop peak \\|T\\| az / el, kp 1; kp 0.7, dB", "—", "pi_peak_T_db_{ax}_{g}", ".2f",
              ".1f"),
             ("overshoot az / el, kp 1; kp 0.7, %", "20–30", "pi_overshoot_pct_{ax}_{g}", ".1f", ".0f"),
-            ("2 % settling az / el, kp 1; kp 0.7, s", "7–9", "pi_settling_2pct_s_{ax}_{g}", ".1f", ".0f"),
+            ("2 % settling az / el, kp 1; kp 0.7, s", "7–9", "pi_settling_2pct_s_{ax}_{g}", ".1f", ".1f"),
             ("5 % settling az / el, kp 1; kp 0.7, s", "7–9", "pi_settling_5pct_s_{ax}_{g}", ".1f", ".0f")):
         model, keys = both(key, fmt)
         rows.append((label, rep, model, keys, afmt, "no"))

@@ -28,7 +28,7 @@ DOC = ROOT / "docs" / "model.md"
 BLOCK = "drive-split"
 SPEED_KMH = 50.0
 #: the drive shipped before the wind-load evidence pinned the split (for the record)
-PREVIOUS = "base: model\nrecalibrate_wind: true\nhydraulics:\n  mu: {value: 1.0e-3}\n"
+PREVIOUS = "base: model\nrecalibrate_wind: true\nhydraulics:\n  mu: {value: 1.0e-3}\n  k_a2: {value: 7.0e-4}\n"
 
 
 def model_row(label: str, config: str | None) -> dict:
@@ -64,7 +64,7 @@ def compute() -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "model_previous.yaml"
         path.write_text(PREVIOUS, encoding="utf-8")
-        rows.append(model_row("previous shipped drive (mu 1.0e-3 kPa·s)", str(path)))
+        rows.append(model_row("previous shipped drive (μ 1.0e-3 kPa·s, k_a2 7e-4 cm³)", str(path)))
     rows[-1]["config"] = "(previous shipped drive)"
     return {"what": "PI and acceleration-matched pointing reference on each model, exact 3-sigma at "
                     f"{SPEED_KMH:g} km/h (el front wind, xel side wind); scripts/drive_split.py",
