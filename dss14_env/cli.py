@@ -381,7 +381,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--variants", nargs="*", metavar="NAME", default=None,
                    help="drive variants whose hold scenarios also run "
                    f"({', '.join(f'{v.name}: {v.description}' for v in DRIVE_VARIANTS.values())}; "
-                   "default: all; --variants alone: none)")
+                   "default: all, none with --quick; --variants alone: none)")
     p.add_argument("--sweep-seeds", type=int, default=None, metavar="N",
                    help="episodes per sweep point of the batched controllers (default 32)")
     p.add_argument("--steps", type=int, default=None,

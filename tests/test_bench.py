@@ -586,3 +586,30 @@ def test_blas_threads_limits_and_restores() -> None:
     assert blas() == before
     with blas_threads(None) as bt:
         assert bt.n_libraries == 0 and blas() == before
+
+
+def test_variants_option() -> None:
+    assert P.build_plan().variants == list(P.DEFAULT_VARIANTS)
+    assert P.build_plan(quick=True).variants == []  # the smoke run builds no other model
+    assert P.build_plan(variants=[]).variants == []
+    assert P.build_plan(variants=["stiff"]).variants == ["stiff"]
+    with pytest.raises(P.BenchOptionError, match="--variants"):
+        P.build_plan(variants=["stiffest"])
+    # the variants run the hold scenarios with the PI and the LQGs, nothing else
+    p = P.build_plan(variants=["soft"], scenarios=["step"])
+    assert p.variants == [] and any("--variants ignored" in n for n in p.notes)
+    assert P.build_plan(controllers=["mpc"]).variants == []
+
+
+def test_the_drive_variants_run_beside_the_nominal_model(tiny) -> None:
+    dv = tiny["json"]["drive_variants"]
+    assert dv["variants"] == list(P.DEFAULT_VARIANTS) and dv["scenarios"] == ["hold_side"]
+    assert dv["meta"]["controllers"] == ["pi_kp1", "lqg"]  # those of VARIANT_CONTROLLERS that ran
+    names = [f"hold_side@{v}" for v in P.DEFAULT_VARIANTS]
+    assert list(dv["summary"]["pi_kp1"]) == names
+    # each variant's yardstick is its own model's: the stiff drive needs the strongest loads
+    point = {s: y["pointing"]["pointing_three_sigma_mdeg"][1]
+             for s, y in {**dv["yardstick"], "hold_side": tiny["json"]["yardstick"]["hold_side"]}.items()}
+    assert point["hold_side@soft"] < point["hold_side"] < point["hold_side@stiff"]
+    md = (tiny["out"] / "results.md").read_text()
+    assert "drive/structure split" in md and "hold_side@stiff" in md

@@ -431,13 +431,13 @@ def build_plan(controllers: Sequence[str] | None = None, scenarios: Sequence[str
     :param overwrite: replace the results of an earlier bench in ``out``
     :param command: the command line, stored in results.json
     :param variants: drive variants whose hold scenarios run too (default
-        :data:`DEFAULT_VARIANTS`; empty: none), with :data:`VARIANT_CONTROLLERS` among the
-        selected controllers
+        :data:`DEFAULT_VARIANTS`, with ``quick`` none; empty: none), with
+        :data:`VARIANT_CONTROLLERS` among the selected controllers
     :raises BenchOptionError: a bad option (the message names it)
     """
     ctrl = _names(controllers, catalog.controller_names(), "--controllers", "controller")
     scen = _names(scenarios, catalog.scenario_names(), "--scenarios", "scenario")
-    var = list(DEFAULT_VARIANTS) if variants is None else (
+    var = (list(DEFAULT_VARIANTS) if not quick else []) if variants is None else (
         _names(variants, tuple(DRIVE_VARIANTS), "--variants", "drive variant") if variants else [])
     seed_list = _seed_option(seeds)
     speeds = parse_wind_speeds(wind_speeds)

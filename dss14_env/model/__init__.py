@@ -8,6 +8,16 @@ the report's figures, the assembled model and the parameter uncertainty.
 60
 """
 
-from dss14_env.model.assembly import DSS14Model, build_model, default_model
+from typing import Any
 
 __all__ = ["DSS14Model", "build_model", "default_model"]
+
+
+def __getattr__(name: str) -> Any:
+    """The assembled model's names, imported on first use: a module that needs only a light
+    submodule (e.g. :mod:`dss14_env.model.variants`) does not load the model's dependencies.
+    """
+    if name in __all__:
+        from dss14_env.model import assembly
+        return getattr(assembly, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
