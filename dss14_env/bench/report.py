@@ -758,6 +758,14 @@ def readme_table(results: Mapping[str, Any]) -> str:
     st = step_table(results)
     if st:
         parts += ["The 0.1° step (Fig. 21 scenario), 95 % CI:", "", st, ""]
+    vt = variant_tables(results)
+    if vt:
+        parts += ["**The drive/structure split**: the pointing error on the shipped model and on the soft "
+                  "and stiff drive variants (`hold_side@stiff`: the hold on the stiff variant; controllers "
+                  "designed on the shipped model; docs/model.md §7), 3σ in mdeg `el / xel`, and over the PI "
+                  "on the same seeds:", ""]
+        for t in vt:
+            parts += [t, ""]
     return "\n".join(parts)
 
 
