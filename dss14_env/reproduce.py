@@ -128,12 +128,12 @@ def loop_rows(m: DSS14Model, gain_set: str) -> dict:
     axis's rate command, the other axis's position loop open; the coupling is of order 1e-3),
     the closed-loop peak ``|T|`` in dB, the step overshoot and 2 % / 5 % settling, and the
     peak response of the other encoder to the step (cross-coupling).  The az -> el coupling of
-    the first gain set is a calibration target.
+    the gain set ``calibration.cross_coupling_gain_set`` is a calibration target.
     """
     rl = m.rate_loop
     pl = m.position_loop(gain_set)
     kp, ki = m.gains(gain_set)
-    first = gain_set == next(iter(m.cfg.gain_sets))
+    first = gain_set == m.cfg.calibration.cross_coupling_gain_set
     fl = np.geomspace(0.005, 2.0, 800)  # loop_margins interpolates: 1e-5 relative on fc
     out: dict[str, dict] = {}
     for k, (ax, c_in, enc, other) in enumerate(_LOOP_CHANNELS):
@@ -175,10 +175,11 @@ def highest_gain_loop(m: DSS14Model, encoders: str, ax: str, pm_min: float = MIN
                       ) -> dict[str, float]:
     """The PI position loop of one axis at the highest gain that keeps ``pm_min``.
 
-    The gains are the first gain set's ``(kp, ki)`` times a factor ``g``; ``g`` rises from 1
-    (the report's gains) until the loop first fails -- the open loop's phase margin at its
-    first gain crossover below ``pm_min``, or the closed loop (both axes, the other at the
-    first gain set) unstable -- and the boundary is found by bisection (to 1e-5 relative).
+    The gains are the ``(kp, ki)`` of the gain set ``calibration.cross_coupling_gain_set`` ([R]'s
+    kp 1) times a factor ``g``; ``g`` rises from 1 (the report's gains) until the loop first
+    fails -- the open loop's phase margin at its first gain crossover below ``pm_min``, or the
+    closed loop (both axes, the other at that gain set) unstable -- and the boundary is found by
+    bisection (to 1e-5 relative).
     The loop is broken at the axis's rate command, ``L = g (kp + ki/s) G`` with ``G`` the rate
     loop's r -> measured angle: the drive encoder, or with ``encoders="axis"`` the structure's
     pointing angle (el), resp. its cross-elevation angle divided by ``cos(E)`` (the az axis
@@ -190,7 +191,7 @@ def highest_gain_loop(m: DSS14Model, encoders: str, ax: str, pm_min: float = MIN
     """
     (outs, xel), k = encoder_channels(encoders), AXES.index(ax)
     scale = [1.0 / math.cos(m.cfg.structure.elevation_angle) if xel else 1.0, 1.0]
-    kp, ki = m.gains(next(iter(m.cfg.gain_sets)))
+    kp, ki = m.gains(m.cfg.calibration.cross_coupling_gain_set)
     rl, c_in = m.rate_loop, ("c_a", "c_e")[k]
     fl = np.geomspace(0.005, 5.0, 1200)  # loop_margins interpolates
     G = freqresp(rl, fl, outs[k], ("r_a", "r_e")[k]) * scale[k]
@@ -235,7 +236,8 @@ def encoder_rows(m: DSS14Model) -> dict:
             r = highest_gain_loop(m, enc, ax)
             tag = f"{enc}_{ax}"
             out[f"pi_pm45_gain_factor_{tag}"] = _row("-", r["gain_factor"], None,
-                                                     f"{what}: factor on the first gain set's kp, ki")
+                                                     f"{what}: factor on the kp, ki of gain set "
+                                                     f"{m.cfg.calibration.cross_coupling_gain_set}")
             out[f"pi_pm45_crossover_hz_{tag}"] = _row(rep, r["crossover_hz"], None,
                                                       f"{what}: open-loop gain crossover, Hz (conclusion)")
             out[f"pi_pm45_bandwidth_hz_{tag}"] = _row(

@@ -134,6 +134,8 @@ class CalibrationTargets:
     gearbox_peak: dict = spec("Hz", lo=0.0, lo_open=True, axis=True)
     structure_az_peaks: tuple = spec("Hz", kind="list", lo=0.0, lo_open=True)
     cross_coupling_peak: float = spec("1", lo=0.0, lo_open=True)
+    #: the gain set (a name of ``position_loop.gain_sets``) the cross-coupling peak is read with
+    cross_coupling_gain_set: str = spec(None, kind="str")
 
 
 @dataclass(frozen=True)
@@ -222,5 +224,8 @@ def load_model_config(path: str | Path | None = None) -> ModelConfig:
     if len(cal.structure_az_peaks) != 2:
         raise ConfigError(f"{source}: field 'calibration.structure_az_peaks': must have 2 entries, "
                           f"got {len(cal.structure_az_peaks)}")
+    if cal.cross_coupling_gain_set not in gains:
+        raise ConfigError(f"{source}: field 'calibration.cross_coupling_gain_set': must name a gain set of "
+                          f"position_loop.gain_sets {sorted(gains)}, got {cal.cross_coupling_gain_set!r}")
     return ModelConfig(blocks["board"], blocks["hydraulics"], blocks["gearbox"], struct,
                        blocks["reduction"], gains, cal, registry, source, recalibrate)
