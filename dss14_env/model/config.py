@@ -16,6 +16,7 @@ naming the field and the file.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -172,6 +173,12 @@ class ModelConfig:
         return dataclasses.replace(self, **blocks)
 
 
+#: ranged parameters whose value must be the top of their range: the report's valve gain
+#: (Hill's estimate, [R] Table 1) stands for the valve gain the calibration solves from Fig. 17
+#: (``calibration.rate_loop_*``), so a value of its own could not move the model; its range sets
+#: only the spread over which parameter randomisation scales the calibrated gain (low end / top)
+RANGE_TOP_ONLY = ("hydraulics.k_a_report",)
+
 #: sections of ``configs/model.yaml`` and their dataclasses
 SECTIONS = {"board": BoardConfig, "hydraulics": HydraulicsConfig, "gearbox": GearboxConfig,
             "structure": StructureConfig, "reduction": ReductionConfig,
@@ -215,6 +222,14 @@ def load_model_config(path: str | Path | None = None) -> ModelConfig:
         gs = load_section(GainSetSpec, g, source, f"position_loop.gain_sets.{gname}", **kw)
         gains[str(gname)] = GainSet(gs.kp, gs.ki)
     struct, cal = blocks["structure"], blocks["calibration"]
+    for name in RANGE_TOP_ONLY:
+        p, (block, key) = registry[name], name.split(".")
+        if p.range is not None and not math.isclose(p.value, p.range[1], rel_tol=1e-12):
+            leaf = data[block][key]
+            raise ConfigError(f"{source}: field '{name}': must be the top of its range, "
+                              f"{leaf['range'][1]!r} {leaf['unit']} (the calibration solves the model's "
+                              f"valve gain from calibration.rate_loop_*; the range sets only its "
+                              f"randomised spread), got {leaf['value']!r}")
     if struct.rib_r_inner >= struct.rib_r_outer:
         raise ConfigError(f"{source}: field 'structure.rib_r_inner': must be below rib_r_outer "
                           f"({struct.rib_r_outer} m), got {struct.rib_r_inner}")
