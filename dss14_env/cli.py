@@ -377,7 +377,8 @@ def main(argv: list[str] | None = None) -> int:
                    help="speeds of the error-vs-wind sweep, km/h (default: 30 40 50 60 70)")
     p.add_argument("--no-sweep", action="store_true", help="skip the error-vs-wind sweep")
     p.add_argument("--sweep-seeds", type=int, default=None, metavar="N",
-                   help="episodes per sweep point of the batched controllers (default 32)")
+                   help="episodes per sweep point of the batched controllers: the first N of "
+                   "--seeds, or seeds 0..N-1 (default 32, or every seed of --seeds)")
     p.add_argument("--steps", type=int, default=None,
                    help="episode length of every scenario and sweep point, control periods "
                    "(default: the scenario's; one period is the environment's dt)")
