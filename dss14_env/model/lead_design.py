@@ -8,18 +8,18 @@ one axis is
 
     C(s) = k (1 + w_i / s) (1 + s / w_z) / (1 + s / w_p) N(s),
 
-a PI whose zero ``w_i`` sits a decade-fraction below the crossover, a lead of phase ``phi``
-centred on the crossover (``w_z = w_c sqrt(a)``, ``w_p = w_c / sqrt(a)``,
-``a = (1 - sin phi) / (1 + sin phi)``), and optionally a notch
-``N(s) = (s^2 + 2 z_z w_n s + w_n^2) / (s^2 + 2 z_p w_n s + w_n^2)`` on the highest peak of the
-loop gain above the crossover; ``k`` puts ``|L(j w_c)| = 1``.  The loop is broken at the
-axis's rate command, ``L = C G`` with ``G`` the rate loop's r -> measured angle (as
-:func:`dss14_env.reproduce.highest_gain_loop` does for the PI), the other axis closed by its PI.
-The search runs over a grid of target crossovers, lead phases and PI-zero ratios, with and
-without the notch, and keeps the design with the highest crossover whose loop has a phase
-margin of at least ``pm_min`` at its first gain crossover, a peak sensitivity
-``max |1 / (1 + L)|`` of at most ``ms_max`` (on a grid up to 40 Hz) and a stable closed loop
-(both axes; every pole left of 0).
+a PI whose zero ``w_i`` sits a factor (:data:`PI_ZERO_RATIOS`) below the crossover ``w_c``, a
+lead of phase ``phi`` centred on the crossover (``w_z = w_c sqrt(a)``, ``w_p = w_c / sqrt(a)``,
+``a = (1 - sin phi) / (1 + sin phi)``), and no, one or two notches
+``N(s) = (s^2 + 2 z_z w_n s + w_n^2) / (s^2 + 2 z_p w_n s + w_n^2)`` on the plant's most
+prominent resonances (:func:`notch_options`); ``k`` puts ``|L(j w_c)| = 1``.  The loop is
+broken at the axis's rate command, ``L = C G`` with ``G`` the rate loop's r -> measured angle
+(as the reproduction's highest-gain PI rows break it), the other axis closed by its PI.  The
+search runs over the grid of target crossovers, lead phases, PI-zero ratios and notch options
+and keeps the design with the highest crossover whose loop has a phase margin of at least
+``pm_min`` at its first gain crossover, a peak sensitivity ``max |1 / (1 + L)|`` of at most
+``ms_max`` (on :data:`F_GRID`, to 40 Hz) and a stable closed loop (both axes; every pole left
+of 0).  A grid search: what it finds is a lower bound on what the class reaches.
 
 The frequency responses use the rate loop's state space (:func:`dss14_env.model.linsys.freqresp`);
 the controllers are python-control transfer functions and the closed loop is built with
@@ -104,7 +104,7 @@ def lead_tf(fc_hz: float, phase_deg: float, pi_ratio: float,
     c = _factors(fc_hz, phase_deg, pi_ratio, s)
     for fn, zp in notches:
         c = c * _notch(fn, zp, s)
-    return ct.minreal(c, verbose=False) if phase_deg == 0 and not notches else c
+    return c
 
 
 def _margins(L: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
