@@ -2,10 +2,10 @@
 
 * :func:`dare_residual`: relative residual of a discrete algebraic Riccati equation;
 * :func:`lqg_as_linear`: an LQG design (hold, no clipping) as one LTI controller
-  :class:`LinearController`; :func:`closed_loop` interconnects such a controller with a
-  (full-order) plant model into a :class:`ClosedLoop`; :func:`stationary_performance` gives its
-  exact stationary 3-sigma servo error and expected per-step cost from a discrete Lyapunov
-  equation, ``X = A X A' + W``;
+  :class:`LinearController` (:func:`pi_as_linear`: the sampled PI); :func:`closed_loop`
+  interconnects such a controller with a (full-order) plant model into a :class:`ClosedLoop`;
+  :func:`stationary_performance` gives its exact stationary 3-sigma servo error and expected
+  per-step cost from a discrete Lyapunov equation, ``X = A X A' + W``;
 * :func:`riccati_cost`: the same expected cost of an LQG on its own model from its two Riccati
   solutions alone (the check of the yardstick's figure);
 * :func:`sampled_loop`, :func:`sampled_three_sigma_mdeg`: the sampled PI of
@@ -116,6 +116,23 @@ def lqg_as_linear(design: LQGDesign) -> LinearController:
         Bc[ne:ne + ni] = -dm.dt * Ce @ Lg
     Ac[ne + ni:] = Cc
     Bc[ne + ni:] = Dc
+    return LinearController(Ac, Bc, Cc, Dc)
+
+
+def pi_as_linear(dt: float, gains: str | tuple = "kp1", model: Any = None) -> LinearController:
+    """The sampled PI of :class:`dss14_env.baselines.pi.PIController` (hold, no clipping) as one
+    LTI system from ``y`` to ``r``: ``e = -y``, ``I_k = I_{k-1} + dt (e_k + e_{k-1}) / 2``,
+    ``r_k = kp e_k + ki I_k``; controller state ``[I_{k-1}; e_{k-1}]``.
+
+    :param dt: control period, s
+    :param gains: gain-set name of ``model`` (None: the shipped one) or ``(kp, ki)``
+    """
+    kp, ki = gains_per_axis(gains, model)
+    h, eye, zero = 0.5 * dt, np.eye(2), np.zeros((2, 2))
+    Ac = np.block([[eye, h * eye], [zero, zero]])
+    Bc = np.vstack([-h * eye, -eye])
+    Cc = np.hstack([np.diag(ki), h * np.diag(ki)])
+    Dc = -np.diag(kp + h * ki)
     return LinearController(Ac, Bc, Cc, Dc)
 
 

@@ -57,7 +57,13 @@ from typing import Any
 
 import numpy as np
 
-from dss14_env.baselines.analysis import closed_loop, lqg_as_linear, riccati_cost, stationary_performance
+from dss14_env.baselines.analysis import (
+    closed_loop,
+    lqg_as_linear,
+    pi_as_linear,
+    riccati_cost,
+    stationary_performance,
+)
 from dss14_env.baselines.design import build_design_model
 from dss14_env.baselines.interface import ControlInterface, as_interface
 from dss14_env.baselines.lqg import EstimatorController, LQGDesign, design_lqg
@@ -161,6 +167,28 @@ def _expected_performance(spec: ControlInterface, wind_speed: float, direction: 
                  "accel_three_sigma_deg_s2": acc, "accel_limit_deg_s2": spec.accel_limit * R2D,
                  "cost_riccati": riccati_cost(d), "n_states": d.dm.n, "n_augmented": d.n_z,
                  "residuals": d.residuals, "wind_speed_mps": float(wind_speed),
+                 "direction": direction if isinstance(direction, str) else float(direction)})
+    return perf
+
+
+def pi_performance(spec: ControlInterface | Any, wind_speed: float, direction: str | float,
+                   gains: str | tuple = "kp1") -> dict:
+    """The sampled PI's expected performance on the yardstick's own model and wind, with the
+    statistic of :func:`expected_performance` (stationary whole-record 3σ from the closed loop's
+    Lyapunov equation; quantisation as white noise, no limiter): the denominator of a reference
+    ratio on one statistic (a yardstick's 3σ / the PI's).
+
+    :param gains: gain-set name or ``(kp, ki)`` (:func:`dss14_env.baselines.analysis.pi_as_linear`)
+    :return: the keys of :func:`expected_performance` but the Riccati ones; ``error`` is
+        ``"pi"`` and ``action_change`` None
+    """
+    spec = as_interface(spec)
+    dm = yardstick_design(spec, wind_speed, direction, error="pointing").dm
+    perf = stationary_performance(closed_loop(dm, pi_as_linear(spec.dt, gains)), spec.weights)
+    acc = [3.0 * x / spec.dt * R2D for x in perf.pop("command_change_rms_rad_s")]
+    perf.update({"error": "pi", "action_change": None, "accel_three_sigma_deg_s2": acc,
+                 "accel_limit_deg_s2": spec.accel_limit * R2D, "n_states": dm.n,
+                 "wind_speed_mps": float(wind_speed),
                  "direction": direction if isinstance(direction, str) else float(direction)})
     return perf
 

@@ -383,7 +383,8 @@ def main(argv: list[str] | None = None) -> int:
                    f"({', '.join(f'{v.name}: {v.description}' for v in DRIVE_VARIANTS.values())}; "
                    "default: all, none with --quick; --variants alone: none)")
     p.add_argument("--sweep-seeds", type=int, default=None, metavar="N",
-                   help="episodes per sweep point of the batched controllers (default 32)")
+                   help="episodes per sweep point of the batched controllers: the first N of "
+                   "--seeds, or seeds 0..N-1 (default 32, or every seed of --seeds)")
     p.add_argument("--steps", type=int, default=None,
                    help="episode length of every scenario and sweep point, control periods "
                    "(default: the scenario's; one period is the environment's dt)")

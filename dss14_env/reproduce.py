@@ -54,6 +54,7 @@ from dss14_env.model.board import board_dc_gains, board_ss
 from dss14_env.model.calibration import CalibrationError, peak_frequency, rate_response, reduction_scales
 from dss14_env.model.config import ModelConfig
 from dss14_env.model.hydraulics import hydraulics_ss
+from dss14_env.model.lead_design import lead_design
 from dss14_env.model.linsys import freqresp
 from dss14_env.model.loops import position_loop, rate_loop
 from dss14_env.model.reduction import hankel_singular_values, reduce_modes
@@ -100,8 +101,10 @@ RATE_CHANNELS = {"az": ("enc_rate_az", "r_a"), "el": ("enc_rate_el", "r_e")}
 #: [R]'s conclusion: the drive encoders limit the PI loop's bandwidth to 0.1 Hz; "master
 #: equatorial or new encoders located close to the axes" would allow 0.7-1.0 Hz
 ENCODER_BANDWIDTH_REPORT = {"drive": "0.1", "axis": "0.7-1.0"}
-#: the phase margin the highest-gain PI loops keep, deg
+#: the phase margin the highest-gain PI loops and the lead designs keep, deg
 MIN_PHASE_MARGIN_DEG = 45.0
+#: the peak sensitivity max |1 / (1 + L)| the lead designs keep
+MAX_PEAK_SENSITIVITY = 2.0
 _LOOP_CHANNELS = (("az", "c_a", "enc_az", "enc_el"), ("el", "c_e", "enc_el", "enc_az"))
 
 
@@ -138,12 +141,12 @@ def loop_rows(m: DSS14Model, gain_set: str) -> dict:
     axis's rate command, the other axis's position loop open; the coupling is of order 1e-3),
     the closed-loop peak ``|T|`` in dB, the step overshoot and 2 % / 5 % settling, and the
     peak response of the other encoder to the step (cross-coupling).  The az -> el coupling of
-    the first gain set is a calibration target.
+    the gain set ``calibration.cross_coupling_gain_set`` is a calibration target.
     """
     rl = m.rate_loop
     pl = m.position_loop(gain_set)
     kp, ki = m.gains(gain_set)
-    first = gain_set == next(iter(m.cfg.gain_sets))
+    first = gain_set == m.cfg.calibration.cross_coupling_gain_set
     fl = np.geomspace(0.005, 2.0, 800)  # loop_margins interpolates: 1e-5 relative on fc
     out: dict[str, dict] = {}
     for k, (ax, c_in, enc, other) in enumerate(_LOOP_CHANNELS):
@@ -184,14 +187,45 @@ def encoder_channels(encoders: str) -> tuple[tuple[str, str], bool]:
     return (az, el), factor == "xel"
 
 
+def measured_angles(m: DSS14Model, encoders: str) -> tuple[tuple[str, str], list[float]]:
+    """The rate-loop outputs of :func:`encoder_channels` and the factors that make them the axis
+    angles (az: 1 / cos(E) for a cross-elevation output; el: 1).
+    """
+    outs, xel = encoder_channels(encoders)
+    return outs, [1.0 / math.cos(m.cfg.structure.elevation_angle) if xel else 1.0, 1.0]
+
+
+def lead_loop(m: DSS14Model, encoders: str, ax: str) -> dict[str, Any]:
+    """The lead (plus notch) position loop of one axis with the highest gain crossover at
+    >= 45 deg phase margin and peak sensitivity <= 2
+    (:func:`dss14_env.model.lead_design.lead_design`), the other axis closed by the PI of
+    ``calibration.cross_coupling_gain_set``.
+
+    :return: ``crossover_hz``, ``phase_margin_deg``, ``peak_sensitivity``, ``lead_phase_deg``
+        and ``notch_hz`` (the notches' frequencies); NaN (empty) when the search finds none
+    """
+    outs, scale = measured_angles(m, encoders)
+    kp, ki = m.gains(m.cfg.calibration.cross_coupling_gain_set)
+    o = 1 - AXES.index(ax)
+    d = lead_design(m.rate_loop, ax, outs, (scale[0], scale[1]), (kp[o], ki[o]), encoders,
+                    MIN_PHASE_MARGIN_DEG, MAX_PEAK_SENSITIVITY)
+    if d is None:
+        keys = ("crossover_hz", "phase_margin_deg", "peak_sensitivity", "lead_phase_deg")
+        return {**dict.fromkeys(keys, math.nan), "notch_hz": []}
+    return {"crossover_hz": d.crossover_hz, "phase_margin_deg": d.phase_margin_deg,
+            "peak_sensitivity": d.peak_sensitivity, "lead_phase_deg": d.lead_phase_deg,
+            "notch_hz": [fn for fn, _ in d.notches]}
+
+
 def highest_gain_loop(m: DSS14Model, encoders: str, ax: str, pm_min: float = MIN_PHASE_MARGIN_DEG
                       ) -> dict[str, float]:
     """The PI position loop of one axis at the highest gain that keeps ``pm_min``.
 
-    The gains are the first gain set's ``(kp, ki)`` times a factor ``g``; ``g`` rises from 1
-    (the report's gains) until the loop first fails -- the open loop's phase margin at its
-    first gain crossover below ``pm_min``, or the closed loop (both axes, the other at the
-    first gain set) unstable -- and the boundary is found by bisection (to 1e-5 relative).
+    The gains are the ``(kp, ki)`` of the gain set ``calibration.cross_coupling_gain_set`` ([R]'s
+    kp 1) times a factor ``g``; ``g`` rises from 1 (the report's gains) until the loop first
+    fails -- the open loop's phase margin at its first gain crossover below ``pm_min``, or the
+    closed loop (both axes, the other at that gain set) unstable -- and the boundary is found by
+    bisection (to 1e-5 relative).
     The loop is broken at the axis's rate command, ``L = g (kp + ki/s) G`` with ``G`` the rate
     loop's r -> measured angle: the drive encoder, or with ``encoders="axis"`` the structure's
     pointing angle (el), resp. its cross-elevation angle divided by ``cos(E)`` (the az axis
@@ -201,9 +235,8 @@ def highest_gain_loop(m: DSS14Model, encoders: str, ax: str, pm_min: float = MIN
         ``bandwidth_hz`` (-3 dB of command -> measured angle); all NaN when the loop fails at
         ``g = 1`` already or still holds at ``g = 40``
     """
-    (outs, xel), k = encoder_channels(encoders), AXES.index(ax)
-    scale = [1.0 / math.cos(m.cfg.structure.elevation_angle) if xel else 1.0, 1.0]
-    kp, ki = m.gains(next(iter(m.cfg.gain_sets)))
+    (outs, scale), k = measured_angles(m, encoders), AXES.index(ax)
+    kp, ki = m.gains(m.cfg.calibration.cross_coupling_gain_set)
     rl, c_in = m.rate_loop, ("c_a", "c_e")[k]
     fl = np.geomspace(0.005, 5.0, 1200)  # loop_margins interpolates
     G = freqresp(rl, fl, outs[k], ("r_a", "r_e")[k]) * scale[k]
@@ -234,8 +267,10 @@ def highest_gain_loop(m: DSS14Model, encoders: str, ax: str, pm_min: float = MIN
 
 
 def encoder_rows(m: DSS14Model) -> dict:
-    """The PI loop at the highest gain with >= 45 deg phase margin (:func:`highest_gain_loop`),
-    with drive and with axis encoders, both axes, against [R]'s conclusion (drive encoders: 0.1
+    """The PI loop at the highest gain with >= 45 deg phase margin (:func:`highest_gain_loop`)
+    and the lead (plus notch) loop with the highest crossover at that margin and a peak
+    sensitivity <= 2 (:func:`lead_loop`), with drive and with axis encoders, both axes, against
+    [R]'s conclusion (drive encoders: 0.1
     Hz; encoders close to the axes: 0.7-1.0 Hz).  Reported, not accepted: the report gives the
     figures without their criterion, and the pointing angles here come from the project's
     lumped structure (docs/model.md).
@@ -248,13 +283,26 @@ def encoder_rows(m: DSS14Model) -> dict:
             r = highest_gain_loop(m, enc, ax)
             tag = f"{enc}_{ax}"
             out[f"pi_pm45_gain_factor_{tag}"] = _row("-", r["gain_factor"], None,
-                                                     f"{what}: factor on the first gain set's kp, ki")
+                                                     f"{what}: factor on the kp, ki of gain set "
+                                                     f"{m.cfg.calibration.cross_coupling_gain_set}")
             out[f"pi_pm45_crossover_hz_{tag}"] = _row(rep, r["crossover_hz"], None,
                                                       f"{what}: open-loop gain crossover, Hz (conclusion)")
             out[f"pi_pm45_bandwidth_hz_{tag}"] = _row(
                 rep, r["bandwidth_hz"], None, f"{what}: -3 dB of c -> measured angle, Hz (conclusion)")
             out[f"pi_pm45_phase_margin_deg_{tag}"] = _row(
                 f">= {MIN_PHASE_MARGIN_DEG:g}", r["phase_margin_deg"], None, f"{what}: phase margin, deg")
+            d = lead_loop(m, enc, ax)
+            notch = f" + notch at {', '.join(f'{x:.2f}' for x in d['notch_hz'])} Hz" if d["notch_hz"] else ""
+            lead = (f"{enc} encoders, PI with a {d['lead_phase_deg']:g}-deg lead{notch}, highest "
+                    f"crossover at >= {MIN_PHASE_MARGIN_DEG:g} deg phase margin and peak sensitivity <= "
+                    f"{MAX_PEAK_SENSITIVITY:g}")
+            out[f"lead_pm45_crossover_hz_{tag}"] = _row(rep, d["crossover_hz"], None,
+                                                        f"{lead}: open-loop gain crossover, Hz (conclusion)")
+            out[f"lead_pm45_phase_margin_deg_{tag}"] = _row(
+                f">= {MIN_PHASE_MARGIN_DEG:g}", d["phase_margin_deg"], None, f"{lead}: phase margin, deg")
+            out[f"lead_pm45_peak_sensitivity_{tag}"] = _row(
+                f"<= {MAX_PEAK_SENSITIVITY:g}", d["peak_sensitivity"], None,
+                f"{lead}: peak sensitivity max |1/(1+L)|")
     return out
 
 
@@ -664,6 +712,14 @@ def readme_table(results: dict) -> str:
                           for q in ("crossover_hz", "bandwidth_hz"))
         rows.append((f"{enc} encoders, PI at the highest gain with ≥ {MIN_PHASE_MARGIN_DEG:g}° phase margin: "
                      "gain crossover az / el; −3 dB bandwidth az / el, Hz (conclusion)",
+                     ENCODER_BANDWIDTH_REPORT[enc].replace("-", "–"), model, keys, ".2f", "no"))
+        keys = [f"lead_pm45_{q}_{enc}_{ax}" for q in ("crossover_hz", "peak_sensitivity") for ax in AXES]
+        model = "; ".join(" / ".join(_v(mt, f"lead_pm45_{q}_{enc}_{ax}", ".2f") for ax in AXES)
+                          for q in ("crossover_hz", "peak_sensitivity"))
+        rows.append((f"{enc} encoders, PI with lead (+ notch), highest crossover at ≥ "
+                     f"{MIN_PHASE_MARGIN_DEG:g}° phase margin and peak sensitivity ≤ "
+                     f"{MAX_PEAK_SENSITIVITY:g}: gain crossover az / el, Hz; peak sensitivity az / el "
+                     "(conclusion)",
                      ENCODER_BANDWIDTH_REPORT[enc].replace("-", "–"), model, keys, ".2f", "no"))
     for key, label in (("el_front", "C_el, front wind"), ("az_side", "C_az, side wind")):
         k = f"wind_coefficient_{key}"

@@ -1,5 +1,6 @@
 """A user's model at the ends of every ``range:`` of configs/model.yaml, with the shipped wind-load
-coefficients: the drive's compliance and the PI's exact 3σ servo errors (docs/wind.md §5).
+coefficients (k_a_report's range excepted: its value is held at the top, the valve gain being
+calibrated): the drive's compliance and the PI's exact 3σ servo errors (docs/wind.md §5).
 
 For each range end (and the two extreme corners of the leakage term ``3 k_a2 / mu``) the model
 file is the shipped one with that value; the model is built and calibrated as
@@ -37,9 +38,13 @@ CORNERS = {"stiffest drive (mu high, k_a2 low)": {"hydraulics.mu": "hi", "hydrau
 
 
 def ranges(shipped: dict) -> dict[str, tuple[float, float]]:
-    """``"block.name" -> (lo, hi)`` (file units) of every ranged parameter."""
+    """``"block.name" -> (lo, hi)`` (file units) of every ranged parameter a user may set (not
+    those held at the top of their range, :data:`dss14_env.model.config.RANGE_TOP_ONLY`)."""
+    from dss14_env.model.config import RANGE_TOP_ONLY
+
     return {f"{b}.{n}": tuple(leaf["range"]) for b, leaves in shipped.items() if isinstance(leaves, dict)
-            for n, leaf in leaves.items() if isinstance(leaf, dict) and "range" in leaf}
+            for n, leaf in leaves.items() if isinstance(leaf, dict) and "range" in leaf
+            and f"{b}.{n}" not in RANGE_TOP_ONLY}
 
 
 def cases(shipped: dict) -> list[tuple[str, dict[str, float]]]:

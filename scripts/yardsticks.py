@@ -7,6 +7,8 @@ analytic (Riccati + Lyapunov, :mod:`dss14_env.baselines.yardstick`) unless said:
   limit (``w -> 0``) and its acceleration-matched design (largest 3σ acceleration = the
   limiter's 0.2 deg/s^2), the design with ``w`` x 1e-3 (what the yardstick does not bound);
 * the same three for the pointing yardstick (``J_point``);
+* the sampled kp 1 PI on the same model and wind, with the same statistic (stationary
+  whole-record 3σ), the denominator of the table's ratios;
 * the simulated yardsticks (``YardstickController``, ``PointingYardstickController``): pooled
   3σ with percentile bootstrap 95 % intervals over ``--episodes`` holds of 60 s, on the
   shipped environment (20-bit encoders, limiter) and on the model's own problem (24-bit
@@ -37,6 +39,7 @@ from dss14_env.baselines.yardstick import (
     acceleration_matched,
     error_only_limit,
     expected_performance,
+    pi_performance,
 )
 from dss14_env.bench.runner import run
 from dss14_env.core.outdir import atomic_write_text
@@ -51,6 +54,8 @@ DIRECTIONS = {"front": "hold_front", "side": "hold_side"}
 #: the simulated settings: the shipped environment and the model's own problem
 SIM_SETTINGS = {"shipped (20-bit, limiter)": {},
                 "model's problem (24-bit, no limiter)": {"encoder_bits": 24, "accel_limit_deg_s2": 100.0}}
+#: the PI row of the analytic table: the sampled kp 1 PI on the yardsticks' model and wind
+PI_DESIGN = "PI kp 1 (sampled)"
 KEYS = ("action_change", "three_sigma_mdeg", "pointing_three_sigma_mdeg", "accel_three_sigma_deg_s2",
         "cost", "cost_pointing")
 
@@ -67,7 +72,14 @@ def analytic_rows(spec: ControlInterface, direction: str) -> list[dict[str, Any]
                              error_only_limit(spec, U, direction, error)),
                             ("acceleration-matched", acceleration_matched(spec, U, direction, error))):
             rows.append({"error": error, "design": label, **{k: perf[k] for k in KEYS}})
+    pi = pi_performance(spec, U, direction)
+    rows.append({"error": "pi", "design": PI_DESIGN, **{k: pi[k] for k in KEYS}})
     return rows
+
+
+def pi_row(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """The PI's row of one wind's analytic rows (the denominator of the ratios)."""
+    return next(r for r in rows if r["error"] == "pi")
 
 
 def simulated(episodes: int) -> dict[str, Any]:
@@ -88,7 +100,9 @@ def simulated(episodes: int) -> dict[str, Any]:
     return out
 
 
-def _f(x: float) -> str:
+def _f(x: float | None) -> str:
+    if x is None:  # no such figure (the PI has no action-change weight)
+        return "—"
     return f"{x:.3g}" if abs(x) < 100 else f"{x:.0f}"
 
 
@@ -99,14 +113,20 @@ def _ci(c: dict) -> str:
 def render(doc: dict) -> str:
     """The markdown of the region: the analytic table and the simulated table."""
     lines = ["Analytic, 50 km/h, drive encoders (20-bit); 3σ in mdeg, acceleration 3σ in °/s² "
-             f"(limit {doc['accel_limit_deg_s2']:g}); J per step:", "",
+             f"(limit {doc['accel_limit_deg_s2']:g}); J per step. Every figure, the PI's too, is the "
+             "stationary whole-record 3σ of the linear closed loop on the yardsticks' full-order model "
+             "(quantisation as white noise, no limiter), so the ratio to the PI is on one statistic:", "",
              "| wind | cost | design | weight × | servo 3σ az / el | pointing 3σ el / xel | "
-             "acceleration 3σ az / el | J_enc | J_point |", "|---|---|---|---|---|---|---|---|---|"]
+             "pointing 3σ ÷ PI el / xel | acceleration 3σ az / el | J_enc | J_point |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for d, rows in doc["analytic"].items():
+        pi = pi_row(rows)["pointing_three_sigma_mdeg"]
         for r in rows:
             lines.append(f"| {d} | {r['error']} | {r['design']} | {_f(r['action_change'])} | "
                          + " / ".join(_f(x) for x in r["three_sigma_mdeg"]) + " | "
                          + " / ".join(_f(x) for x in r["pointing_three_sigma_mdeg"]) + " | "
+                         + " / ".join(f"{x / p:.3f}" for x, p in zip(r["pointing_three_sigma_mdeg"], pi,
+                                                                     strict=True)) + " | "
                          + " / ".join(_f(x) for x in r["accel_three_sigma_deg_s2"])
                          + f" | {r['cost']:.3g} | {r['cost_pointing']:.3g} |")
     lines += ["", f"Simulated ({doc['episodes']} holds of 60 s, pooled 3σ with 95 % interval) against "

@@ -9,6 +9,7 @@ import pytest
 from dss14_env.baselines.analysis import (
     closed_loop,
     lqg_as_linear,
+    pi_as_linear,
     riccati_cost,
     sampled_three_sigma_mdeg,
     stationary_performance,
@@ -17,7 +18,12 @@ from dss14_env.baselines.design import build_design_model
 from dss14_env.baselines.interface import ControlInterface, Weights
 from dss14_env.baselines.lqg import EstimatorController, LQGController, lqg_design_from_config
 from dss14_env.baselines.pi import PIController
-from dss14_env.baselines.yardstick import YardstickController, expected_performance, yardstick_design
+from dss14_env.baselines.yardstick import (
+    YardstickController,
+    expected_performance,
+    pi_performance,
+    yardstick_design,
+)
 from dss14_env.bench.runner import run
 from dss14_env.core.units import AXES, KMH, WIND_DIRECTIONS
 from dss14_env.envs.env import DSS14Env
@@ -238,6 +244,31 @@ def test_yardstick_expected_error_is_below_pi(direction: str) -> None:
     pi = sampled_three_sigma_mdeg(get_plant(U50, 0.02), WIND_DIRECTIONS[direction])
     k = DOMINANT[direction]
     assert 0 < y["three_sigma_mdeg"][k] < 0.25 * pi[k]
+
+
+@pytest.mark.parametrize("direction", ["front", "side"])
+def test_pi_as_linear_is_the_sampled_pi(spec, direction: str) -> None:
+    """The PI as a linear controller on the full design model (exact encoders) has the stationary
+    3σ of the sampled PI loop on the environment's plant (an independent state-space form)."""
+    dm = build_design_model(spec.dt, order=None, wind=(U50, direction), bits=None, pointing=True)
+    perf = stationary_performance(closed_loop(dm, pi_as_linear(spec.dt)), spec.weights)
+    pi = sampled_three_sigma_mdeg(get_plant(U50, spec.dt), WIND_DIRECTIONS[direction])
+    assert perf["three_sigma_mdeg"] == pytest.approx(pi.tolist(), rel=1e-4)
+
+
+@pytest.mark.parametrize("direction", ["front", "side"])
+def test_pi_performance_is_on_the_yardsticks_statistic(spec, direction: str) -> None:
+    """The PI's figures for the reference ratios come from the yardsticks' own model (its 20-bit
+    quantisation noise included): within 2 % of the exact-encoder sampled PI, and above the
+    pointing yardstick's pointing error on the loaded axis."""
+    pi = pi_performance(spec, U50, direction)
+    exact = sampled_three_sigma_mdeg(get_plant(U50, spec.dt), WIND_DIRECTIONS[direction])
+    k = DOMINANT[direction]
+    assert pi["three_sigma_mdeg"][k] == pytest.approx(exact[k], rel=0.02)
+    assert pi["error"] == "pi" and pi["action_change"] is None
+    y = expected_performance(spec, U50, direction, "pointing")
+    pk = 1 - k  # pointing axes are [el, xel]: el in front wind, xel in side wind
+    assert y["pointing_three_sigma_mdeg"][pk] < pi["pointing_three_sigma_mdeg"][pk]
 
 
 def test_pi_controller_is_used_from_the_env_helper() -> None:

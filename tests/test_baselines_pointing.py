@@ -269,3 +269,10 @@ def test_yardsticks_table_is_the_committed_results() -> None:
     """docs/controllers.md's yardsticks table is the rendering of docs/results/yardsticks.json."""
     script = Path(__file__).resolve().parents[1] / "scripts" / "yardsticks.py"
     assert subprocess.run([sys.executable, str(script), "--check"], capture_output=True).returncode == 0
+
+
+def test_pointing_wind_speed_table_is_the_committed_results() -> None:
+    """docs/controllers.md's pointing-vs-wind-speed tables are the rendering of
+    docs/results/pointing_wind_speed.json."""
+    script = Path(__file__).resolve().parents[1] / "scripts" / "pointing_wind_speed.py"
+    assert subprocess.run([sys.executable, str(script), "--check"], capture_output=True).returncode == 0

@@ -86,10 +86,26 @@ def test_bad_wind_speeds_are_named(values) -> None:
     ({"sequential_episodes": -1}, "--sequential-episodes"),
     ({"seeds": 2, "sequential_episodes": 3}, "--sequential-episodes: 3 is more than the 2 episodes"),
     ({"threads": 0}, "--threads"),
+    ({"seeds": ["5", "9"], "sweep_seeds": 3}, "--sweep-seeds: 3 is more than the 2 seeds of --seeds"),
 ])
 def test_bad_options_are_named(kwargs, message) -> None:
     with pytest.raises(P.BenchOptionError, match=message):
         P.build_plan(**kwargs)
+
+
+@pytest.mark.parametrize("quick", [False, True])
+def test_the_sweep_runs_on_the_seeds_given(quick: bool) -> None:
+    """--seeds names the seeds of every scenario and sweep point; --sweep-seeds takes the first
+    of them; a count (--episodes) leaves the sweep its own count from seed 0."""
+    seeds = ["100-103", "7"]
+    plan = P.build_plan(seeds=seeds, quick=quick)
+    assert plan.sweep.seeds == (100, 101, 102, 103, 7)
+    assert all(r.seeds == (100, 101, 102, 103, 7) for r in plan.runs.values())
+    assert P.build_plan(seeds=seeds, sweep_seeds=2, quick=quick).sweep.seeds == (100, 101)
+    assert P.build_plan(seeds=[40, 41], quick=quick).sweep.seeds == (40, 41)
+    budget = P.QUICK_SWEEP if quick else P.DEFAULT_SWEEP
+    assert P.build_plan(seeds=2, quick=quick).sweep.seeds == tuple(range(budget.episodes))
+    assert P.build_plan(quick=quick, sweep_seeds=3).sweep.seeds == (0, 1, 2)
 
 
 def test_missing_ppo_policy(monkeypatch, tmp_path) -> None:

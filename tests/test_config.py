@@ -194,3 +194,35 @@ def test_value_at_range_edge_accepted(tmp_path: Path, raw: dict) -> None:
     data = copy.deepcopy(raw)
     data["hydraulics"]["zeta_o"]["value"] = 0.6
     assert load_model_config(_write(tmp_path, data)).hydraulics.zeta_o == 0.6
+
+
+@pytest.mark.parametrize("value", [23300, 30000, 38299])
+def test_k_a_report_below_the_top_of_its_range_is_refused(tmp_path: Path, raw: dict, value: float) -> None:
+    """The model's valve gain is calibrated (Fig. 17): a k_a_report of its own could not move it,
+    so the file may not pretend to set it."""
+    data = copy.deepcopy(raw)
+    data["hydraulics"]["k_a_report"]["value"] = value
+    msg = _expect_error(_write(tmp_path, data), "hydraulics.k_a_report", "top of its range", "38300",
+                        f"got {value}")
+    assert "\n" not in msg
+
+
+def test_k_a_report_range_sets_the_randomised_spread(tmp_path: Path, raw: dict) -> None:
+    """A range of one's own is honoured, its top the value: randomisation scales the calibrated
+    valve gain by draw / top."""
+    data = copy.deepcopy(raw)
+    data["hydraulics"]["k_a_report"].update(value=40000, range=[20000, 40000])
+    p = load_model_config(_write(tmp_path, data)).params["hydraulics.k_a_report"]
+    assert p.range[0] / p.value == pytest.approx(0.5, rel=1e-12)
+
+
+def test_cross_coupling_gain_set_must_name_a_gain_set(tmp_path: Path, raw: dict) -> None:
+    data = copy.deepcopy(raw)
+    data["calibration"]["cross_coupling_gain_set"]["value"] = "kp2"
+    _expect_error(_write(tmp_path, data), "calibration.cross_coupling_gain_set", "kp0.7", "'kp2'")
+
+
+def test_cross_coupling_gain_set_is_required(tmp_path: Path, raw: dict) -> None:
+    data = copy.deepcopy(raw)
+    del data["calibration"]["cross_coupling_gain_set"]
+    _expect_error(_write(tmp_path, data), "calibration.cross_coupling_gain_set", "missing")

@@ -394,6 +394,19 @@ def _run_for(budget: Budget, seeds: list[int] | None, steps: int | None, sequent
     return ScenarioRun(n_steps, tuple(s), seq)
 
 
+def _sweep_seeds(seeds: list[int] | None, n: int | None) -> list[int] | None:
+    """The sweep points' seeds: the first ``n`` (``--sweep-seeds``) of the seeds given by
+    ``--seeds`` (all of them without ``n``), else ``0 .. n-1`` (None: the sweep's default count).
+
+    :raises BenchOptionError: ``n`` is more than the seeds given
+    """
+    if seeds is None:
+        return None if n is None else list(range(n))
+    if n is not None and n > len(seeds):
+        raise BenchOptionError(f"--sweep-seeds: {n} is more than the {len(seeds)} seeds of --seeds")
+    return list(seeds) if n is None else list(seeds[:n])
+
+
 def build_plan(controllers: Sequence[str] | None = None, scenarios: Sequence[str] | None = None,
                seeds: int | Sequence[str | int] | None = None,
                wind_speeds: Sequence[str | float] | None = None, steps: int | None = None,
@@ -409,7 +422,8 @@ def build_plan(controllers: Sequence[str] | None = None, scenarios: Sequence[str
         asked for explicitly, it is an error)
     :param scenarios: scenario names (default :data:`DEFAULT_SCENARIOS`)
     :param seeds: the batched controllers' seeds in every scenario: an int is that many seeds
-        from 0 (``--episodes``), ints are those seeds, strings are ``--seeds`` values
+        from 0 (``--episodes``; the sweep keeps its own count), ints are those seeds (in every
+        sweep point too), strings are ``--seeds`` values
         (:func:`parse_seeds`: seeds and ranges); default each scenario's count (:data:`DEFAULT_BUDGETS`, with
         ``quick`` :data:`QUICK_BUDGETS`)
     :param wind_speeds: sweep speeds, km/h (default :data:`DEFAULT_WIND_SPEEDS_KMH`, with
@@ -424,7 +438,8 @@ def build_plan(controllers: Sequence[str] | None = None, scenarios: Sequence[str
     :param figures: draw the PNG figures
     :param sweep: run the error-vs-wind sweep (for the selected hold scenarios)
     :param sweep_seeds: episodes per sweep point of the batched controllers (default
-        :data:`DEFAULT_SWEEP`)
+        :data:`DEFAULT_SWEEP`, or every seed given as seeds): with seeds given as seeds (not a
+        count), the first this many of them, else seeds ``0 .. sweep_seeds-1``
     :param sequential_episodes: episodes of the controllers that run one at a time (the MPC),
         in every scenario and sweep point: the first this many seeds (default: each scenario's)
     :param threads: BLAS threads while running (default 1; None leaves them alone)
@@ -455,8 +470,8 @@ def build_plan(controllers: Sequence[str] | None = None, scenarios: Sequence[str
     rows, notes = controller_rows(ctrl, ppo_model)
     runs = {s: _run_for(_budget(s, quick), seed_list, steps, seq, s, dt) for s in scen}
     sb = QUICK_SWEEP if quick else DEFAULT_SWEEP
-    sweep_run = _run_for(sb, list(range(sweep_n)) if sweep_n is not None else None, steps, seq,
-                         "a sweep point", dt)
+    sweep_run = _run_for(sb, _sweep_seeds(seed_list if seeds is not None and not _is_int(seeds) else None,
+                                          sweep_n), steps, seq, "a sweep point", dt)
     directions = [d for d, (s, _) in SWEEP_DIRECTIONS.items() if s in scen] if sweep else []
     variant_run = _run_for(QUICK_VARIANT_RUN if quick else DEFAULT_VARIANT_RUN, seed_list, steps, 0,
                            "a drive variant", dt)

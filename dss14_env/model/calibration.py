@@ -18,7 +18,8 @@ configuration.  docs/model.md section 7 explains the reasoning.
 3. Gearbox (Fig. 17): the stiffness ``k_g`` puts the rate loop's gearbox peak at 8 Hz (az) and
    20 Hz (el).
 4. Cross-coupling (Fig. 22): the tipping structure's product of inertia ``j_az_el`` gives a peak
-   el encoder response of 1e-3 to a unit az step with the first gain set; steps 2-3 are re-run.
+   el encoder response of 1e-3 to a unit az step with the gain set the targets name
+   (``calibration.cross_coupling_gain_set``, [R]'s kp 1); steps 2-3 are re-run.
 
 Steps 2 and 3 interact weakly and are iterated to a fixed point.  Every quantity solved for here
 is a regression check, not evidence, in ``dss14 reproduce`` (its rows carry ``calibrated:
@@ -228,9 +229,10 @@ def step_cross_coupling(pl, t_end: float = 40.0, n: int = 2001) -> float:
 
 def calibrate_cross_coupling(cfg: ModelConfig, scale, lam, kappa, k_g) -> float:
     """Product of inertia (calibration step 4) giving the Fig. 22 cross-coupling target with
-    the first gain set; log-linear secant on |j_az_el| (the peak is close to proportional).
+    the gain set ``calibration.cross_coupling_gain_set``; log-linear secant on |j_az_el| (the
+    peak is close to proportional).
     """
-    g = next(iter(cfg.gain_sets.values()))
+    g = cfg.gain_sets[cfg.calibration.cross_coupling_gain_set]
     s = cfg.structure
     j_max = 0.5 * np.sqrt(s.j_tip_az * s.j_tip_el)
 

@@ -16,6 +16,7 @@ naming the field and the file.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -134,6 +135,8 @@ class CalibrationTargets:
     gearbox_peak: dict = spec("Hz", lo=0.0, lo_open=True, axis=True)
     structure_az_peaks: tuple = spec("Hz", kind="list", lo=0.0, lo_open=True)
     cross_coupling_peak: float = spec("1", lo=0.0, lo_open=True)
+    #: the gain set (a name of ``position_loop.gain_sets``) the cross-coupling peak is read with
+    cross_coupling_gain_set: str = spec(None, kind="str")
 
 
 @dataclass(frozen=True)
@@ -169,6 +172,12 @@ class ModelConfig:
             blocks[block] = dataclasses.replace(obj, **{name: val})
         return dataclasses.replace(self, **blocks)
 
+
+#: ranged parameters whose value must be the top of their range: the report's valve gain
+#: (Hill's estimate, [R] Table 1) stands for the valve gain the calibration solves from Fig. 17
+#: (``calibration.rate_loop_*``), so a value of its own could not move the model; its range sets
+#: only the spread over which parameter randomisation scales the calibrated gain (low end / top)
+RANGE_TOP_ONLY = ("hydraulics.k_a_report",)
 
 #: sections of ``configs/model.yaml`` and their dataclasses
 SECTIONS = {"board": BoardConfig, "hydraulics": HydraulicsConfig, "gearbox": GearboxConfig,
@@ -247,6 +256,14 @@ def load_model_config(path: str | Path | None = None) -> ModelConfig:
         gs = load_section(GainSetSpec, g, source, f"position_loop.gain_sets.{gname}", **kw)
         gains[str(gname)] = GainSet(gs.kp, gs.ki)
     struct, cal = blocks["structure"], blocks["calibration"]
+    for name in RANGE_TOP_ONLY:
+        p, (block, key) = registry[name], name.split(".")
+        if p.range is not None and not math.isclose(p.value, p.range[1], rel_tol=1e-12):
+            leaf = data[block][key]
+            raise ConfigError(f"{source}: field '{name}': must be the top of its range, "
+                              f"{leaf['range'][1]!r} {leaf['unit']} (the calibration solves the model's "
+                              f"valve gain from calibration.rate_loop_*; the range sets only its "
+                              f"randomised spread), got {leaf['value']!r}")
     if struct.rib_r_inner >= struct.rib_r_outer:
         raise ConfigError(f"{source}: field 'structure.rib_r_inner': must be below rib_r_outer "
                           f"({struct.rib_r_outer} m), got {struct.rib_r_inner}")
@@ -256,5 +273,8 @@ def load_model_config(path: str | Path | None = None) -> ModelConfig:
     if len(cal.structure_az_peaks) != 2:
         raise ConfigError(f"{source}: field 'calibration.structure_az_peaks': must have 2 entries, "
                           f"got {len(cal.structure_az_peaks)}")
+    if cal.cross_coupling_gain_set not in gains:
+        raise ConfigError(f"{source}: field 'calibration.cross_coupling_gain_set': must name a gain set of "
+                          f"position_loop.gain_sets {sorted(gains)}, got {cal.cross_coupling_gain_set!r}")
     return ModelConfig(blocks["board"], blocks["hydraulics"], blocks["gearbox"], struct,
                        blocks["reduction"], gains, cal, registry, source, recalibrate)
