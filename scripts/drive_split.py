@@ -9,7 +9,7 @@ H2-optimal law on that model whose 3-sigma acceleration meets the 0.2 deg/s^2 li
 their ratio.  Both figures are stationary (Lyapunov) 3-sigma values of the same quantity, so
 the ratio is of one statistic.  docs/model.md section 7 renders the table.
 
-    python scripts/drive_split.py            # compute (about a minute), write docs/results/drive_split.json, render
+    python scripts/drive_split.py            # compute (minutes), write docs/results/drive_split.json, render
     python scripts/drive_split.py --render   # render the committed file into docs/model.md
     python scripts/drive_split.py --check    # exit 1 if docs/model.md is not the rendering
 """
@@ -28,7 +28,8 @@ DOC = ROOT / "docs" / "model.md"
 BLOCK = "drive-split"
 SPEED_KMH = 50.0
 #: the drive shipped before the wind-load evidence pinned the split (for the record)
-PREVIOUS = "base: model\nrecalibrate_wind: true\nhydraulics:\n  mu: {value: 1.0e-3}\n  k_a2: {value: 7.0e-4}\n"
+PREVIOUS = ("base: model\nrecalibrate_wind: true\nhydraulics:\n  mu: {value: 1.0e-3}\n"
+            "  k_a2: {value: 7.0e-4}\n")
 
 
 def model_row(label: str, config: str | None) -> dict:
@@ -73,8 +74,9 @@ def compute() -> dict:
 
 def render(res: dict) -> str:
     """The Markdown table of :func:`compute`'s result."""
-    lines = ["| model | μ, kPa·s | k_a2, cm³ | C_el front | C_az side | PI pointing 3σ el front / xel side, mdeg | "
-             "acceleration-matched reference, mdeg | reference ÷ PI |", "|---|---|---|---|---|---|---|---|"]
+    lines = ["| model | μ, kPa·s | k_a2, cm³ | C_el front | C_az side | PI pointing 3σ el front / xel side, "
+             "mdeg | acceleration-matched reference, mdeg | reference ÷ PI |",
+             "|---|---|---|---|---|---|---|---|"]
     for r in res["rows"]:
         pi, ref, q = (r[k] for k in ("pi_pointing_three_sigma_mdeg", "matched_reference_three_sigma_mdeg",
                                      "matched_over_pi"))
@@ -97,8 +99,8 @@ def main(argv: list[str] | None = None) -> int:
     new = fill_blocks(text, {BLOCK: render(json.loads(RESULTS.read_text(encoding="utf-8")))})
     if a.check:
         if new != text:
-            print(f"{DOC}: block {BLOCK} is not the rendering of {RESULTS}; run python scripts/drive_split.py "
-                  "--render")
+            print(f"{DOC}: block {BLOCK} is not the rendering of {RESULTS}; run "
+                  "python scripts/drive_split.py --render")
             return 1
         return 0
     DOC.write_text(new, encoding="utf-8")
