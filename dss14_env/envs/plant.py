@@ -64,7 +64,7 @@ from dss14_env.core.schema import config_path
 from dss14_env.core.threads import single_threaded
 from dss14_env.model.assembly import build_model, default_model
 from dss14_env.model.config import load_model_config
-from dss14_env.model.linsys import balance, discretize, noise_factor
+from dss14_env.model.linsys import balance, discretize, noise_factor, van_loan
 from dss14_env.model.uncertainty import SWEEP_PARAMS, ParamDraw, draw_params, perturbed_rate_loop
 from dss14_env.wind.loads import calibrate_wind_loads, default_wind_loads
 
@@ -89,19 +89,6 @@ NOISE_TAIL_TOL = 1.0e-8
 _NO_WIND_FILTER_SPEED = 1.0
 #: outputs computed every step (:data:`OUTPUTS` up to the gust torques)
 N_STEP_OUTPUTS = 4
-
-
-def _van_loan(A: np.ndarray, W: np.ndarray, dt: float) -> np.ndarray:
-    """``int_0^dt e^{A s} W e^{A^T s} ds`` for any (not necessarily symmetric) ``W``.
-
-    Van Loan (1978): ``expm([[-A, W], [0, A^T]] dt) = [[., F12], [0, F22]]`` and the integral is
-    ``F22^T F12``; the derivation does not need ``W`` symmetric.
-    """
-    n = A.shape[0]
-    V = np.zeros((2 * n, 2 * n))
-    V[:n, :n], V[:n, n:], V[n:, n:] = -A * dt, W * dt, A.T * dt
-    F = linalg.expm(V)
-    return F[n:, n:].T @ F[:n, n:]
 
 
 class Plant:
@@ -206,9 +193,9 @@ class Plant:
     # ------------------------------------------------------------------ construction helpers
     def _noise_factors(self) -> tuple[np.ndarray, np.ndarray, float]:
         A, Ga, Ge, dt = self.A, self.G_a, self.G_e, self.dt
-        Qaa = _van_loan(A, Ga @ Ga.T, dt)
-        Qee = _van_loan(A, Ge @ Ge.T, dt)
-        Qae = _van_loan(A, Ga @ Ge.T, dt)
+        Qaa = van_loan(A, Ga @ Ga.T, dt)
+        Qee = van_loan(A, Ge @ Ge.T, dt)
+        Qae = van_loan(A, Ga @ Ge.T, dt)
         Q = np.block([[Qaa, Qae], [Qae.T, Qee]])
         lam, V = np.linalg.eigh(0.5 * (Q + Q.T))
         lam, V = lam[::-1], V[:, ::-1]
