@@ -208,10 +208,11 @@ def _campaign(args: argparse.Namespace) -> int:
     from dss14_env.core.parallel import check_ray_options, make_executor, probe_address, require_ray
 
     args.ppo_model = _policy_option(args.ppo_model)
+    speeds = C.parse_wind_speeds(args.wind_speeds, C.CampaignOptionError, hint="")
     given = {k: v for k, v in (("controllers", args.controllers), ("plants", args.plants),
                                ("first_plant", args.first_plant), ("steps", args.steps),
                                ("chunk_size", args.chunk_size), ("ppo_model", args.ppo_model),
-                               ("wind_speeds_kmh", C.parse_wind_speeds(args.wind_speeds)),
+                               ("wind_speeds_kmh", speeds),
                                ("directions", C.parse_directions(args.directions))) if v is not None}
     spec = C.CampaignSpec(**given, condition_on_pi=not args.unconditioned)
     reqs = parse_requirements(args.requirements)

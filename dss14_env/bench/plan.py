@@ -41,8 +41,8 @@ QUICK_SWEEP = Budget(15.0, 8, 0)
 DEFAULT_CONTROLLERS: tuple[str, ...] = catalog.controller_names("bench")
 #: scenarios of a run without ``--scenarios`` (the catalog's bench rows)
 DEFAULT_SCENARIOS: tuple[str, ...] = catalog.scenario_names("bench")
-#: wind speeds (km/h) of the error-vs-wind sweep without ``--wind-speeds``
-DEFAULT_WIND_SPEEDS_KMH: tuple[float, ...] = (30.0, 40.0, 50.0, 60.0, 70.0)
+#: wind speeds (km/h) of the ``--quick`` error-vs-wind sweep without ``--wind-speeds`` (the
+#: default sweep is the environment's grid, :func:`default_wind_speeds`)
 QUICK_WIND_SPEEDS_KMH: tuple[float, ...] = (30.0, 50.0, 70.0)
 #: warm-up of a sweep point, s (the hold scenarios')
 SWEEP_WARMUP_S = 5.0
@@ -249,31 +249,46 @@ def _seed_option(seeds: int | Sequence[str | int] | None) -> list[int] | None:
     return parse_seeds(seeds)
 
 
-def parse_wind_speeds(values: Sequence[str | float] | None) -> list[float] | None:
-    """``--wind-speeds``: mean wind speeds of the sweep, km/h, each in (0, 90] (the
-    environment's own bound, :data:`dss14_env.envs.config.WIND_SPEED_MAX_KMH`), sorted.
+def default_wind_speeds() -> tuple[float, ...]:
+    """The sweep's speeds without ``--wind-speeds``, km/h: the environment's
+    ``wind_speed_grid_kmh`` (``configs/env.yaml``, the grid ``DSS14-v0`` draws from).
+    """
+    from dss14_env.envs.config import load_env_config  # (the environment, loaded when used)
 
-    :raises BenchOptionError: not numbers, out of range or repeated
+    return tuple(load_env_config().wind_speed_grid_kmh)
+
+
+def parse_wind_speeds(values: Sequence[str | float] | None, error: type[ValueError] = BenchOptionError,
+                      hint: str = " (or --no-sweep)") -> list[float] | None:
+    """``--wind-speeds`` of ``dss14 bench`` and ``dss14 campaign``: mean wind speeds, km/h, each
+    in (0, 90] (the environment's own bound,
+    :data:`dss14_env.envs.config.WIND_SPEED_MAX_KMH`), sorted.
+
+    :param values: the option's values (None: not given)
+    :param error: the command's option error
+    :param hint: added to the message for no speed at all
+    :raises error: none, not numbers (a bool is not a number), out of range or repeated
     """
     from dss14_env.envs.config import WIND_SPEED_MAX_KMH  # (the environment, loaded when used)
 
     if values is None:
         return None
     if len(values) == 0:
-        raise BenchOptionError("--wind-speeds: give at least one speed in km/h (or --no-sweep)")
+        raise error(f"--wind-speeds: give at least one speed in km/h{hint}")
     speeds = []
     for v in values:
         try:
+            if isinstance(v, bool):
+                raise TypeError
             x = float(v)
         except (TypeError, ValueError):
-            raise BenchOptionError(f"--wind-speeds: {v!r} is not a number (km/h)") from None
+            raise error(f"--wind-speeds: {v!r} is not a number (km/h)") from None
         if not (math.isfinite(x) and 0.0 < x <= WIND_SPEED_MAX_KMH):
-            raise BenchOptionError(f"--wind-speeds: {v} km/h is outside (0, {WIND_SPEED_MAX_KMH:g}] "
-                                   f"km/h, the environment's wind_speed_kmh range "
-                                   f"(WIND_SPEED_MAX_KMH)")
+            raise error(f"--wind-speeds: {v} km/h is outside (0, {WIND_SPEED_MAX_KMH:g}] "
+                        f"km/h, the environment's wind_speed_kmh range (WIND_SPEED_MAX_KMH)")
         speeds.append(x)
     if len(set(speeds)) != len(speeds):
-        raise BenchOptionError(f"--wind-speeds: a speed is repeated: {values}")
+        raise error(f"--wind-speeds: a speed is repeated: {list(values)}")
     return sorted(speeds)
 
 
@@ -382,7 +397,7 @@ def build_plan(controllers: Sequence[str] | None = None, scenarios: Sequence[str
         from 0 (``--episodes``), ints are those seeds, strings are ``--seeds`` values
         (:func:`parse_seeds`: seeds and ranges); default each scenario's count (:data:`DEFAULT_BUDGETS`, with
         ``quick`` :data:`QUICK_BUDGETS`)
-    :param wind_speeds: sweep speeds, km/h (default :data:`DEFAULT_WIND_SPEEDS_KMH`, with
+    :param wind_speeds: sweep speeds, km/h (default :func:`default_wind_speeds`, with
         ``quick`` :data:`QUICK_WIND_SPEEDS_KMH`)
     :param steps: episode length of every scenario and sweep point, control periods (default:
         each scenario's)
@@ -428,7 +443,7 @@ def build_plan(controllers: Sequence[str] | None = None, scenarios: Sequence[str
         notes.append(f"--wind-speeds ignored: the wind sweep extends the hold scenarios, and "
                      f"neither {anchors} is among --scenarios")
     if speeds is None:
-        speeds = list(QUICK_WIND_SPEEDS_KMH if quick else DEFAULT_WIND_SPEEDS_KMH)
+        speeds = list(QUICK_WIND_SPEEDS_KMH if quick else default_wind_speeds())
     return BenchPlan(controllers=[r.name for r in rows], scenarios=scen, runs=runs, wind_speeds_kmh=speeds,
                      sweep_directions=directions, sweep=sweep_run,
                      env_kwargs=env_kwargs, rows=tuple(rows), dt=dt,
@@ -455,7 +470,7 @@ def sweep_name(direction: str, speed_kmh: float) -> str:
 
 
 __all__ = ["BenchOptionError", "BenchPlan", "Budget", "DEFAULT_BUDGETS", "DEFAULT_CONTROLLERS",
-           "DEFAULT_SCENARIOS", "DEFAULT_SWEEP", "DEFAULT_WIND_SPEEDS_KMH", "LOADED_AXES",
+           "DEFAULT_SCENARIOS", "DEFAULT_SWEEP", "LOADED_AXES",
            "QUICK_BUDGETS", "QUICK_SWEEP", "ScenarioRun", "SWEEP_DIRECTIONS", "build_plan",
            "check_names", "control_period", "controller_rows", "parse_episodes", "parse_seeds",
-           "parse_wind_speeds", "sweep_name", "sweep_scenario"]
+           "default_wind_speeds", "parse_wind_speeds", "sweep_name", "sweep_scenario"]
