@@ -61,9 +61,7 @@ class SameStepDSS14VectorEnv(DSS14VectorEnv):
             final = np.zeros_like(obs)
             final[idx] = obs[idx]
             info["final_obs"], info["_final_obs"] = final, done.copy()
-            self._reset_envs(idx, self.config)  # the draws the parent makes one call later
-            obs[idx] = self._reset_obs(idx)
-            self._prev_done = np.zeros(self.num_envs, bool)
+            obs[idx] = self.reset_now(idx)  # the draws the parent makes one call later
         return obs, reward, terminated, truncated, info
 
 
