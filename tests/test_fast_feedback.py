@@ -33,3 +33,13 @@ def test_doctest_collection_imports_no_torch() -> None:
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=300)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "[]", out.stdout
+
+
+def test_quick_tier_is_registered_and_its_files_exist() -> None:
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("root_conftest", ROOT / "conftest.py")
+    root = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(root)
+    assert '"quick: ' in (ROOT / "pyproject.toml").read_text()
+    assert root.QUICK_FILES and all(p.is_file() for p in root.QUICK_FILES)
