@@ -20,26 +20,28 @@ import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import MappingProxyType
 from typing import Any
 
 import numpy as np
 
 from dss14_env.bench import catalog
-from dss14_env.bench.catalog import SCENARIO_ROWS, Budget, ControllerRow, Scenario
+from dss14_env.bench.catalog import Budget, ControllerRow, LiveMapping, Scenario
 from dss14_env.core.seeds import parse_seed_list
 
 #: per scenario, the default run's budget and the ``--quick`` one (the catalog's rows)
-DEFAULT_BUDGETS: Mapping[str, Budget] = MappingProxyType({r.name: r.default for r in SCENARIO_ROWS})
-QUICK_BUDGETS: Mapping[str, Budget] = MappingProxyType({r.name: r.quick for r in SCENARIO_ROWS})
+DEFAULT_BUDGETS: Mapping[str, Budget] = LiveMapping(
+    lambda: {n: r.default for n, r in catalog.SCENARIOS.items()})
+QUICK_BUDGETS: Mapping[str, Budget] = LiveMapping(lambda: {n: r.quick for n, r in catalog.SCENARIOS.items()})
 #: a point of the error-vs-wind sweep (the MPC is left out: the 50 km/h points are the hold
 #: scenarios, where it runs)
 DEFAULT_SWEEP = Budget(60.0, 32, 0)
 #: ``--quick``: the CI smoke test (well under 30 s)
 QUICK_SWEEP = Budget(15.0, 8, 0)
-#: controllers of a run without ``--controllers`` (the catalog's bench rows)
+#: controllers of a run without ``--controllers``: the shipped bench rows (with registered
+#: rows: :func:`dss14_env.bench.catalog.controller_names`)
 DEFAULT_CONTROLLERS: tuple[str, ...] = catalog.controller_names("bench")
-#: scenarios of a run without ``--scenarios`` (the catalog's bench rows)
+#: scenarios of a run without ``--scenarios``: the shipped bench rows (with registered rows:
+#: :func:`dss14_env.bench.catalog.scenario_names`)
 DEFAULT_SCENARIOS: tuple[str, ...] = catalog.scenario_names("bench")
 #: wind speeds (km/h) of the ``--quick`` error-vs-wind sweep without ``--wind-speeds`` (the
 #: default sweep is the environment's grid, :func:`default_wind_speeds`)
@@ -47,11 +49,11 @@ QUICK_WIND_SPEEDS_KMH: tuple[float, ...] = (30.0, 50.0, 70.0)
 #: warm-up of a sweep point, s (the hold scenarios')
 SWEEP_WARMUP_S = 5.0
 #: the sweep's directions, the hold scenario each extends and the axis the wind acts on most
-SWEEP_DIRECTIONS: Mapping[str, tuple[str, str]] = MappingProxyType(
-    {r.sweep: (r.name, r.loaded_axes[0]) for r in SCENARIO_ROWS if r.sweep is not None})
+SWEEP_DIRECTIONS: Mapping[str, tuple[str, str]] = LiveMapping(
+    lambda: {r.sweep: (r.name, r.loaded_axes[0]) for r in catalog.SCENARIOS.values() if r.sweep is not None})
 #: the axis the wind loads per scenario (bold in the tables; the precision target's axis)
-LOADED_AXES: Mapping[str, tuple[str, ...]] = MappingProxyType(
-    {r.name: r.loaded_axes for r in SCENARIO_ROWS if r.loaded_axes})
+LOADED_AXES: Mapping[str, tuple[str, ...]] = LiveMapping(
+    lambda: {r.name: r.loaded_axes for r in catalog.SCENARIOS.values() if r.loaded_axes})
 #: default BLAS threads while running
 DEFAULT_THREADS = 1
 

@@ -12,13 +12,11 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from dss14_env.bench import runner
-from dss14_env.bench.catalog import SCENARIO_ROWS
+from dss14_env.bench import catalog, runner
 from dss14_env.bench.plan import SWEEP_DIRECTIONS, BenchPlan, ScenarioRun, sweep_name, sweep_scenario
 from dss14_env.bench.runner import Scenario
 
 #: scenarios whose first seed's time histories the figures draw (the catalog's traced rows)
-TRACED = tuple(r.name for r in SCENARIO_ROWS if r.traced)
 
 
 def controller_entries(plan: BenchPlan) -> list[Any]:
@@ -106,8 +104,8 @@ def run_plan(plan: BenchPlan, progress: bool = True) -> dict[str, Any]:
                 bar.total = bar.n + n
             bar.update(n)
 
-        main = _merge([_run_one(plan, ctrls, s, plan.scenario(s), plan.runs[s], tick, s in TRACED)
-                       for s in plan.scenarios])
+        main = _merge([_run_one(plan, ctrls, s, plan.scenario(s), plan.runs[s], tick,
+                                catalog.SCENARIOS[s].traced) for s in plan.scenarios])
         t1 = time.perf_counter()
         sweep = _merge([_run_one(plan, ctrls, n, sc, plan.sweep, tick, False) for n, sc in to_run]) \
             if to_run else None
@@ -118,4 +116,4 @@ def run_plan(plan: BenchPlan, progress: bool = True) -> dict[str, Any]:
             "wall_time_s": {"main": t1 - t0, "sweep": t2 - t1}}
 
 
-__all__ = ["TRACED", "controller_entries", "run_plan", "sweep_points", "SWEEP_DIRECTIONS"]
+__all__ = ["controller_entries", "run_plan", "sweep_points", "SWEEP_DIRECTIONS"]

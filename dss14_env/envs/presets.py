@@ -138,11 +138,16 @@ def registered_ids_table() -> str:
     return "\n".join(lines)
 
 
-def register_presets() -> None:
-    """Register every preset's id with Gymnasium (idempotent; builds nothing)."""
+def register_preset(p: Preset) -> None:
+    """Register one preset's id with Gymnasium (idempotent; builds nothing)."""
     from gymnasium.envs.registration import register, registry
 
+    if p.env_id not in registry:
+        register(id=p.env_id, entry_point=ENTRY_POINT, vector_entry_point=VECTOR_ENTRY_POINT,
+                 max_episode_steps=p.max_episode_steps, kwargs=dict(p.kwargs))
+
+
+def register_presets() -> None:
+    """Register every preset's id with Gymnasium (idempotent; builds nothing)."""
     for p in PRESETS.values():
-        if p.env_id not in registry:
-            register(id=p.env_id, entry_point=ENTRY_POINT, vector_entry_point=VECTOR_ENTRY_POINT,
-                     max_episode_steps=p.max_episode_steps, kwargs=dict(p.kwargs))
+        register_preset(p)
