@@ -4,6 +4,9 @@ behind the controller interface, residual and model-informed policy interfaces.
 Importing this package registers the agents' environment ids (nothing is built):
 ``DSS14-Plain-v0``, ``DSS14-Residual-v0``, ``DSS14-ResidualLQG-v0``, ``DSS14-KalmanObs-v0``
 (:mod:`dss14_env.agents.envs`).
+
+Installed as ``dss14_env.agents``.  May import: ``baselines``, ``envs``, ``wind``, ``model``,
+``core`` (``docs/architecture.md``).
 """
 
 #: the agents' registered ids and their entry points

@@ -22,7 +22,7 @@ such as ``action_scale_deg_s`` or ``wind_speed_kmh``, and ``max_episode_steps``)
 
 :func:`resolve_env` turns a training configuration into the base environment and the
 interface; :func:`make_train_vec_env` builds the training VecEnv -- the batched one
-(:mod:`dss14_env.agents.vec_env` + :class:`~dss14_env.agents.interface.InterfaceVecEnv`) for
+(:mod:`dss14_env.agents.vec_env` + :class:`~dss14_env.agents.vec_env.InterfaceVecEnv`) for
 DSS14 environments, SB3's ``DummyVecEnv``/``SubprocVecEnv`` otherwise.
 """
 
@@ -34,13 +34,15 @@ import importlib.util
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
 
 from dss14_env.agents.config import TrainConfig
 from dss14_env.agents.interface import NO_ABSOLUTE_ANGLES, InterfaceSpec, InterfaceWrapper, spec_from_kwargs
-from dss14_env.agents.vec_env import LogRewardVecEnv, MixtureVecEnv, is_dss14_id, make_sb3_vec_env
+
+if TYPE_CHECKING:  # annotations only: the SB3 VecEnvs (torch) are imported where they are built
+    from dss14_env.agents.vec_env import MixtureVecEnv
 
 #: modules imported (when present) before ``gymnasium.make`` if ``env_id`` is not registered and
 #: the config names no ``env_module``
@@ -212,6 +214,19 @@ def _interface_env(base_id: str, base_kwargs: dict, spec: InterfaceSpec) -> Any:
 MIXTURE_SHARED_KEYS = ("dt", "action_scale_deg_s", "rate_limit_deg_s", "error_scale_mdeg")
 
 
+def is_dss14_id(env_id: str) -> bool:
+    """Whether ``env_id`` is registered with the DSS14 vector entry point."""
+    import dss14_env  # noqa: F401  (registers the ids)
+    from dss14_env.envs.vector import DSS14VectorEnv
+
+    try:
+        spec = gym.spec(env_id)
+    except gym.error.Error:
+        return False
+    ep = spec.vector_entry_point
+    return ep is not None and str(ep).endswith("DSS14VectorEnv") or ep is DSS14VectorEnv
+
+
 def make_mixture_vec_env(mixture: list[dict[str, Any]], common: Mapping[str, Any], seed: int | None,
                          env_config: Any, source: str = "<config>") -> MixtureVecEnv:
     """The batched VecEnv of a ``mixture`` (:func:`dss14_env.agents.config`'s checked parts):
@@ -223,6 +238,7 @@ def make_mixture_vec_env(mixture: list[dict[str, Any]], common: Mapping[str, Any
         share its :data:`MIXTURE_SHARED_KEYS`
     :raises ValueError: a part whose environment differs in those keys, naming it
     """
+    from dss14_env.agents.vec_env import MixtureVecEnv, make_sb3_vec_env
     from dss14_env.envs.presets import PRESETS
 
     kw = dict(common)
@@ -265,7 +281,7 @@ def _wrap_batched(venv: Any, cfg: TrainConfig, plan: EnvPlan, env_config: Any,
     """
     from stable_baselines3.common.vec_env import VecMonitor
 
-    from dss14_env.agents.interface import InterfaceVecEnv
+    from dss14_env.agents.vec_env import InterfaceVecEnv, LogRewardVecEnv
 
     if monitor_dir is not None:
         monitor_dir.mkdir(parents=True, exist_ok=True)
@@ -285,6 +301,8 @@ def make_train_vec_env(cfg: TrainConfig, plan: EnvPlan, env_config: Any,
     """
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+
+    from dss14_env.agents.vec_env import make_sb3_vec_env
 
     kind = vec_env_kind(cfg, plan)
     if cfg.mixture:
@@ -309,7 +327,7 @@ def make_train_vec_env(cfg: TrainConfig, plan: EnvPlan, env_config: Any,
                         vec_env_cls=SubprocVecEnv if kind == "subproc" else DummyVecEnv)
 
 
-__all__ = ["DEFAULT_BASE_ID", "DEFAULT_ENV_MODULES", "EnvPlan", "WRAPPER_IDS", "check_env",
+__all__ = ["DEFAULT_BASE_ID", "DEFAULT_ENV_MODULES", "EnvPlan", "WRAPPER_IDS", "check_env", "is_dss14_id",
            "check_registered",
            "import_env_module", "make_env", "make_plan_env", "make_train_vec_env",
            "make_kalman_obs_env", "make_mixture_vec_env", "make_plain_env", "make_residual_lqg_env",

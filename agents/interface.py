@@ -3,7 +3,8 @@
 One :class:`PolicyInterface` (numpy over N rows = sub-environments) turns the environment's
 12 observations into the policy's observation and the policy's output ``u in [-1, 1]^2``
 into the environment's action, the same way for training (the Gymnasium wrapper
-:class:`InterfaceWrapper` with N = 1; the SB3 ``VecEnvWrapper`` :class:`InterfaceVecEnv` over
+:class:`InterfaceWrapper` with N = 1; the SB3 ``VecEnvWrapper``
+:class:`dss14_env.agents.vec_env.InterfaceVecEnv` over
 a batched vector env) and for scoring (:class:`dss14_env.agents.policy.PolicyController`).
 :class:`InterfaceSpec` says what it does:
 
@@ -561,53 +562,6 @@ def interface_observation_space(interface: PolicyInterface) -> spaces.Box:
     return spaces.Box(-high, high, dtype=np.float32)
 
 
-# ---------------------------------------------------------------------------- SB3 face
-def _vec_env_wrapper() -> type:
-    from stable_baselines3.common.vec_env import VecEnvWrapper
-
-    return VecEnvWrapper
-
-
-class InterfaceVecEnv(_vec_env_wrapper()):
-    """An SB3 VecEnv of DSS14 environments (plain 12 observations) seen through a
-    :class:`PolicyInterface` with one row per sub-environment.
-
-    A done sub-environment's ``terminal_observation`` is turned into the policy's view of it
-    (:meth:`PolicyInterface.peek`), then its row restarts on the new episode's first
-    observation -- as :class:`InterfaceWrapper` inside a ``DummyVecEnv`` does.
-
-    :param venv: the vector environment (``num_envs`` rows)
-    :param spec: the interface
-    :param env_config: the environment configuration
-    """
-
-    def __init__(self, venv: Any, spec: InterfaceSpec, env_config: Any) -> None:
-        self.interface = PolicyInterface(spec, env_config, venv.num_envs)
-        if spec.context:  # each sub-environment's own configuration (a mixture's parts differ)
-            self.interface.set_context(list(venv.get_attr("config")))
-        super().__init__(venv, observation_space=interface_observation_space(self.interface),
-                         action_space=spaces.Box(-1.0, 1.0, (2,), np.float32))
-
-    def reset(self) -> np.ndarray:
-        obs = self.venv.reset()
-        self.interface.reset()
-        return self.interface.observe(obs)
-
-    def step_async(self, actions: np.ndarray) -> None:
-        self.venv.step_async(self.interface.action(actions))
-
-    def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict]]:
-        obs, rew, dones, infos = self.venv.step_wait()
-        if dones.any():
-            idx = np.flatnonzero(dones)
-            term = np.stack([infos[i]["terminal_observation"] for i in idx.tolist()])
-            feats = self.interface.peek(term, idx)
-            for k, i in enumerate(idx.tolist()):
-                infos[i]["terminal_observation"] = feats[k]
-            self.interface.restart(dones)
-        return self.interface.observe(obs), rew, dones, infos
-
-
 def spec_from_kwargs(kwargs: dict[str, Any], defaults: InterfaceSpec) -> tuple[InterfaceSpec, dict]:
     """``(spec, remaining env kwargs)``: interface keys taken out of wrapper-id kwargs."""
     kw = dict(kwargs)
@@ -621,7 +575,6 @@ def spec_from_kwargs(kwargs: dict[str, Any], defaults: InterfaceSpec) -> tuple[I
 
 
 __all__ = ["ACTIONS", "BASES", "CONTEXTS", "FEATURE_BOUND", "HISTORY_ENTRIES", "LQG_BASES", "InterfaceSpec",
-           "InterfaceVecEnv",
            "InterfaceWrapper", "LQG_FEATURES", "LQG_FEATURE_WIDTHS", "NO_ABSOLUTE_ANGLES",
            "PolicyInterface", "action_curve", "context_values", "interface_observation_space",
            "spec_from_kwargs",

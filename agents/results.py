@@ -34,12 +34,15 @@ from typing import Any
 
 import numpy as np
 
+from dss14_env.core.results import POINTING_AXIS_OF, Cell, RatioCell
 from dss14_env.core.stats import N_RESAMPLES, bootstrap_ci, iqm, iqm_ci, ratio_ci
+from dss14_env.envs.presets import PRESETS
 
-#: the holds of the table and the axis each is scored on (the axis the wind loads)
-HOLDS = {"hold_front": "el", "hold_side": "az"}
+#: the holds of the table and the axis each is scored on (the axis the wind loads: the
+#: preset's ``loaded_axes``)
+HOLDS = {h: PRESETS[h].loaded_axes[0] for h in ("hold_front", "hold_side")}
 #: the pointing-error axis of each hold (the axis the wind swings the dish about)
-POINTING_AXES = {"hold_front": "el", "hold_side": "xel"}
+POINTING_AXES = {h: POINTING_AXIS_OF[axis] for h, axis in HOLDS.items()}
 #: salt offset of the pointing statistics' resampling streams (the servo ones keep theirs)
 _POINTING_SALT = 10
 #: seed of every bootstrap resampling here
@@ -422,15 +425,15 @@ def _num(x: float) -> str:
 
 
 def _ci(d: Mapping[str, Any]) -> str:
-    lo, hi = d["ci95"]
-    return f"{_num(d['value'])} [{_num(lo)}, {_num(hi)}]"
+    c = Cell.from_dict(d)
+    return f"{_num(c.value)} [{_num(c.ci95[0])}, {_num(c.ci95[1])}]"
 
 
 def _ratio(d: Mapping[str, Any] | None) -> str:
     if d is None:
         return "–"
     s = _ci(d)
-    return s if d["significant"] else f"{s} n.s."
+    return s if RatioCell.from_dict(d).significant else f"{s} n.s."
 
 
 def _error(row: Mapping[str, Any], hold: str, error: str) -> Mapping[str, Any] | None:

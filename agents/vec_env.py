@@ -18,6 +18,11 @@ rollout costs a few microseconds per environment step instead of tens.
   steps, float32 rewards, SB3's ``seed()`` / ``set_options()`` protocol (used at the next
   ``reset()``).  Per-step info keys are copied into the per-environment dicts only when asked
   (``info_keys``): 16 keys x N dicts every step would cost more than the physics.
+* :class:`InterfaceVecEnv` -- an SB3 ``VecEnvWrapper`` that shows the policy its
+  :class:`~dss14_env.agents.interface.PolicyInterface` view of the rows.
+
+The module subclasses SB3's classes and so imports stable-baselines3 (and torch); the rest of
+:mod:`dss14_env.agents` imports it only where a training VecEnv is built.
 
 ``make_sb3_vec_env(env_id, n_envs, seed=s)`` seeds sub-environment ``i`` with ``s + i`` (SB3's
 ``make_vec_env`` convention; ``PPO(seed=s)`` re-seeds a VecEnv the same way), so its episodes
@@ -33,8 +38,11 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
+from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
 
+from dss14_env.agents.envs import is_dss14_id
+from dss14_env.agents.interface import InterfaceSpec, PolicyInterface, interface_observation_space
 from dss14_env.envs.vector import DSS14VectorEnv
 
 
@@ -61,9 +69,7 @@ class SameStepDSS14VectorEnv(DSS14VectorEnv):
             final = np.zeros_like(obs)
             final[idx] = obs[idx]
             info["final_obs"], info["_final_obs"] = final, done.copy()
-            self._reset_envs(idx, self.config)  # the draws the parent makes one call later
-            obs[idx] = self._reset_obs(idx)
-            self._prev_done = np.zeros(self.num_envs, bool)
+            obs[idx] = self.reset_now(idx)  # the draws the parent makes one call later
         return obs, reward, terminated, truncated, info
 
 
@@ -258,18 +264,6 @@ class LogRewardVecEnv(_vec_env_wrapper()):
         return obs, out.astype(np.float32), dones, infos
 
 
-def is_dss14_id(env_id: str) -> bool:
-    """Whether ``env_id`` is registered with the DSS14 vector entry point."""
-    import dss14_env  # noqa: F401  (registers the ids)
-
-    try:
-        spec = gym.spec(env_id)
-    except gym.error.Error:
-        return False
-    ep = spec.vector_entry_point
-    return ep is not None and str(ep).endswith("DSS14VectorEnv") or ep is DSS14VectorEnv
-
-
 def make_sb3_vec_env(env_id: str = "DSS14-Hold-v0", n_envs: int = 8, seed: int | None = None,
                      max_episode_steps: int | None = None, info_keys: Iterable[str] = (),
                      **env_kwargs: Any) -> SB3VecEnv:
@@ -297,5 +291,45 @@ def make_sb3_vec_env(env_id: str = "DSS14-Hold-v0", n_envs: int = 8, seed: int |
     return venv
 
 
-__all__ = ["LogRewardVecEnv", "MixtureVecEnv", "SB3VecEnv", "SameStepDSS14VectorEnv", "is_dss14_id",
+class InterfaceVecEnv(_vec_env_wrapper()):
+    """An SB3 VecEnv of DSS14 environments (plain 12 observations) seen through a
+    :class:`PolicyInterface` with one row per sub-environment.
+
+    A done sub-environment's ``terminal_observation`` is turned into the policy's view of it
+    (:meth:`PolicyInterface.peek`), then its row restarts on the new episode's first
+    observation -- as :class:`InterfaceWrapper` inside a ``DummyVecEnv`` does.
+
+    :param venv: the vector environment (``num_envs`` rows)
+    :param spec: the interface
+    :param env_config: the environment configuration
+    """
+
+    def __init__(self, venv: Any, spec: InterfaceSpec, env_config: Any) -> None:
+        self.interface = PolicyInterface(spec, env_config, venv.num_envs)
+        if spec.context:  # each sub-environment's own configuration (a mixture's parts differ)
+            self.interface.set_context(list(venv.get_attr("config")))
+        super().__init__(venv, observation_space=interface_observation_space(self.interface),
+                         action_space=spaces.Box(-1.0, 1.0, (2,), np.float32))
+
+    def reset(self) -> np.ndarray:
+        obs = self.venv.reset()
+        self.interface.reset()
+        return self.interface.observe(obs)
+
+    def step_async(self, actions: np.ndarray) -> None:
+        self.venv.step_async(self.interface.action(actions))
+
+    def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict]]:
+        obs, rew, dones, infos = self.venv.step_wait()
+        if dones.any():
+            idx = np.flatnonzero(dones)
+            term = np.stack([infos[i]["terminal_observation"] for i in idx.tolist()])
+            feats = self.interface.peek(term, idx)
+            for k, i in enumerate(idx.tolist()):
+                infos[i]["terminal_observation"] = feats[k]
+            self.interface.restart(dones)
+        return self.interface.observe(obs), rew, dones, infos
+
+
+__all__ = ["InterfaceVecEnv", "LogRewardVecEnv", "MixtureVecEnv", "SB3VecEnv", "SameStepDSS14VectorEnv",
            "make_sb3_vec_env"]

@@ -12,7 +12,9 @@ Importing the package registers the Gymnasium environments of
 state estimate); nothing is built at import (entry points are strings).
 
 Layers, each importing only those below it: ``core`` <- ``model`` <- ``wind`` <- ``envs`` <-
-``baselines`` <- ``agents`` <- ``bench`` / ``reproduce`` <- ``cli``.
+``baselines`` <- ``agents`` <- ``bench`` / ``reproduce`` <- ``cli`` (``docs/architecture.md``;
+checked by ``scripts/check_layers.sh``).  ``dss14_env.cli`` and ``dss14_env.reproduce`` are
+modules of the top room: the CLI may import everything, ``reproduce`` everything but the CLI.
 """
 
 __version__ = "0.1.0"

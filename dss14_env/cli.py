@@ -10,6 +10,7 @@ from typing import Any
 
 from dss14_env.agents.config import shipped_training_configs_by_algo
 from dss14_env.bench import catalog
+from dss14_env.bench.plan import QUICK_WIND_SPEEDS_KMH
 from dss14_env.core.text import counted
 from dss14_env.model.variants import DRIVE_VARIANTS
 
@@ -210,10 +211,11 @@ def _campaign(args: argparse.Namespace) -> int:
     from dss14_env.core.parallel import check_ray_options, make_executor, probe_address, require_ray
 
     args.ppo_model = _policy_option(args.ppo_model)
+    speeds = C.parse_wind_speeds(args.wind_speeds, C.CampaignOptionError, hint="")
     given = {k: v for k, v in (("controllers", args.controllers), ("plants", args.plants),
                                ("first_plant", args.first_plant), ("steps", args.steps),
                                ("chunk_size", args.chunk_size), ("ppo_model", args.ppo_model),
-                               ("wind_speeds_kmh", C.parse_wind_speeds(args.wind_speeds)),
+                               ("wind_speeds_kmh", speeds),
                                ("directions", C.parse_directions(args.directions))) if v is not None}
     spec = C.CampaignSpec(**given, condition_on_pi=not args.unconditioned)
     reqs = parse_requirements(args.requirements)
@@ -296,9 +298,33 @@ def _add_campaign_parser(sub: Any) -> None:
     p.set_defaults(func=_campaign)
 
 
+def _import_plugins(argv: list[str] | None) -> None:
+    """Import the modules of ``--plugin`` (before the options are built, so that the rows they
+    register are in the choices and the help).
+
+    :raises SystemExit: a module that cannot be imported (status 2, one line)
+    """
+    import importlib
+
+    pre = argparse.ArgumentParser(add_help=False)
+    pre.add_argument("--plugin", action="append", default=[])
+    known, _ = pre.parse_known_args(argv)
+    for module in known.plugin:
+        try:
+            importlib.import_module(module)
+        except ImportError as exc:
+            print(f"dss14: error: --plugin {module}: {_one_line(exc)}", file=sys.stderr)
+            raise SystemExit(2) from None
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``dss14`` console script."""
+    _import_plugins(argv)
     parser = argparse.ArgumentParser(prog="dss14", description="DSS-14 antenna servo model and tools")
+    parser.add_argument("--plugin", action="append", default=[], metavar="MODULE",
+                        help="import MODULE first: its controllers and scenarios, registered with "
+                        "dss14_env.bench.catalog.register_controller / register_scenario, join "
+                        "the bench and the campaign (repeatable)")
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("reproduce", help="redraw the report's figures and check its numbers")
     p.add_argument("--out", default="reproduce_out", help="output folder (default: reproduce_out)")
@@ -359,7 +385,8 @@ def main(argv: list[str] | None = None) -> int:
                        "scenarios and seeds; write results.json, results.md and PNG figures, every "
                        "figure with its 95 % confidence interval (docs/bench.md).")
     p.add_argument("--quick", action="store_true",
-                   help="short version for CI: few, short episodes, wind speeds 30 50 70 (under 30 s)")
+                   help="short version for CI: few, short episodes, wind speeds "
+                   f"{' '.join(f'{v:g}' for v in QUICK_WIND_SPEEDS_KMH)} (under 30 s)")
     seeds = p.add_mutually_exclusive_group()
     seeds.add_argument("--episodes", default=None, metavar="N",
                        help="episodes of the batched controllers in every scenario: seeds 0..N-1 "
@@ -376,7 +403,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--scenarios", nargs="+", metavar="NAME", default=None,
                    help=catalog.choices_help(catalog.scenario_names(), catalog.scenario_names("bench")))
     p.add_argument("--wind-speeds", nargs="+", metavar="KMH", default=None,
-                   help="speeds of the error-vs-wind sweep, km/h (default: 30 40 50 60 70)")
+                   help="speeds of the error-vs-wind sweep, km/h (default: the environment's "
+                   "wind_speed_grid_kmh, configs/env.yaml)")
     p.add_argument("--no-sweep", action="store_true", help="skip the error-vs-wind sweep")
     p.add_argument("--variants", nargs="*", metavar="NAME", default=None,
                    help="drive variants whose hold scenarios also run "

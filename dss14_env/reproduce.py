@@ -36,7 +36,7 @@ from dss14_env.core.outdir import atomic_write_text
 from dss14_env.core.results import ErrorStats
 from dss14_env.core.schema import default_config_path
 from dss14_env.core.text import fill_blocks, find_blocks  # noqa: F401 - the block helpers, re-exported
-from dss14_env.core.units import AXES, rad_to_mdeg, to_si
+from dss14_env.core.units import AXES, KMH_PER_M_S, rad_to_mdeg, to_si
 from dss14_env.envs.plant import ENCODER_OUTPUTS
 from dss14_env.model.analysis import (
     bandwidth_hz,
@@ -439,7 +439,7 @@ def compute_wind_metrics(m: DSS14Model, loads: WindLoads | None = None, gain_set
         ts, rel = three_sigma_estimate(y)
         ts = rad_to_mdeg(ts)
         records[d] = rad_to_mdeg(y[0])
-        exact = {v: three_sigma_mdeg(pl, loads, v / 3.6, d) for v in WIND_SPEEDS_KMH}
+        exact = {v: three_sigma_mdeg(pl, loads, v / KMH_PER_M_S, d) for v in WIND_SPEEDS_KMH}
         for k, ax in enumerate(("az", "el")):
             p = wcfg.params[f"table4.{ax}_{d}"]
             rep, acc = rad_to_mdeg(p.value), [rad_to_mdeg(v) for v in p.range]
@@ -511,7 +511,7 @@ def wind_drive_sensitivity(m: DSS14Model, loads: WindLoads, factors=(0.5, 1.0, 2
                      "compliance_rad_s_per_Nm": {ax: abs(dc_gain(mm.rate_loop, f"enc_rate_{ax}", f"Tw_{ax}"))
                                                  for ax in AXES},
                      **_dominant_three_sigma(pl, loads, u)})
-    return {"gain_set": gain_set, "speed_kmh": u * 3.6, "rows": rows}
+    return {"gain_set": gain_set, "speed_kmh": u * KMH_PER_M_S, "rows": rows}
 
 
 def _dominant_three_sigma(pl, loads: WindLoads, u: float) -> dict:

@@ -235,7 +235,7 @@ def test_context_marks_axis_encoders_in_every_face() -> None:
         obs, *_ = env.step(np.zeros(2, np.float32))
         assert obs[-1] == flag
     # a mixture: each row's own part, in the VecEnv and in its terminal observations
-    from dss14_env.agents.interface import InterfaceVecEnv
+    from dss14_env.agents.vec_env import InterfaceVecEnv
     mix = [{"preset": "hold", "n_envs": 2, "env_kwargs": {"encoders": "axis"}, "max_episode_steps": 5},
            {"preset": "track", "n_envs": 1, "env_kwargs": {}, "max_episode_steps": 5}]
     venv = InterfaceVecEnv(make_mixture_vec_env(mix, {}, 7, CFG), spec, CFG)

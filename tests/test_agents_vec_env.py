@@ -10,8 +10,8 @@ from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import DummyVecEnv, VecMonitor, VecNormalize
 
 import dss14_env  # noqa: F401
-from dss14_env.agents.interface import InterfaceSpec, InterfaceVecEnv, InterfaceWrapper
-from dss14_env.agents.vec_env import SB3VecEnv, make_sb3_vec_env
+from dss14_env.agents.interface import InterfaceSpec, InterfaceWrapper
+from dss14_env.agents.vec_env import InterfaceVecEnv, SB3VecEnv, make_sb3_vec_env
 
 N = 4
 

@@ -480,7 +480,7 @@ def test_committed_results_are_a_default_run() -> None:
         assert cfg["runs"][s]["steps"] == round(50 * b.seconds), s
     assert results["meta"]["controllers"] == list(P.DEFAULT_CONTROLLERS)
     assert cfg["sweep"]["seeds"] == list(range(P.DEFAULT_SWEEP.episodes))
-    assert cfg["wind_speeds_kmh"] == list(P.DEFAULT_WIND_SPEEDS_KMH)
+    assert cfg["wind_speeds_kmh"] == list(P.default_wind_speeds())
     # every batchable row acted on batches
     assert results["meta"]["batched"] == {c: catalog.CONTROLLERS[c].batchable for c in P.DEFAULT_CONTROLLERS}
 

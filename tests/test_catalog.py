@@ -5,19 +5,19 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
-from types import MappingProxyType
+import json
+import sys
 
+import gymnasium as gym
 import pytest
 
 from dss14_env import cli
 from dss14_env.agents import evaluation
-from dss14_env.bench import bench as B
 from dss14_env.bench import campaign as C
-from dss14_env.bench import catalog, run
+from dss14_env.bench import catalog
 from dss14_env.bench import figures as F
 from dss14_env.bench import plan as P
-from dss14_env.envs import presets
-from dss14_env.envs.presets import PRESETS, Preset
+from dss14_env.envs.presets import PRESETS
 
 
 @pytest.mark.parametrize("row", [r for r in catalog.CONTROLLER_ROWS if r.policy is None],
@@ -43,8 +43,8 @@ def test_every_list_derives_from_the_rows() -> None:
     assert P.DEFAULT_SCENARIOS == tuple(scens)
     assert dict(P.DEFAULT_BUDGETS) == {r.name: r.default for r in catalog.SCENARIO_ROWS}
     assert dict(P.QUICK_BUDGETS) == {r.name: r.quick for r in catalog.SCENARIO_ROWS}
-    assert sorted(F.WIND_SCENARIOS + F.MOVE_SCENARIOS) == sorted(scens)
-    assert run.TRACED == tuple(r.name for r in catalog.SCENARIO_ROWS if r.traced)
+    assert {F.scenario_group(s) for s in scens} == set(catalog.GROUPS)
+    assert all(F.scenario_group(r.name) == r.group for r in catalog.SCENARIO_ROWS)
     assert {r.name: r.loaded_axes for r in catalog.SCENARIO_ROWS if r.loaded_axes} == dict(P.LOADED_AXES)
     assert {d: s for d, (s, _) in P.SWEEP_DIRECTIONS.items()} == \
         {r.sweep: r.name for r in catalog.SCENARIO_ROWS if r.sweep}
@@ -67,35 +67,104 @@ def test_a_trained_policy_scores_under_its_own_name(policy, name) -> None:
     assert row.name == name and row.policy == policy and row.batchable
 
 
-def test_a_new_controller_and_scenario_are_their_module_and_their_row(monkeypatch, capsys,
-                                                                      tmp_path) -> None:
-    """The worked example of docs/bench.md: a controller row (its class exists: the PI) and a
-    scenario preset with its row reach the plan, the runner, the help and the docs tables."""
-    ctrl = catalog.ControllerRow("pi_still", "dss14_env.baselines.pi", "PIController",
-                                 "kp 0.7 PI", args=("kp0.7",))
-    scen = catalog.ScenarioRow("hold_side_70", catalog.Budget(4.0, 2, 1), catalog.Budget(2.0, 2, 1))
-    preset = Preset("DSS14-HoldSide70-v0", {"scenario": "hold", "wind_speed_kmh": 70.0,
-                                            "wind_direction": "side"}, 3000, 1.0,
-                    "hold, 70 km/h side wind", "strong side wind", ("az",))
-    monkeypatch.setattr(catalog, "CONTROLLER_ROWS", (*catalog.CONTROLLER_ROWS, ctrl))
-    monkeypatch.setattr(catalog, "CONTROLLERS", {**catalog.CONTROLLERS, "pi_still": ctrl})
-    monkeypatch.setattr(catalog, "SCENARIO_ROWS", (*catalog.SCENARIO_ROWS, scen))
-    monkeypatch.setattr(catalog, "SCENARIOS", {**catalog.SCENARIOS, "hold_side_70": scen})
-    monkeypatch.setattr(presets, "PRESETS", MappingProxyType({**PRESETS, "hold_side_70": preset}))
-    monkeypatch.setattr(catalog, "PRESETS", presets.PRESETS)
+#: a module from outside the package: a controller that holds the command still and a scenario
+#: in one row, registered with the catalog's registration API when it is imported
+PLUGIN = '''
+import numpy as np
+
+from dss14_env.baselines.base import Controller
+from dss14_env.bench.catalog import Budget, ControllerRow, ScenarioRow, register_controller, register_scenario
+from dss14_env.envs.presets import Preset
+
+
+class Still(Controller):
+    """Commands no motion."""
+
+    def __init__(self, env):
+        super().__init__("still")
+
+    def act(self, observation):
+        return np.zeros(2, np.float32)
+
+
+register_controller(ControllerRow("still", __name__, "Still", "commands no motion", batchable=False,
+                                  bench=False))
+register_scenario(ScenarioRow(
+    "hold_side_70", Budget(60.0, 8, 1), Budget(2.0, 2, 1), bench=False,
+    preset=Preset("DSS14-HoldSide70-v0",
+                  {"scenario": "hold", "wind_speed_kmh": 70.0, "wind_direction": "side"}, 3000, 1.0,
+                  "hold, 70 km/h side wind", "strong side wind", ("az",))))
+'''
+
+
+@pytest.fixture
+def plugin(tmp_path, monkeypatch):
+    """The plugin module on the path; its rows removed again afterwards."""
+    (tmp_path / "dss14_test_plugin.py").write_text(PLUGIN)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    yield "dss14_test_plugin"
+    for name in ("still", "hold_side_70"):
+        if name in catalog.CONTROLLERS or name in catalog.SCENARIOS:
+            catalog.unregister(name)
+    sys.modules.pop("dss14_test_plugin", None)  # imported again (and registering) by the next test
+
+
+def test_a_registered_controller_and_scenario_run_through_dss14_bench(plugin, capsys, tmp_path) -> None:
+    """A controller (its module) and a scenario (one row) registered from outside the package
+    reach the help, the tables, the plan, the campaign and ``dss14 bench`` itself."""
+    out = tmp_path / "out"
+    rc = cli.main(["--plugin", plugin, "bench", "--controllers", "pi_kp1", "still", "--scenarios",
+                   "hold_side_70", "--quick", "--no-sweep", "--no-figures", "--no-progress",
+                   "--out", str(out)])
+    assert rc == 0, capsys.readouterr().err
+    res = json.loads((out / "results.json").read_text())
+    assert res["meta"]["controllers"] == ["pi_kp1", "still"] and res["meta"]["scenarios"] == ["hold_side_70"]
+    cells = res["summary"]
+    assert cells["pi_kp1"]["hold_side_70"]["n_episodes"] == 2
+    assert cells["still"]["hold_side_70"]["n_episodes"] == 1
+    # holding still in 70 km/h side wind: the wind alone moves the dish, the PI pulls it back
+    still = cells["still"]["hold_side_70"]["servo_error_mdeg"]["az"]["three_sigma"]["value"]
+    pi = cells["pi_kp1"]["hold_side_70"]["servo_error_mdeg"]["az"]["three_sigma"]["value"]
+    assert still > pi > 0.0
+    capsys.readouterr()
     for command in ("bench", "campaign"):
-        assert "pi_still" in _help(capsys, command)
+        assert "still" in _help(capsys, command)
     assert "hold_side_70" in _help(capsys, "bench")
-    assert "`pi_still`" in catalog.controllers_table() and "`hold_side_70`" in catalog.scenarios_table()
-    assert "pi_still" in P.build_plan().controllers
-    plan = P.build_plan(controllers=["pi_kp1", "pi_still"], scenarios=["hold_side_70"], quick=True,
-                        sweep=False, figures=False, out=tmp_path / "o")
-    assert plan.runs["hold_side_70"].steps == 100 and plan.scenario("hold_side_70").warmup_s == 1.0
-    res = B.bench(plan, progress=False)["results"]
-    cell = res["summary"]["pi_still"]["hold_side_70"]
-    assert cell["n_episodes"] == 2 and cell["vs_reference"]["az"]["n_episodes"] == 2
-    spec = C.CampaignSpec(controllers=("pi_still",), plants=1, steps=100, warmup_s=1.0)
-    assert spec.names == ("pi_still",)
+    assert "`still`" in catalog.controllers_table() and "`hold_side_70`" in catalog.scenarios_table()
+    assert P.LOADED_AXES["hold_side_70"] == ("az",) and P.QUICK_BUDGETS["hold_side_70"].episodes == 2
+    assert "hold_side_70" not in P.build_plan(sweep=False).scenarios  # bench=False: not a default
+    assert gym.spec("DSS14-HoldSide70-v0").kwargs["wind_speed_kmh"] == 70.0
+    assert C.CampaignSpec(controllers=("still",), plants=1, steps=100, warmup_s=1.0).names == ("still",)
+
+
+def test_registration_refuses_bad_rows_in_one_line(plugin) -> None:
+    importlib.import_module(plugin)
+    row = catalog.CONTROLLERS["still"]
+    cases = [
+        (lambda: catalog.register_controller(row), "controller 'still' is registered already"),
+        (lambda: catalog.register_controller(dataclasses.replace(row, name="a b")),
+         "controller name: letters"),
+        (lambda: catalog.register_controller(dataclasses.replace(row, name="x", cls="Nope")),
+         "controller 'x': dss14_test_plugin.Nope cannot be imported"),
+        (lambda: catalog.register_controller(dataclasses.replace(row, name="x", batchable=True)),
+         "controller 'x': Still does not act on batches"),
+        (lambda: catalog.register_scenario(catalog.ScenarioRow("y", catalog.Budget(1.0, 1, 0),
+                                                               catalog.Budget(1.0, 0, 0), preset="hold")),
+         "scenario 'y': quick budget"),
+        (lambda: catalog.register_scenario(catalog.ScenarioRow("y", catalog.Budget(1.0, 1, 0),
+                                                               catalog.Budget(1.0, 1, 0), preset="hover")),
+         "scenario 'y': unknown preset 'hover'"),
+        (lambda: catalog.register_scenario(catalog.ScenarioRow("y", catalog.Budget(1.0, 1, 0),
+                                                               catalog.Budget(1.0, 1, 0), preset="hold",
+                                                               env={"wind_speed_kmh": 500.0})),
+         "scenario 'y': .*wind_speed_kmh"),
+        (lambda: catalog.unregister("pi_kp1"), "'pi_kp1' is a shipped row"),
+    ]
+    for call, message in cases:
+        with pytest.raises(ValueError, match=message) as info:
+            call()
+        assert "\n" not in str(info.value)
+    assert "x" not in catalog.CONTROLLERS and "y" not in catalog.SCENARIOS
 
 
 def test_the_campaign_scores_a_trained_policy_under_its_name() -> None:

@@ -176,8 +176,9 @@ def test_campaign_numbers_spec_or_name_the_option(plants, steps, speeds, chunk) 
     from dss14_env.envs.config import WIND_SPEED_MAX_KMH
 
     try:
+        kmh = C.parse_wind_speeds([str(v) for v in speeds], C.CampaignOptionError, hint="")
         spec = C.CampaignSpec(plants=plants, steps=steps, chunk_size=chunk, controllers=("pi_kp1",),
-                              wind_speeds_kmh=C.parse_wind_speeds([str(v) for v in speeds]))
+                              wind_speeds_kmh=kmh)
     except C.CampaignOptionError as exc:
         assert str(exc).startswith(("--", "warmup_s")) and "\n" not in str(exc)
         return

@@ -122,3 +122,24 @@ def test_fixed_parameters_outside_the_models_ranges_are_refused(params: dict, ma
     env = DSS14Env()
     with pytest.raises(ValueError, match=match):
         env.reset(seed=0, options={"params": params})
+
+
+def test_a_model_file_is_parsed_once_per_content(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """PlantFactories.get reads a model file's YAML once per content, not on every call."""
+    from types import SimpleNamespace
+
+    from dss14_env.envs import plant
+
+    parsed = []
+    real = plant.load_model_config
+    monkeypatch.setattr(plant, "load_model_config", lambda p=None: parsed.append(p) or real(p))
+    monkeypatch.setattr(plant, "build_model", lambda cfg: SimpleNamespace(cfg=cfg))  # no model build
+    monkeypatch.setattr(plant, "default_wind_loads", lambda: "shipped loads")
+    path = tmp_path / "model.yaml"
+    path.write_text(default_config_path("model.yaml").read_text())
+    factories = plant.PlantFactories()
+    first = factories.get(path)
+    assert factories.get(path) is first and factories.get(str(path), False) is first
+    assert len(parsed) == 1
+    path.write_text(path.read_text() + "\n# edited\n")
+    assert factories.get(path) is not first and len(parsed) == 2

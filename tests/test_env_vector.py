@@ -156,3 +156,26 @@ def test_vector_reset_info_has_the_single_env_reset_info_per_sub_env(kw: dict) -
                 assert v_info[key][i] == value, key
     if kw.get("randomize_params"):
         assert all(len(p) > 0 for p in v_info["params"]) and len({str(p) for p in v_info["params"]}) == N
+
+
+def test_reset_now_starts_the_episode_the_autoreset_would() -> None:
+    """reset_now(idx) makes the next episode's draws at once: the first observation equals the
+    one the NEXT_STEP autoreset returns a step later, and the next step continues it."""
+    kw = dict(num_envs=3, max_episode_steps=5, scenario="hold", wind_direction="side")
+    now, later = DSS14VectorEnv(**kw), DSS14VectorEnv(**kw)
+    now.reset(seed=[1, 2, 3])
+    later.reset(seed=[1, 2, 3])
+    a = np.full((3, 2), 0.01)
+    for _ in range(5):
+        done = now.step(a)[3]
+        later.step(a)
+    assert done.all()
+    first = now.reset_now(np.arange(3))
+    auto, rew = later.step(a)[:2]
+    np.testing.assert_array_equal(first, auto)
+    assert (rew == 0.0).all()
+    obs_now, rew_now, _, trunc_now, _ = now.step(a)
+    obs_later, rew_later, _, trunc_later, _ = later.step(a)
+    np.testing.assert_array_equal(obs_now, obs_later)
+    np.testing.assert_array_equal(rew_now, rew_later)
+    assert not trunc_now.any() and not trunc_later.any()

@@ -104,3 +104,23 @@ def test_mismatched_lengths_are_errors() -> None:
         stats.paired_ratios({"a": [1.0, 2.0]}, {"a": [1.0]}, {"a": "mean"}, np.random.default_rng(0))
     with pytest.raises(ValueError, match="unknown pooling"):
         stats.pooled_estimates({"a": [1.0, 2.0]}, {"a": "max"}, np.random.default_rng(0))
+
+
+def test_ratio_ci_paired_and_independent() -> None:
+    """ratio_ci: the ratio of the statistics; a paired interval is tighter on pairs that share
+    their randomness; one unit gives the value as its interval; resamples with a zero
+    denominator are left out."""
+    rng = np.random.default_rng(5)
+    den = rng.lognormal(0.0, 0.5, 30)
+    num = 0.5 * den * rng.lognormal(0.0, 0.05, 30)  # half of each paired unit, small own noise
+    p = stats.ratio_ci(num, den, np.mean, np.random.default_rng(0), paired=True)
+    u = stats.ratio_ci(num, den, np.mean, np.random.default_rng(0), paired=False)
+    assert p.value == u.value == pytest.approx(num.mean() / den.mean(), rel=1e-12)
+    assert p.low < 0.5 < p.high and p.significant and u.low < p.low and u.high > p.high
+    assert "paired" in p.method and "independent" in u.method
+    one = stats.ratio_ci([2.0], [4.0], np.median, np.random.default_rng(0))
+    assert (one.value, one.low, one.high) == (0.5, 0.5, 0.5)
+    zero = stats.ratio_ci([1.0, 2.0, 3.0], [0.0, 1.0, 1.0], np.median, np.random.default_rng(0), paired=True)
+    assert zero.value == 2.0 and np.isfinite([zero.low, zero.high]).all() and zero.low <= zero.high
+    with pytest.raises(ValueError, match="paired samples need equal sizes"):
+        stats.ratio_ci([1.0, 2.0], [1.0], np.mean, np.random.default_rng(0), paired=True)

@@ -23,7 +23,6 @@ from dss14_env.bench.figures import FIGURES, draw_figures
 from dss14_env.bench.plan import (
     DEFAULT_CONTROLLERS,
     DEFAULT_SCENARIOS,
-    DEFAULT_WIND_SPEEDS_KMH,
     BenchOptionError,
     BenchPlan,
     build_plan,
@@ -98,7 +97,7 @@ def _bench_in(plan: BenchPlan, progress: bool) -> dict[str, Any]:
 
 
 __all__ = ["BenchOptionError", "BenchPlan", "DEFAULT_CONTROLLERS", "DEFAULT_SCENARIOS",
-           "DEFAULT_WIND_SPEEDS_KMH", "FIGURES", "OWNED_FILES", "bench", "build_plan", "parse_seeds",
+           "FIGURES", "OWNED_FILES", "bench", "build_plan", "parse_seeds",
            "parse_wind_speeds", "prepare_out",
            # re-exported for the campaign (dss14_env.bench.campaign, campaign_report)
            "fmt", "package_versions"]

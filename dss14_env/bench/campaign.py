@@ -71,8 +71,8 @@ from dss14_env.bench.campaign_spec import (  # noqa: F401 - the options, re-expo
     check_spec,
     known_controllers,
     parse_directions,
-    parse_wind_speeds,
 )
+from dss14_env.bench.plan import parse_wind_speeds  # noqa: F401 - the option, re-exported
 from dss14_env.core.outdir import (
     OutputDirError,
     atomic_write_text,

@@ -21,7 +21,7 @@ import numpy as np
 
 from dss14_env.bench import catalog
 from dss14_env.bench.catalog import ControllerRow
-from dss14_env.bench.plan import check_names, control_period
+from dss14_env.bench.plan import check_names, control_period, parse_wind_speeds
 from dss14_env.core.units import DEG, WIND_DIRECTIONS
 
 #: the controllers of a campaign by default (the catalog's campaign rows)
@@ -198,23 +198,12 @@ def check_policy(spec: CampaignSpec) -> None:
 
 def check_spec(spec: CampaignSpec) -> None:
     """Raise :class:`CampaignOptionError` naming the first bad option."""
-    from dss14_env.envs.config import WIND_SPEED_MAX_KMH  # (the environment, loaded when used)
-
     _check_controllers(spec.controllers)
     _positive_int(spec.plants, "--plants")
     _positive_int(spec.first_plant, "--first-plant", 0)
     _positive_int(spec.steps, "--steps")
     _positive_int(spec.chunk_size, "--chunk-size")
-    if not spec.wind_speeds_kmh:
-        raise CampaignOptionError("--wind-speeds: give at least one speed in km/h")
-    for s in spec.wind_speeds_kmh:
-        if isinstance(s, bool) or not isinstance(s, (int, float)) or not (
-                math.isfinite(s) and 0 < s <= WIND_SPEED_MAX_KMH):
-            raise CampaignOptionError(f"--wind-speeds: {s!r} km/h is outside (0, "
-                                      f"{WIND_SPEED_MAX_KMH:g}] km/h, the environment's "
-                                      f"wind_speed_kmh range (WIND_SPEED_MAX_KMH)")
-    if len(set(spec.wind_speeds_kmh)) != len(spec.wind_speeds_kmh):
-        raise CampaignOptionError(f"--wind-speeds: a speed is repeated: {list(spec.wind_speeds_kmh)}")
+    parse_wind_speeds(spec.wind_speeds_kmh, CampaignOptionError, hint="")
     if not spec.directions:
         raise CampaignOptionError("--directions: give at least one direction")
     for d in spec.directions:
@@ -259,17 +248,6 @@ def parse_directions(values: Iterable[str | float] | None) -> tuple[str | float,
     return tuple(out)
 
 
-def parse_wind_speeds(values: Iterable[str | float] | None) -> tuple[float, ...] | None:
-    """``--wind-speeds``: numbers, km/h."""
-    if values is None:
-        return None
-    out = []
-    for v in values:
-        try:
-            out.append(float(v))
-        except (TypeError, ValueError):
-            raise CampaignOptionError(f"--wind-speeds: {v!r} is not a number (km/h)") from None
-    return tuple(out)
 
 
 
@@ -278,4 +256,4 @@ __all__ = ["CampaignOptionError", "CampaignSpec", "Condition", "DEFAULT_CHUNK_SI
            "DEFAULT_CONTROLLERS", "DEFAULT_DIRECTIONS", "DEFAULT_PLANTS", "DEFAULT_STEPS",
            "DEFAULT_WIND_SPEEDS_KMH", "FORMAT", "WARMUP_S", "check_policy", "check_spec",
            "known_controllers",
-           "parse_directions", "parse_wind_speeds"]
+           "parse_directions"]

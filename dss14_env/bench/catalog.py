@@ -6,11 +6,15 @@ the bench's defaults, budgets and loaded axes, the figures' groups, the ``dss14 
 docs/bench.md.  No name is special: the MPC is a row that runs one episode at a time, the
 PPO policies are rows with a ``policy``.
 
-**Add a controller** (two files): its module (a
-:class:`~dss14_env.baselines.base.Controller` whose constructor takes the environment) and
-its row in :data:`CONTROLLER_ROWS`.  **Add a scenario** (two files): its environment preset in
-:data:`dss14_env.envs.presets.PRESETS` and its row in :data:`SCENARIO_ROWS` (episode length and
-the default and ``--quick`` budgets).  docs/bench.md shows a worked example of each.
+**Add a controller**: its module (a :class:`~dss14_env.baselines.base.Controller` whose
+constructor takes the environment) and its row, in :data:`CONTROLLER_ROWS` or, from outside
+the package, through :func:`register_controller`.  **Add a scenario**: one row, in
+:data:`SCENARIO_ROWS` or through :func:`register_scenario`: its budgets and either the name of
+a preset of :data:`dss14_env.envs.presets.PRESETS` (with environment keys on top) or a
+:class:`~dss14_env.envs.presets.Preset` of its own.  :data:`CONTROLLERS`, :data:`SCENARIOS`,
+the names, help texts and tables read the registered rows when they are used, so a row
+registered before ``dss14 bench`` runs (``dss14 --plugin MODULE bench ...`` imports a module
+that registers rows) is in every one of them.  docs/bench.md shows a worked example of each.
 
 >>> CONTROLLERS["mpc"].batchable, CONTROLLERS["ppo"].policy
 (False, 'residual_pi')
@@ -22,13 +26,13 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
-from collections.abc import Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
-from dss14_env.envs.presets import PRESETS
+from dss14_env.envs.presets import PRESETS, Preset, register_preset
 
 
 @dataclass(frozen=True)
@@ -146,12 +150,34 @@ CONTROLLER_ROWS: tuple[ControllerRow, ...] = (
 POLICY_OPTION_ROW = "ppo"
 
 
-def _by_name(rows: tuple[Any, ...]) -> Mapping[str, Any]:
-    return MappingProxyType({r.name: r for r in rows})
+class LiveMapping(Mapping):
+    """A read-only mapping computed from the registered rows whenever it is read, so that rows
+    registered later are in it (e.g. the loaded axes per scenario).
+
+    :param build: makes the mapping's current content
+    """
+
+    def __init__(self, build: Callable[[], Mapping[str, Any]]) -> None:
+        self._build = build
+
+    def __getitem__(self, key: str) -> Any:
+        return self._build()[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._build())
+
+    def __len__(self) -> int:
+        return len(self._build())
+
+    def __repr__(self) -> str:
+        return f"LiveMapping({dict(self._build())!r})"
 
 
-#: controller rows by name
-CONTROLLERS: Mapping[str, ControllerRow] = _by_name(CONTROLLER_ROWS)
+#: the registered controller rows by name: :data:`CONTROLLER_ROWS` and those of
+#: :func:`register_controller`
+_CONTROLLER_REGISTRY: dict[str, ControllerRow] = {r.name: r for r in CONTROLLER_ROWS}
+#: controller rows by name (a read-only view of the registered rows)
+CONTROLLERS: Mapping[str, ControllerRow] = MappingProxyType(_CONTROLLER_REGISTRY)
 
 
 def policy_name(path: str | Path) -> str:
@@ -220,7 +246,9 @@ class ScenarioRow:
     :param sweep: the error-vs-wind sweep's direction this scenario anchors (``"front"``,
         ``"side"``; None: no sweep)
     :param bench: in a bench run without ``--scenarios``
-    :param preset: the preset it runs, when not the one of its name (a variant of a preset)
+    :param preset: the preset it runs, when not the one of its name (a variant of a preset),
+        or a :class:`~dss14_env.envs.presets.Preset` of its own (a scenario in one row;
+        :func:`register_scenario` registers its Gymnasium id)
     :param env: environment keys on top of the preset's (e.g. ``{"encoders": "axis"}``)
     :param note: what the variant changes, appended to the preset's description
     """
@@ -233,29 +261,34 @@ class ScenarioRow:
     traced: bool = False
     sweep: str | None = None
     bench: bool = True
-    preset: str | None = None
+    preset: str | Preset | None = None
     env: Mapping[str, Any] = dataclasses.field(default_factory=dict)
     note: str = ""
 
     @property
     def preset_name(self) -> str:
-        """The name of the preset it runs."""
-        return self.preset or self.name
+        """The name of the preset it runs (its own name for a preset of its own)."""
+        return self.preset if isinstance(self.preset, str) else self.name
+
+    @property
+    def preset_spec(self) -> Preset:
+        """The preset it runs."""
+        return self.preset if isinstance(self.preset, Preset) else PRESETS[self.preset_name]
 
     @property
     def description(self) -> str:
         """The preset's description, with the variant's note."""
-        d = PRESETS[self.preset_name].description
+        d = self.preset_spec.description
         return f"{d}; {self.note}" if self.note else d
 
     @property
     def loaded_axes(self) -> tuple[str, ...]:
         """The axes the scenario's wind loads (its preset's)."""
-        return PRESETS[self.preset_name].loaded_axes
+        return self.preset_spec.loaded_axes
 
     def scenario(self) -> Scenario:
         """The runner's scenario: the preset's keys (and the variant's), warm-up and description."""
-        p = PRESETS[self.preset_name]
+        p = self.preset_spec
         return Scenario({**p.kwargs, **self.env}, self.steps or p.max_episode_steps, p.warmup_s,
                         self.description)
 
@@ -280,8 +313,10 @@ SCENARIO_ROWS: tuple[ScenarioRow, ...] = (
                 env={"encoders": "axis"}, note="axis encoders (the structure's angles at the axes)"),
 )
 
-#: scenario rows by name
-SCENARIOS: Mapping[str, ScenarioRow] = _by_name(SCENARIO_ROWS)
+#: the registered scenario rows by name: :data:`SCENARIO_ROWS` and those of :func:`register_scenario`
+_SCENARIO_REGISTRY: dict[str, ScenarioRow] = {r.name: r for r in SCENARIO_ROWS}
+#: scenario rows by name (a read-only view of the registered rows)
+SCENARIOS: Mapping[str, ScenarioRow] = MappingProxyType(_SCENARIO_REGISTRY)
 
 
 def with_row(rows: tuple[Any, ...], row: Any) -> tuple[Any, ...]:
@@ -296,12 +331,12 @@ def controller_names(which: str | None = None) -> tuple[str, ...]:
     """Controller names: all (``which`` None), or those of a run without ``--controllers``
     (``"bench"``, ``"campaign"``).
     """
-    return tuple(r.name for r in CONTROLLER_ROWS if which is None or getattr(r, which))
+    return tuple(r.name for r in CONTROLLERS.values() if which is None or getattr(r, which))
 
 
 def scenario_names(which: str | None = None) -> tuple[str, ...]:
     """Scenario names: all, or those of a bench run without ``--scenarios`` (``"bench"``)."""
-    return tuple(r.name for r in SCENARIO_ROWS if which is None or getattr(r, which))
+    return tuple(r.name for r in SCENARIOS.values() if which is None or getattr(r, which))
 
 
 def choices_help(names: tuple[str, ...], default: tuple[str, ...]) -> str:
@@ -318,7 +353,7 @@ def _yes(flag: bool) -> str:
 def controllers_table() -> str:
     """The markdown table of the controller rows (docs/bench.md)."""
     lines = ["| name | controller | how it runs | default in bench / campaign |", "|---|---|---|---|"]
-    for r in CONTROLLER_ROWS:
+    for r in CONTROLLERS.values():
         runs = "batched" if r.batchable else "one episode at a time"
         lines.append(f"| `{r.name}` | {r.description} | {runs} | {_yes(r.bench)} / {_yes(r.campaign)} |")
     return "\n".join(lines) + "\n"
@@ -330,12 +365,108 @@ def scenarios_table() -> str:
     """
     lines = ["| name | what | episode | batched episodes | one-at-a-time episodes | `--quick` |",
              "|---|---|---|---|---|---|"]
-    for r in SCENARIO_ROWS:
-        p, d, q = PRESETS[r.preset_name], r.default, r.quick
+    for r in SCENARIOS.values():
+        p, d, q = r.preset_spec, r.default, r.quick
         warm = f", {p.warmup_s:g} s warm-up" if p.warmup_s else ""
         lines.append(f"| `{r.name}` | {r.description} | {d.seconds:g} s{warm} | {d.episodes} | "
                      f"{d.sequential} | {q.seconds:g} s x {q.episodes} ({q.sequential}) |")
     return "\n".join(lines) + "\n"
+
+
+# ------------------------------------------------------------------ registration
+_NAME_CHARS = frozenset("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_.-")
+#: the groups of errors_3sigma.png a scenario can be in
+GROUPS = ("wind", "move")
+
+
+def _check_new_name(name: Any, registry: Mapping[str, Any], what: str) -> None:
+    if not isinstance(name, str) or not name or not set(name) <= _NAME_CHARS:
+        raise ValueError(f"{what} name: letters, digits, '_', '.' and '-' only, got {name!r}")
+    if name in registry:
+        raise ValueError(f"{what} {name!r} is registered already")
+
+
+def register_controller(row: ControllerRow) -> ControllerRow:
+    """Add a controller to the catalog from outside the package (a plugin module, a test): it
+    is then in :data:`CONTROLLERS`, the names, the help and the tables, and ``dss14 bench
+    --controllers NAME`` runs it.  Checked before it is added: a free name, and a class that
+    imports and, for a ``batchable`` row, acts on batches.
+
+    :param row: the controller's row (``module`` and ``cls`` name its class)
+    :return: the row
+    :raises ValueError: naming what is wrong
+    """
+    if not isinstance(row, ControllerRow):
+        raise ValueError(f"register_controller: a ControllerRow, got {type(row).__name__}")
+    _check_new_name(row.name, CONTROLLERS, "controller")
+    if row.policy is None:
+        try:
+            cls = getattr(importlib.import_module(row.module), row.cls)
+        except (ImportError, AttributeError) as exc:
+            raise ValueError(f"controller {row.name!r}: {row.module}.{row.cls} cannot be imported "
+                             f"({exc})") from None
+        if row.batchable and not getattr(cls, "batchable", False):
+            raise ValueError(f"controller {row.name!r}: {row.cls} does not act on batches (its "
+                             f"batchable is False); give the row batchable=False")
+    _CONTROLLER_REGISTRY[row.name] = row
+    return row
+
+
+def register_scenario(row: ScenarioRow) -> ScenarioRow:
+    """Add a scenario to the catalog from outside the package: one row, with a preset of its
+    own or a shipped preset's name.  It is then in :data:`SCENARIOS`, the names, the help and
+    the tables, and ``dss14 bench --scenarios NAME`` runs it; a preset of its own has its
+    Gymnasium id registered.  Checked before it is added: a free name, a known preset, budgets
+    of at least one episode, a known group, no wind-sweep anchor (the shipped holds are the
+    sweep's), and environment keys the environment accepts.
+
+    :param row: the scenario's row
+    :return: the row
+    :raises ValueError: naming what is wrong
+    """
+    if not isinstance(row, ScenarioRow):
+        raise ValueError(f"register_scenario: a ScenarioRow, got {type(row).__name__}")
+    _check_new_name(row.name, SCENARIOS, "scenario")
+    what = f"scenario {row.name!r}"
+    if isinstance(row.preset, str) and row.preset not in PRESETS:
+        raise ValueError(f"{what}: unknown preset {row.preset!r}; known: {', '.join(PRESETS)}")
+    for label, b in (("default", row.default), ("quick", row.quick)):
+        ok = isinstance(b, Budget) and b.seconds > 0 and b.episodes >= 1
+        if not (ok and 0 <= b.sequential <= b.episodes):
+            raise ValueError(f"{what}: {label} budget: seconds > 0, episodes >= 1 and 0 <= sequential "
+                             f"<= episodes, got {b!r}")
+    if row.group not in GROUPS:
+        raise ValueError(f"{what}: group is one of {GROUPS}, got {row.group!r}")
+    if row.sweep is not None:
+        raise ValueError(f"{what}: sweep: the wind sweep extends the shipped holds; give sweep=None")
+    from dss14_env.envs.config import load_env_config  # (the environment, loaded when used)
+
+    sc = row.scenario()
+    try:
+        load_env_config(**dict(sc.env))
+    except ValueError as exc:
+        raise ValueError(f"{what}: {exc}") from None
+    if isinstance(row.preset, Preset):
+        register_preset(row.preset)
+    _SCENARIO_REGISTRY[row.name] = row
+    return row
+
+
+def unregister(name: str) -> None:
+    """Remove a controller or scenario that :func:`register_controller` or
+    :func:`register_scenario` added (a shipped row stays; a preset's Gymnasium id stays
+    registered).
+
+    :raises ValueError: a shipped row's name, or a name not registered
+    """
+    shipped = {r.name for r in CONTROLLER_ROWS} | {r.name for r in SCENARIO_ROWS}
+    if name in shipped:
+        raise ValueError(f"{name!r} is a shipped row; only registered rows can be removed")
+    for registry in (_CONTROLLER_REGISTRY, _SCENARIO_REGISTRY):
+        if name in registry:
+            del registry[name]
+            return
+    raise ValueError(f"{name!r} is not a registered controller or scenario")
 
 
 def replace_steps(sc: Scenario, steps: int) -> Scenario:
@@ -343,7 +474,8 @@ def replace_steps(sc: Scenario, steps: int) -> Scenario:
     return dataclasses.replace(sc, steps=int(steps))
 
 
-__all__ = ["Budget", "CONTROLLERS", "CONTROLLER_ROWS", "ControllerRow", "POLICY_OPTION_ROW",
-           "SCENARIOS", "SCENARIO_ROWS", "Scenario", "ScenarioRow", "choices_help",
-           "controller_names", "controllers_table", "policy_name", "policy_row", "replace_steps",
-           "scenario_names", "scenarios_table", "with_row"]
+__all__ = ["Budget", "CONTROLLERS", "CONTROLLER_ROWS", "ControllerRow", "GROUPS", "LiveMapping",
+           "POLICY_OPTION_ROW", "SCENARIOS", "SCENARIO_ROWS", "Scenario", "ScenarioRow", "choices_help",
+           "controller_names", "controllers_table", "policy_name", "policy_row", "register_controller",
+           "register_scenario", "replace_steps", "scenario_names", "scenarios_table", "unregister",
+           "with_row"]

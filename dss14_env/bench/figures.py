@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from dss14_env.bench.catalog import SCENARIO_ROWS
+from dss14_env.bench import catalog
 from dss14_env.bench.plan import LOADED_AXES
 from dss14_env.core.outdir import atomic_write_bytes
 from dss14_env.core.results import Cell
@@ -30,9 +30,6 @@ from dss14_env.core.units import AXES
 
 #: the figures :func:`draw_figures` can write
 FIGURES = ("errors_3sigma.png", "hold_time_histories.png", "step_responses.png", "wind_sweep.png")
-#: scenario groups drawn on separate axes in errors_3sigma.png
-WIND_SCENARIOS = tuple(r.name for r in SCENARIO_ROWS if r.group == "wind")
-MOVE_SCENARIOS = tuple(r.name for r in SCENARIO_ROWS if r.group == "move")
 _COLORS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f")
 _LINES = ("-", "--", "-.", ":", (0, (6, 2, 1, 2, 1, 2)), (0, (1, 1)))
 _MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
@@ -81,11 +78,18 @@ def _ci(cell: Mapping[str, Any] | None) -> tuple[float, float, float]:
     return c.value, c.ci95[0], c.ci95[1]
 
 
+def scenario_group(name: str) -> str | None:
+    """The group of errors_3sigma.png a scenario is drawn in (its row's, :data:`catalog.GROUPS`),
+    None for a name the catalog does not hold.
+    """
+    row = catalog.SCENARIOS.get(name)
+    return None if row is None else row.group
+
+
 def plot_error_bars(results: Mapping[str, Any], path: Path) -> bool:
     """3σ bars with 95 % CI whiskers (see the module docstring); False when nothing ran."""
     ctrls, scens = results["meta"]["controllers"], results["meta"]["scenarios"]
-    groups = [g for g in ([s for s in scens if s in WIND_SCENARIOS],
-                          [s for s in scens if s in MOVE_SCENARIOS]) if g]
+    groups = [g for g in ([s for s in scens if scenario_group(s) == group] for group in catalog.GROUPS) if g]
     if not groups:
         return False
     st = styles(ctrls)
@@ -121,7 +125,8 @@ def plot_error_bars(results: Mapping[str, Any], path: Path) -> bool:
                             for s in group])
             axp.set_ylabel(f"3σ servo error {ax}, mdeg")
             axp.grid(True, axis="y", which="both", alpha=0.3)
-            axp.set_title(("wind: " if group[0] in WIND_SCENARIOS else "commanded moves: ") + ax, fontsize=10)
+            axp.set_title(("wind: " if scenario_group(group[0]) == "wind" else "commanded moves: ") + ax,
+                          fontsize=10)
             if row == 0 and col == 0:
                 handles, labels = axp.get_legend_handles_labels()
     fig.legend(handles, labels, loc="outside lower center", ncol=min(6, len(labels)), fontsize=9)
@@ -318,5 +323,5 @@ def draw_figures(results: Mapping[str, Any], ran: Mapping[str, Any], out: str | 
     return written
 
 
-__all__ = ["FIGURES", "draw_figures", "log_axis", "plot_error_bars", "plot_hold_histories",
+__all__ = ["FIGURES", "draw_figures", "scenario_group", "log_axis", "plot_error_bars", "plot_hold_histories",
            "plot_step_responses", "plot_wind_sweep", "styles"]

@@ -20,30 +20,32 @@ import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import MappingProxyType
 from typing import Any
 
 import numpy as np
 
 from dss14_env.bench import catalog
-from dss14_env.bench.catalog import SCENARIO_ROWS, Budget, ControllerRow, Scenario
+from dss14_env.bench.catalog import Budget, ControllerRow, LiveMapping, Scenario
 from dss14_env.core.seeds import parse_seed_list
 from dss14_env.model.variants import DRIVE_VARIANTS
 
 #: per scenario, the default run's budget and the ``--quick`` one (the catalog's rows)
-DEFAULT_BUDGETS: Mapping[str, Budget] = MappingProxyType({r.name: r.default for r in SCENARIO_ROWS})
-QUICK_BUDGETS: Mapping[str, Budget] = MappingProxyType({r.name: r.quick for r in SCENARIO_ROWS})
+DEFAULT_BUDGETS: Mapping[str, Budget] = LiveMapping(
+    lambda: {n: r.default for n, r in catalog.SCENARIOS.items()})
+QUICK_BUDGETS: Mapping[str, Budget] = LiveMapping(lambda: {n: r.quick for n, r in catalog.SCENARIOS.items()})
 #: a point of the error-vs-wind sweep (the MPC is left out: the 50 km/h points are the hold
 #: scenarios, where it runs)
 DEFAULT_SWEEP = Budget(60.0, 32, 0)
 #: ``--quick``: the CI smoke test (well under 30 s)
 QUICK_SWEEP = Budget(15.0, 8, 0)
-#: controllers of a run without ``--controllers`` (the catalog's bench rows)
+#: controllers of a run without ``--controllers``: the shipped bench rows (with registered
+#: rows: :func:`dss14_env.bench.catalog.controller_names`)
 DEFAULT_CONTROLLERS: tuple[str, ...] = catalog.controller_names("bench")
-#: scenarios of a run without ``--scenarios`` (the catalog's bench rows)
+#: scenarios of a run without ``--scenarios``: the shipped bench rows (with registered rows:
+#: :func:`dss14_env.bench.catalog.scenario_names`)
 DEFAULT_SCENARIOS: tuple[str, ...] = catalog.scenario_names("bench")
-#: wind speeds (km/h) of the error-vs-wind sweep without ``--wind-speeds``
-DEFAULT_WIND_SPEEDS_KMH: tuple[float, ...] = (30.0, 40.0, 50.0, 60.0, 70.0)
+#: wind speeds (km/h) of the ``--quick`` error-vs-wind sweep without ``--wind-speeds`` (the
+#: default sweep is the environment's grid, :func:`default_wind_speeds`)
 QUICK_WIND_SPEEDS_KMH: tuple[float, ...] = (30.0, 50.0, 70.0)
 #: the drive variants a run scores the pointing error on without ``--variants``
 #: (:data:`dss14_env.model.variants.DRIVE_VARIANTS`), in the selected hold scenarios
@@ -58,11 +60,11 @@ QUICK_VARIANT_RUN = Budget(15.0, 8, 0)
 #: warm-up of a sweep point, s (the hold scenarios')
 SWEEP_WARMUP_S = 5.0
 #: the sweep's directions, the hold scenario each extends and the axis the wind acts on most
-SWEEP_DIRECTIONS: Mapping[str, tuple[str, str]] = MappingProxyType(
-    {r.sweep: (r.name, r.loaded_axes[0]) for r in SCENARIO_ROWS if r.sweep is not None})
+SWEEP_DIRECTIONS: Mapping[str, tuple[str, str]] = LiveMapping(
+    lambda: {r.sweep: (r.name, r.loaded_axes[0]) for r in catalog.SCENARIOS.values() if r.sweep is not None})
 #: the axis the wind loads per scenario (bold in the tables; the precision target's axis)
-LOADED_AXES: Mapping[str, tuple[str, ...]] = MappingProxyType(
-    {r.name: r.loaded_axes for r in SCENARIO_ROWS if r.loaded_axes})
+LOADED_AXES: Mapping[str, tuple[str, ...]] = LiveMapping(
+    lambda: {r.name: r.loaded_axes for r in catalog.SCENARIOS.values() if r.loaded_axes})
 #: default BLAS threads while running
 DEFAULT_THREADS = 1
 
@@ -279,31 +281,46 @@ def _seed_option(seeds: int | Sequence[str | int] | None) -> list[int] | None:
     return parse_seeds(seeds)
 
 
-def parse_wind_speeds(values: Sequence[str | float] | None) -> list[float] | None:
-    """``--wind-speeds``: mean wind speeds of the sweep, km/h, each in (0, 90] (the
-    environment's own bound, :data:`dss14_env.envs.config.WIND_SPEED_MAX_KMH`), sorted.
+def default_wind_speeds() -> tuple[float, ...]:
+    """The sweep's speeds without ``--wind-speeds``, km/h: the environment's
+    ``wind_speed_grid_kmh`` (``configs/env.yaml``, the grid ``DSS14-v0`` draws from).
+    """
+    from dss14_env.envs.config import load_env_config  # (the environment, loaded when used)
 
-    :raises BenchOptionError: not numbers, out of range or repeated
+    return tuple(load_env_config().wind_speed_grid_kmh)
+
+
+def parse_wind_speeds(values: Sequence[str | float] | None, error: type[ValueError] = BenchOptionError,
+                      hint: str = " (or --no-sweep)") -> list[float] | None:
+    """``--wind-speeds`` of ``dss14 bench`` and ``dss14 campaign``: mean wind speeds, km/h, each
+    in (0, 90] (the environment's own bound,
+    :data:`dss14_env.envs.config.WIND_SPEED_MAX_KMH`), sorted.
+
+    :param values: the option's values (None: not given)
+    :param error: the command's option error
+    :param hint: added to the message for no speed at all
+    :raises error: none, not numbers (a bool is not a number), out of range or repeated
     """
     from dss14_env.envs.config import WIND_SPEED_MAX_KMH  # (the environment, loaded when used)
 
     if values is None:
         return None
     if len(values) == 0:
-        raise BenchOptionError("--wind-speeds: give at least one speed in km/h (or --no-sweep)")
+        raise error(f"--wind-speeds: give at least one speed in km/h{hint}")
     speeds = []
     for v in values:
         try:
+            if isinstance(v, bool):
+                raise TypeError
             x = float(v)
         except (TypeError, ValueError):
-            raise BenchOptionError(f"--wind-speeds: {v!r} is not a number (km/h)") from None
+            raise error(f"--wind-speeds: {v!r} is not a number (km/h)") from None
         if not (math.isfinite(x) and 0.0 < x <= WIND_SPEED_MAX_KMH):
-            raise BenchOptionError(f"--wind-speeds: {v} km/h is outside (0, {WIND_SPEED_MAX_KMH:g}] "
-                                   f"km/h, the environment's wind_speed_kmh range "
-                                   f"(WIND_SPEED_MAX_KMH)")
+            raise error(f"--wind-speeds: {v} km/h is outside (0, {WIND_SPEED_MAX_KMH:g}] "
+                        f"km/h, the environment's wind_speed_kmh range (WIND_SPEED_MAX_KMH)")
         speeds.append(x)
     if len(set(speeds)) != len(speeds):
-        raise BenchOptionError(f"--wind-speeds: a speed is repeated: {values}")
+        raise error(f"--wind-speeds: a speed is repeated: {list(values)}")
     return sorted(speeds)
 
 
@@ -426,7 +443,7 @@ def build_plan(controllers: Sequence[str] | None = None, scenarios: Sequence[str
         sweep point too), strings are ``--seeds`` values
         (:func:`parse_seeds`: seeds and ranges); default each scenario's count (:data:`DEFAULT_BUDGETS`, with
         ``quick`` :data:`QUICK_BUDGETS`)
-    :param wind_speeds: sweep speeds, km/h (default :data:`DEFAULT_WIND_SPEEDS_KMH`, with
+    :param wind_speeds: sweep speeds, km/h (default :func:`default_wind_speeds`, with
         ``quick`` :data:`QUICK_WIND_SPEEDS_KMH`)
     :param steps: episode length of every scenario and sweep point, control periods (default:
         each scenario's)
@@ -487,7 +504,7 @@ def build_plan(controllers: Sequence[str] | None = None, scenarios: Sequence[str
         notes.append(f"--wind-speeds ignored: the wind sweep extends the hold scenarios, and "
                      f"neither {anchors} is among --scenarios")
     if speeds is None:
-        speeds = list(QUICK_WIND_SPEEDS_KMH if quick else DEFAULT_WIND_SPEEDS_KMH)
+        speeds = list(QUICK_WIND_SPEEDS_KMH if quick else default_wind_speeds())
     return BenchPlan(controllers=[r.name for r in rows], scenarios=scen, runs=runs, wind_speeds_kmh=speeds,
                      sweep_directions=directions, sweep=sweep_run, variants=var, variant_run=variant_run,
                      env_kwargs=env_kwargs, rows=tuple(rows), dt=dt,
@@ -514,8 +531,7 @@ def sweep_name(direction: str, speed_kmh: float) -> str:
 
 
 __all__ = ["BenchOptionError", "BenchPlan", "Budget", "DEFAULT_BUDGETS", "DEFAULT_CONTROLLERS",
-           "DEFAULT_SCENARIOS", "DEFAULT_SWEEP", "DEFAULT_VARIANTS", "VARIANT_CONTROLLERS",
-           "DEFAULT_WIND_SPEEDS_KMH", "LOADED_AXES",
+           "DEFAULT_SCENARIOS", "DEFAULT_SWEEP", "DEFAULT_VARIANTS", "VARIANT_CONTROLLERS", "LOADED_AXES",
            "QUICK_BUDGETS", "QUICK_SWEEP", "ScenarioRun", "SWEEP_DIRECTIONS", "build_plan",
            "check_names", "control_period", "controller_rows", "parse_episodes", "parse_seeds",
-           "parse_wind_speeds", "sweep_name", "sweep_scenario"]
+           "default_wind_speeds", "parse_wind_speeds", "sweep_name", "sweep_scenario"]

@@ -12,14 +12,12 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from dss14_env.bench import runner
-from dss14_env.bench.catalog import SCENARIO_ROWS
+from dss14_env.bench import catalog, runner
 from dss14_env.bench.plan import SWEEP_DIRECTIONS, BenchPlan, ScenarioRun, sweep_name, sweep_scenario
 from dss14_env.bench.runner import Scenario
 from dss14_env.model.variants import DRIVE_VARIANTS
 
 #: scenarios whose first seed's time histories the figures draw (the catalog's traced rows)
-TRACED = tuple(r.name for r in SCENARIO_ROWS if r.traced)
 
 
 def controller_entries(plan: BenchPlan) -> list[Any]:
@@ -131,8 +129,8 @@ def run_plan(plan: BenchPlan, progress: bool = True) -> dict[str, Any]:
                 bar.total = bar.n + n
             bar.update(n)
 
-        main = _merge([_run_one(plan, ctrls, s, plan.scenario(s), plan.runs[s], tick, s in TRACED)
-                       for s in plan.scenarios])
+        main = _merge([_run_one(plan, ctrls, s, plan.scenario(s), plan.runs[s], tick,
+                                catalog.SCENARIOS[s].traced) for s in plan.scenarios])
         t1 = time.perf_counter()
         sweep = _merge([_run_one(plan, ctrls, n, sc, plan.sweep, tick, False) for n, sc in to_run]) \
             if to_run else None
@@ -147,5 +145,5 @@ def run_plan(plan: BenchPlan, progress: bool = True) -> dict[str, Any]:
             "wall_time_s": {"main": t1 - t0, "sweep": t2 - t1, "variants": t3 - t2}}
 
 
-__all__ = ["TRACED", "controller_entries", "run_plan", "sweep_points", "SWEEP_DIRECTIONS", "variant_name",
+__all__ = ["controller_entries", "run_plan", "sweep_points", "SWEEP_DIRECTIONS", "variant_name",
            "variant_points"]

@@ -19,7 +19,6 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from types import MappingProxyType
 from typing import Any
 
 import numpy as np
@@ -34,7 +33,7 @@ from dss14_env.baselines.rollout import (
     step_response,
 )
 from dss14_env.bench import catalog
-from dss14_env.bench.catalog import SCENARIO_ROWS, ControllerRow, Scenario
+from dss14_env.bench.catalog import ControllerRow, Scenario
 from dss14_env.bench.statistics import (
     LEVEL,
     N_RESAMPLES,
@@ -57,9 +56,10 @@ MAX_ROW_STEPS = 1_000_000
 REFERENCE = "pi_kp1"
 
 
-#: the benchmark scenarios as the runner runs them, by name (the catalog's rows:
-#: :data:`dss14_env.bench.catalog.SCENARIO_ROWS`)
-SCENARIOS: Mapping[str, Scenario] = MappingProxyType({r.name: r.scenario() for r in SCENARIO_ROWS})
+#: the benchmark scenarios as the runner runs them, by name (the catalog's registered rows:
+#: :data:`dss14_env.bench.catalog.SCENARIOS`)
+SCENARIOS: Mapping[str, Scenario] = catalog.LiveMapping(
+    lambda: {n: r.scenario() for n, r in catalog.SCENARIOS.items()})
 #: controller factories by name (the catalog's rows, each called with the environment)
 CONTROLLERS: Mapping[str, ControllerRow] = catalog.CONTROLLERS
 

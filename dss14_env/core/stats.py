@@ -88,6 +88,22 @@ def _finite(x: Sequence[float] | np.ndarray, name: str) -> np.ndarray:
     return a
 
 
+#: statistics that reduce along an ``axis`` argument themselves (the others are applied per row)
+_AXIS_AWARE = (np.mean, np.median)
+
+
+def along(statistic: Callable[[np.ndarray], float], x: np.ndarray, axis: int = -1) -> np.ndarray:
+    """``statistic`` of every 1-d slice of ``x`` along ``axis``: the vectorised form
+    :func:`scipy.stats.bootstrap` calls with a batch of resamples.
+
+    >>> along(np.mean, np.array([[1.0, 3.0], [2.0, 4.0]])).tolist()
+    [2.0, 3.0]
+    """
+    if statistic in _AXIS_AWARE:
+        return statistic(x, axis=axis)
+    return np.apply_along_axis(statistic, axis, x)
+
+
 def bootstrap_ci(sample: Sequence[float] | np.ndarray, statistic: Callable[[np.ndarray], float],
                  rng: np.random.Generator, n_resamples: int = N_RESAMPLES, level: float = LEVEL,
                  method: str = "percentile") -> Estimate:
@@ -106,7 +122,7 @@ def bootstrap_ci(sample: Sequence[float] | np.ndarray, statistic: Callable[[np.n
     value = float(statistic(x))
     if x.size < 2 or np.all(x == x[0]):
         return Estimate(value, value, value, int(x.size), f"{method} bootstrap (degenerate)")
-    res = stats.bootstrap((x,), lambda s, axis=-1: np.apply_along_axis(statistic, axis, s),
+    res = stats.bootstrap((x,), lambda s, axis=-1: along(statistic, s, axis),
                           n_resamples=n_resamples, confidence_level=level, method=method,
                           vectorized=True, random_state=rng)
     lo, hi = float(res.confidence_interval.low), float(res.confidence_interval.high)
@@ -153,7 +169,10 @@ class Ratio:
 def ratio_ci(num: Sequence[float] | np.ndarray, den: Sequence[float] | np.ndarray,
              statistic: Callable[[np.ndarray], float], rng: np.random.Generator,
              n_resamples: int = N_RESAMPLES, level: float = LEVEL, paired: bool = False) -> Ratio:
-    """``statistic(num) / statistic(den)`` with a percentile bootstrap interval.
+    """``statistic(num) / statistic(den)`` with a percentile bootstrap interval: the
+    ``level`` quantiles of :func:`scipy.stats.bootstrap`'s distribution (vectorised, ``paired``
+    as below), resamples whose ratio is not finite left out; with fewer than 2 units the
+    interval is the value itself.
 
     :param num: units of the numerator (e.g. episodes of one controller)
     :param den: units of the denominator
@@ -166,14 +185,19 @@ def ratio_ci(num: Sequence[float] | np.ndarray, den: Sequence[float] | np.ndarra
     if paired and a.size != b.size:
         raise ValueError(f"ratio_ci: paired samples need equal sizes, got {a.size} and {b.size}")
     value = float(statistic(a) / statistic(b))
-    q = ((1 - level) / 2, (1 + level) / 2)
-    ra = np.empty(n_resamples)
-    for k in range(n_resamples):
-        ia = rng.integers(0, a.size, a.size)
-        ib = ia if paired else rng.integers(0, b.size, b.size)
-        ra[k] = statistic(a[ia]) / statistic(b[ib])
-    ra = ra[np.isfinite(ra)]
-    lo, hi = (float(v) for v in np.quantile(ra, q)) if ra.size else (math.nan, math.nan)
+    if min(a.size, b.size) < 2:  # every resample is the sample itself
+        lo = hi = value
+    else:
+        def ratio(x: np.ndarray, y: np.ndarray, axis: int = -1) -> np.ndarray:
+            return along(statistic, x, axis) / along(statistic, y, axis)
+
+        with np.errstate(divide="ignore", invalid="ignore"):  # a zero denominator: dropped below
+            res = stats.bootstrap((a, b), ratio, n_resamples=n_resamples, paired=paired, vectorized=True,
+                                  method="percentile", random_state=rng)
+        ra = res.bootstrap_distribution
+        ra = ra[np.isfinite(ra)]  # a resample whose denominator is 0 has no ratio
+        q = ((1 - level) / 2, (1 + level) / 2)
+        lo, hi = (float(v) for v in np.quantile(ra, q)) if ra.size else (math.nan, math.nan)
     how = "paired" if paired else "independent"
     return Ratio(value, lo, hi, int(a.size), int(b.size),
                  f"percentile bootstrap ({how} resampling), {n_resamples} resamples")

@@ -22,7 +22,9 @@ DEG = math.pi / 180.0  # deg -> rad
 MDEG = math.pi / 180.0e3  # mdeg -> rad
 R2D = 180.0 / math.pi  # rad -> deg
 R2MD = 180.0e3 / math.pi  # rad -> mdeg
-KMH = 1.0 / 3.6  # km/h -> m/s
+#: km/h in one m/s: the one km/h <-> m/s factor (``v_kmh / KMH_PER_M_S`` is m/s)
+KMH_PER_M_S = 3.6
+KMH = 1.0 / KMH_PER_M_S  # km/h -> m/s
 #: named wind directions relative to the dish, rad (0: into the aperture along the boresight)
 WIND_DIRECTIONS = {"front": 0.0, "side": 0.5 * math.pi}
 
@@ -33,12 +35,12 @@ UNITS: dict[str, tuple[str, float]] = {
     "Hz": ("Hz", 1.0),
     "rad/s": ("rad/s", 1.0),
     "rad": ("rad", 1.0),
-    "deg": ("rad", math.pi / 180.0),
-    "deg/s": ("rad/s", math.pi / 180.0),
-    "deg/s^2": ("rad/s^2", math.pi / 180.0),
+    "deg": ("rad", DEG),
+    "deg/s": ("rad/s", DEG),
+    "deg/s^2": ("rad/s^2", DEG),
     "1/s": ("1/s", 1.0),
     "1/s^2": ("1/s^2", 1.0),
-    "mdeg": ("rad", math.pi / 180.0e3),
+    "mdeg": ("rad", MDEG),
     "m": ("m", 1.0),
     "m^2": ("m^2", 1.0),
     "kg/m^3": ("kg/m^3", 1.0),
@@ -64,7 +66,7 @@ UNITS: dict[str, tuple[str, float]] = {
     "m^3/s/A": ("m^3/s/A", 1.0),
     "cm^3/s/kPa": ("m^3/s/Pa", 1.0e-9),
     "m^3/s/Pa": ("m^3/s/Pa", 1.0),
-    "km/h": ("m/s", 1.0 / 3.6),
+    "km/h": ("m/s", KMH),
     "m/s": ("m/s", 1.0),
 }
 
@@ -87,5 +89,5 @@ def si_unit(unit: str) -> str:
 
 def rad_to_mdeg(x):
     """Radians to millidegrees (works on arrays)."""
-    return x * (180.0e3 / math.pi)
+    return x * R2MD
 

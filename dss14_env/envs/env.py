@@ -14,7 +14,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from dss14_env.core.units import DEG, R2D, R2MD
+from dss14_env.core.units import DEG, KMH_PER_M_S, R2D, R2MD
 from dss14_env.envs.config import EnvConfig, load_env_config
 from dss14_env.envs.core import (
     OBS_HIGH,
@@ -441,7 +441,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         if cfg.info_state:
             info["plant_state"] = ep.x0.copy()
         if self._renderer is not None:
-            self._renderer.reset(f"{cfg.scenario}, wind {ep.wind_speed * 3.6:.0f} km/h at "
+            self._renderer.reset(f"{cfg.scenario}, wind {ep.wind_speed * KMH_PER_M_S:.0f} km/h at "
                                  f"{ep.wind_direction * R2D:.0f} deg")
             self._renderer.record(0.0, info["servo_error_az_mdeg"], info["servo_error_el_mdeg"], rp0 * R2D,
                                   rp1 * R2D, float(cd[0, 0]) * R2D, float(cd[0, 1]) * R2D,

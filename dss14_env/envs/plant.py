@@ -63,8 +63,8 @@ from scipy import linalg
 from dss14_env.core.schema import config_path
 from dss14_env.core.threads import single_threaded
 from dss14_env.model.assembly import build_model, default_model
-from dss14_env.model.config import load_model_config
-from dss14_env.model.linsys import balance, discretize, noise_factor
+from dss14_env.model.config import ModelConfig, load_model_config
+from dss14_env.model.linsys import balance, discretize, noise_factor, van_loan
 from dss14_env.model.uncertainty import SWEEP_PARAMS, ParamDraw, draw_params, perturbed_rate_loop
 from dss14_env.wind.loads import calibrate_wind_loads, default_wind_loads
 
@@ -89,19 +89,6 @@ NOISE_TAIL_TOL = 1.0e-8
 _NO_WIND_FILTER_SPEED = 1.0
 #: outputs computed every step (:data:`OUTPUTS` up to the gust torques)
 N_STEP_OUTPUTS = 4
-
-
-def _van_loan(A: np.ndarray, W: np.ndarray, dt: float) -> np.ndarray:
-    """``int_0^dt e^{A s} W e^{A^T s} ds`` for any (not necessarily symmetric) ``W``.
-
-    Van Loan (1978): ``expm([[-A, W], [0, A^T]] dt) = [[., F12], [0, F22]]`` and the integral is
-    ``F22^T F12``; the derivation does not need ``W`` symmetric.
-    """
-    n = A.shape[0]
-    V = np.zeros((2 * n, 2 * n))
-    V[:n, :n], V[:n, n:], V[n:, n:] = -A * dt, W * dt, A.T * dt
-    F = linalg.expm(V)
-    return F[n:, n:].T @ F[:n, n:]
 
 
 class Plant:
@@ -206,9 +193,9 @@ class Plant:
     # ------------------------------------------------------------------ construction helpers
     def _noise_factors(self) -> tuple[np.ndarray, np.ndarray, float]:
         A, Ga, Ge, dt = self.A, self.G_a, self.G_e, self.dt
-        Qaa = _van_loan(A, Ga @ Ga.T, dt)
-        Qee = _van_loan(A, Ge @ Ge.T, dt)
-        Qae = _van_loan(A, Ga @ Ge.T, dt)
+        Qaa = van_loan(A, Ga @ Ga.T, dt)
+        Qee = van_loan(A, Ge @ Ge.T, dt)
+        Qae = van_loan(A, Ga @ Ge.T, dt)
         Q = np.block([[Qaa, Qae], [Qae.T, Qee]])
         lam, V = np.linalg.eigh(0.5 * (Q + Q.T))
         lam, V = lam[::-1], V[:, ::-1]
@@ -473,7 +460,13 @@ class PlantFactory:
         :raises ConfigError: a bad model configuration
         :raises WindCalibrationError: a refit that cannot meet Table 4's accepted ranges
         """
-        cfg = load_model_config(path)
+        return cls.from_config(load_model_config(path), recalibrate_wind)
+
+    @classmethod
+    def from_config(cls, cfg: ModelConfig, recalibrate_wind: bool | None = None) -> PlantFactory:
+        """Build the model of a loaded configuration (:meth:`from_model_config` without reading
+        the file).
+        """
         model = build_model(cfg)
         refit = cfg.recalibrate_wind if recalibrate_wind is None else bool(recalibrate_wind)
         loads = calibrate_wind_loads(model) if refit else default_wind_loads()
@@ -561,12 +554,13 @@ class PlantFactories:
     """Plant factories per model configuration file: the models a process has built.
 
     Keyed by the file's resolved path and content (an edited file is built anew) and the
-    wind-load choice.  One instance, :data:`PLANT_FACTORIES`, serves the environments;
-    :meth:`clear` frees its models.
+    wind-load choice; each content is parsed once.  One instance, :data:`PLANT_FACTORIES`,
+    serves the environments; :meth:`clear` frees its models.
     """
 
     def __init__(self) -> None:
         self._factories: dict[tuple[str, str, bool], PlantFactory] = {}
+        self._configs: dict[tuple[str, str], ModelConfig] = {}  # parsed files by path and content
 
     def get(self, model_config: str | Path | None = None,
             recalibrate_wind: bool | None = None) -> PlantFactory:
@@ -579,17 +573,20 @@ class PlantFactories:
         if model_config is None:
             return default_plant_factory()
         path = config_path(model_config).resolve()
-        refit = (load_model_config(path).recalibrate_wind if recalibrate_wind is None
-                 else bool(recalibrate_wind))
-        key = (str(path), hashlib.sha256(path.read_bytes()).hexdigest(), refit)
-        factory = self._factories.get(key)
+        file = (str(path), hashlib.sha256(path.read_bytes()).hexdigest())
+        cfg = self._configs.get(file)
+        if cfg is None:
+            cfg = self._configs[file] = load_model_config(path)
+        refit = cfg.recalibrate_wind if recalibrate_wind is None else bool(recalibrate_wind)
+        factory = self._factories.get((*file, refit))
         if factory is None:
-            factory = self._factories[key] = PlantFactory.from_model_config(path, refit)
+            factory = self._factories[(*file, refit)] = PlantFactory.from_config(cfg, refit)
         return factory
 
     def clear(self) -> None:
         """Forget every model built from a file (the default model stays)."""
         self._factories.clear()
+        self._configs.clear()
 
     def __len__(self) -> int:
         return len(self._factories)

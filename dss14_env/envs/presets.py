@@ -51,7 +51,6 @@ class Preset:
 #: the presets by name
 PRESETS: Mapping[str, Preset] = MappingProxyType({
     "track": Preset("DSS14-v0", {"scenario": "track", "wind_speed_kmh": "random",
-                                 "wind_speed_grid_kmh": [30.0, 40.0, 50.0, 60.0, 70.0],
                                  "wind_direction": "random",
                                  "wind_direction_grid_deg": list(EIGHT_DIRECTIONS)},
                     3000, 5.0, "slow track, random 30-70 km/h wind and direction",
@@ -99,17 +98,19 @@ ENTRY_POINT = "dss14_env.envs.env:DSS14Env"
 VECTOR_ENTRY_POINT = "dss14_env.envs.vector:DSS14VectorEnv"
 
 
-def _wind(kw: Mapping[str, Any]) -> str:
-    speed, direction = kw.get("wind_speed_kmh", 50.0), kw.get("wind_direction", "random")
+def _wind(kw: Mapping[str, Any], defaults: Any) -> str:
+    """The wind of a preset's keys ``kw`` on top of the configuration ``defaults``."""
+    speed = kw.get("wind_speed_kmh", defaults.wind_speed_kmh)
+    direction = kw.get("wind_direction", defaults.wind_direction)
     if speed == 0:
         return "none"
     if speed == "random":
-        speeds = ", ".join(f"{v:g}" for v in kw.get("wind_speed_grid_kmh", ()))
+        speeds = ", ".join(f"{v:g}" for v in kw.get("wind_speed_grid_kmh", defaults.wind_speed_grid_kmh))
         what = f"speed drawn from {speeds} km/h"
     else:
         what = f"{speed:g} km/h"
     if direction == "random":
-        grid = kw.get("wind_direction_grid_deg", ())
+        grid = kw.get("wind_direction_grid_deg", defaults.wind_direction_grid_deg)
         dirs = "front or side" if list(grid) == [0.0, 90.0] else f"{len(grid)} directions"
         return f"{what}, {dirs} (drawn)"
     return f"{what}, {direction}"
@@ -124,11 +125,12 @@ def registered_ids_table() -> str:
     """
     from dss14_env.envs.config import load_env_config
 
-    dt = load_env_config().dt
+    defaults = load_env_config()
+    dt = defaults.dt
     lines = ["| id | scenario | wind | `max_episode_steps` | for |", "|---|---|---|---|---|"]
     for p in PRESETS.values():
         kw = p.kwargs
-        lines.append(f"| `{p.env_id}` | {kw.get('scenario', 'track')} | {_wind(kw)} | "
+        lines.append(f"| `{p.env_id}` | {kw.get('scenario', defaults.scenario)} | {_wind(kw, defaults)} | "
                      f"{p.max_episode_steps} ({p.max_episode_steps * dt:g} s) | {p.purpose} |")
     for env_id, what in WRAPPED_IDS.items():
         lines.append(f"| `{env_id}` | of its base (`DSS14-Hold-v0` by default) | of its base | of its base "
@@ -136,11 +138,16 @@ def registered_ids_table() -> str:
     return "\n".join(lines)
 
 
-def register_presets() -> None:
-    """Register every preset's id with Gymnasium (idempotent; builds nothing)."""
+def register_preset(p: Preset) -> None:
+    """Register one preset's id with Gymnasium (idempotent; builds nothing)."""
     from gymnasium.envs.registration import register, registry
 
+    if p.env_id not in registry:
+        register(id=p.env_id, entry_point=ENTRY_POINT, vector_entry_point=VECTOR_ENTRY_POINT,
+                 max_episode_steps=p.max_episode_steps, kwargs=dict(p.kwargs))
+
+
+def register_presets() -> None:
+    """Register every preset's id with Gymnasium (idempotent; builds nothing)."""
     for p in PRESETS.values():
-        if p.env_id not in registry:
-            register(id=p.env_id, entry_point=ENTRY_POINT, vector_entry_point=VECTOR_ENTRY_POINT,
-                     max_episode_steps=p.max_episode_steps, kwargs=dict(p.kwargs))
+        register_preset(p)

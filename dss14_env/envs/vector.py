@@ -330,6 +330,22 @@ class DSS14VectorEnv(VectorEnv):
         """Observation rows of freshly reset sub-environments ``idx`` (:meth:`_reset_rows`)."""
         return self._reset_rows(idx)[0]
 
+    def reset_now(self, idx: np.ndarray) -> np.ndarray:
+        """Start the next episode of the sub-environments ``idx`` now, with the draws the
+        autoreset of the next :meth:`step` would make (each from its own generator, under the
+        configuration), so that the next step does not reset them again: gymnasium's
+        ``AutoresetMode.SAME_STEP`` on top of this class' NEXT_STEP.
+
+        :param idx: indices of sub-environments whose episode ended on the last step
+        :return: their first observations, ``(len(idx), 12)``
+        """
+        idx = np.asarray(idx, dtype=np.intp)
+        self._reset_envs(idx, self.config)
+        pending = self._prev_done.copy()  # (a new array: a snapshot may hold the old one)
+        pending[idx] = False
+        self._prev_done = pending
+        return self._reset_obs(idx)
+
     @property
     def n_rate_limited(self) -> np.ndarray:
         """Steps of the current episodes in which the rate clip acted, per sub-environment."""

@@ -3,6 +3,8 @@
 Blocks (board, hydraulics, gearbox, drive, structure, reduction, loops), their calibration to
 the report's figures, the assembled model and the parameter uncertainty.
 
+May import: ``core`` (``docs/architecture.md``).
+
 >>> from dss14_env.model import default_model
 >>> default_model().rate_loop.nstates
 60

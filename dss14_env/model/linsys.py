@@ -116,11 +116,26 @@ def discretize(A: np.ndarray, B: np.ndarray, dt: float, G: np.ndarray | None = N
     if G is None:
         return Ad, Bd, None
     G = np.asarray(G, float)
-    V = np.zeros((2 * n, 2 * n))  # Van Loan: [[-A, G G^T], [0, A^T]] dt
-    V[:n, :n], V[:n, n:], V[n:, n:] = -A * dt, G @ G.T * dt, A.T * dt
-    F = linalg.expm(V)
-    Qd = F[n:, n:].T @ F[:n, n:]
+    Qd = van_loan(A, G @ G.T, dt)
     return Ad, Bd, 0.5 * (Qd + Qd.T)
+
+
+def van_loan(A: np.ndarray, W: np.ndarray, dt: float) -> np.ndarray:
+    """``int_0^dt e^{A s} W e^{A^T s} ds`` for any (not necessarily symmetric) ``W``: the
+    covariance of a noise increment (``W = G G^T``) or the cross-covariance of two (``W = G_a
+    G_b^T``).
+
+    Van Loan (1978): ``expm([[-A, W], [0, A^T]] dt) = [[., F12], [0, F22]]`` and the integral is
+    ``F22^T F12``; the derivation does not need ``W`` symmetric.
+
+    >>> round(float(van_loan(np.array([[-2.0]]), np.array([[1.0]]), 0.5)[0, 0]), 6)  # (1 - e^-2) / 4
+    0.216166
+    """
+    n = A.shape[0]
+    V = np.zeros((2 * n, 2 * n))
+    V[:n, :n], V[:n, n:], V[n:, n:] = -A * dt, W * dt, A.T * dt
+    F = linalg.expm(V)
+    return F[n:, n:].T @ F[:n, n:]
 
 
 def stationary_covariance(A: np.ndarray, W: np.ndarray, max_doublings: int = 64) -> np.ndarray:

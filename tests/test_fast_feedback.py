@@ -1,0 +1,45 @@
+"""Fast feedback: collecting the docstring examples imports no torch (the examples that need
+none), and the ``quick`` tier is registered."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+#: repository folder -> installed package
+PACKAGES = {"dss14_env": "dss14_env", "agents": "dss14_env.agents", "baselines": "dss14_env.baselines"}
+
+
+def _modules_with_examples() -> list[str]:
+    """The modules the doctest collection imports (root ``conftest.py``: those with ``>>>``)."""
+    mods = []
+    for folder, package in PACKAGES.items():
+        for path in sorted((ROOT / folder).rglob("*.py")):
+            if ">>>" in path.read_text(encoding="utf-8") or path.name == "__init__.py":
+                rel = path.relative_to(ROOT / folder).with_suffix("")
+                parts = [p for p in rel.parts if p != "__init__"]
+                mods.append(".".join([package, *parts]))
+    return mods
+
+
+def test_doctest_collection_imports_no_torch() -> None:
+    mods = _modules_with_examples()
+    assert "dss14_env.agents.config" in mods and "dss14_env.agents.vec_env" not in mods
+    code = ("import importlib, sys\n"
+            f"for m in {mods!r}: importlib.import_module(m)\n"
+            "print(sorted(m for m in ('torch', 'stable_baselines3') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "[]", out.stdout
+
+
+def test_quick_tier_is_registered_and_its_files_exist() -> None:
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("root_conftest", ROOT / "conftest.py")
+    root = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(root)
+    assert '"quick: ' in (ROOT / "pyproject.toml").read_text()
+    assert root.QUICK_FILES and all(p.is_file() for p in root.QUICK_FILES)
