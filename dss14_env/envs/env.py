@@ -28,6 +28,14 @@ from dss14_env.envs.core import (
     step_1,
     step_constants,
 )
+from dss14_env.envs.monopulse import (
+    MonopulseConstants,
+    MonopulseState,
+    observation_high,
+    sensor_reset,
+    sensor_step,
+    step_obs_info,
+)
 from dss14_env.envs.plant import (
     N_STEP_OUTPUTS,
     OUTPUTS,
@@ -203,6 +211,24 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
     are clamped to them, which can only act on a terminating step (or with encoder noise).
     At reset, entries 2, 3 are 0.
 
+    With the monopulse sensor (``sensors=["encoders", "monopulse"]``; the default is the
+    encoders only, and then nothing below changes) the observation is ``Box(float32, (14,))``:
+
+    | index  | observation                                              | unit |
+    |--------|----------------------------------------------------------|------|
+    | 12, 13 | monopulse measurement of the pointing error, el, xel     | ``error_scale_mdeg`` |
+
+    bounded and clamped to +-1e4.  The feed measures the beam's own pointing error (the true one
+    is the info's ``pointing_error_el_mdeg`` / ``pointing_error_xel_mdeg``) through the
+    receiver's tracking loop: latency ``monopulse_latency_s``, a first-order loop of noise
+    bandwidth ``monopulse_bandwidth_hz`` updated every ``monopulse_update_s`` (held between),
+    and its jitter ``theta_3dB / (k_m sqrt(2 (C/N_0) / B_L))`` per axis from the band's beamwidth
+    (``monopulse_band``), the monopulse slope (``monopulse_slope``) and the carrier's
+    ``monopulse_cnr_dbhz`` (default Ka, 1.6, 30 dB-Hz, 1 Hz: 0.115 mdeg rms).  Its noise is drawn
+    from ``np_random`` with the noise blocks; the info carries the measurement as
+    ``monopulse_el_mdeg`` and ``monopulse_xel_mdeg`` (every step and at reset).  The model, its
+    constants and their sources: :mod:`dss14_env.envs.monopulse` and docs/env.md, "Monopulse sensor".
+
     ## Reward
 
     ``r = -( (e_az^2 + e_el^2) / error_scale_mdeg^2 + action_change_weight * ||a[k] - a[k-1]||^2 )``
@@ -375,8 +401,13 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         self.render_mode = render_mode
         self.metadata = dict(self.metadata, render_fps=1.0 / c.dt)
         self.action_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
-        self.observation_space = spaces.Box(-OBS_HIGH, OBS_HIGH, dtype=np.float32)
+        high = observation_high(c.sensors)
+        self.observation_space = spaces.Box(-high, high, dtype=np.float32)
         self.constants = StepConstants.from_config(c)
+        #: the monopulse sensor's constants (None without it)
+        self.monopulse = MonopulseConstants.from_config(c) if "monopulse" in c.sensors else None
+        self._mp: MonopulseState | None = None
+        self._mp_w: np.ndarray | None = None
         self._renderer = Renderer(render_mode, c.dt, c.render_window_s) if render_mode else None
         self.episode: Episode | None = None
         self._st: ScalarState | None = None
@@ -403,7 +434,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
             self.plants.check_params(cfg.params, cfg.source_of("params"))
         super().reset(seed=seed)
         k = self.constants
-        ep, ne, normals = draw_reset(cfg, self.np_random, self.plants, k.encoder_sigma)
+        ep, ne, z0, normals = draw_reset(cfg, self.np_random, self.plants, k.encoder_sigma)
         p = ep.plant
         MT, Tm, Pm, C = p.episode_step(ep.kappa, ep.t_mean)
         x0 = Pm @ ep.x0
@@ -437,6 +468,11 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         self._st = ScalarState.of(st)
         info = {**episode_info(ep, self.plants.wind_loads), **{key: float(v[0]) for key, v in rinfo.items()}}
         rp0, rp1 = self._st.r_az, self._st.r_el
+        if self.monopulse is not None:
+            p0 = np.column_stack((rinfo["pointing_error_el_mdeg"], rinfo["pointing_error_xel_mdeg"]))
+            self._mp = sensor_reset(p0, z0[None], self.monopulse)
+            obs = step_obs_info(obs, info, self._mp, k.error_scale)
+            info["monopulse_el_mdeg"], info["monopulse_xel_mdeg"] = self._mp.out[0].tolist()
         obs = obs[0]
         if cfg.info_state:
             info["plant_state"] = ep.x0.copy()
@@ -457,8 +493,11 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         first block, the state the last step wrote starts the new one.
         """
         k = self.constants
+        mp = self.monopulse is not None
         if normals is None:
-            normals = draw_noise_block(self.np_random, self._rank, k.encoder_sigma > 0.0)
+            normals = draw_noise_block(self.np_random, self._rank, k.encoder_sigma > 0.0, monopulse=mp)
+        if mp:  # the sensor's columns: the last two
+            self._mp_w, normals = normals[:, -2:].copy(), normals[:, :-2]
         B = self._block
         if k0:
             B[0, -(self._m + N_STEP_OUTPUTS):] = B[NOISE_BLOCK, -(self._m + N_STEP_OUTPUTS):]
@@ -518,9 +557,22 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
             self._next_block(self._k0 + j)
             st, j = st._replace(j=0), 0
         result, self._st = step_1(action, self._views[j], st, self._M, self._rows[j], self._sc)
+        if self.monopulse is not None:
+            result = self._sense(result, j)
         if self._extras:
             self._step_extras(result[4])
         return result
+
+    def _sense(self, result: tuple, j: int) -> tuple:
+        """The step's result with the monopulse sensor's observation entries and info keys,
+        from the true pointing errors and row ``j`` of the sensor's noise.
+        """
+        obs, rew, term, trunc, info = result
+        p = np.array([[info["pointing_error_el_mdeg"], info["pointing_error_xel_mdeg"]]])
+        self._mp = sensor_step(self._mp, p, self._mp_w[j:j + 1], self.monopulse)
+        obs = step_obs_info(obs[None], info, self._mp, self.constants.error_scale)[0]
+        info["monopulse_el_mdeg"], info["monopulse_xel_mdeg"] = self._mp.out[0].tolist()
+        return obs, rew, term, trunc, info
 
     def _step_extras(self, info: dict) -> None:
         """``info["plant_state"]`` and the render history, when asked for."""
@@ -541,7 +593,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
     #: the attributes of the dynamic state (:meth:`get_state`)
     _STATE = ("_block", "_st", "_rows", "_k0", "_parts", "_np_random", "_np_random_seed", "episode", "_M",
               "_sc", "_m", "_rank", "_state_map", "_C_gust", "_gust_az", "_gust_inv", "_info_state",
-              "_extras")
+              "_extras", "_mp", "_mp_w")
     #: the parts of it that never change in place (kept by reference in a snapshot)
     _SHARED = ("episode", "_M", "_sc", "_rows", "_parts", "_state_map", "_C_gust")
 
