@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import math
 
 import numpy as np
@@ -12,10 +13,14 @@ from dss14_env.envs.config import load_env_config
 from dss14_env.envs.env import DSS14Env
 from dss14_env.envs.monopulse import (
     MonopulseConstants,
+    ScalarMonopulse,
     half_power_beamwidth_mdeg,
     jitter_mdeg,
+    observation_1,
+    sensor_observation,
     sensor_reset,
     sensor_step,
+    sensor_step_1,
 )
 from dss14_env.envs.vector import DSS14VectorEnv
 
@@ -145,3 +150,39 @@ def test_bad_sensor_options_are_refused_with_one_line(kw: dict, match: str) -> N
     with pytest.raises(ValueError, match=match) as err:
         DSS14Env(**{"sensors": MONO, **kw})
     assert "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("vector", [False, True])
+def test_snapshots_and_copies_continue_the_sensor_bit_for_bit(vector: bool) -> None:
+    kw = dict(sensors=MONO, scenario="hold", monopulse_latency_s=0.04)
+    env = DSS14VectorEnv(num_envs=2, **kw) if vector else DSS14Env(**kw)
+    act = np.zeros((2, 2)) if vector else np.zeros(2)
+    env.reset(seed=4)
+    for _ in range(300):  # into the second noise block
+        env.step(act)
+    snap, twin = env.get_state(), copy.deepcopy(env)
+    a = [env.step(act)[0] for _ in range(260)]
+    env.set_state(snap)
+    b = [env.step(act)[0] for _ in range(260)]
+    c = [twin.step(act)[0] for _ in range(260)]
+    assert np.array_equal(np.array(a), np.array(b)) and np.array_equal(np.array(a), np.array(c))
+
+
+@pytest.mark.parametrize("kw", [dict(), dict(monopulse_update_s=0.06, monopulse_latency_s=0.1),
+                                dict(monopulse_bandwidth_hz=None, monopulse_latency_s=0.02),
+                                dict(monopulse_cnr_dbhz=None, monopulse_update_s=0.04)])
+def test_scalar_twin_equals_the_batched_sensor_bit_for_bit(kw: dict) -> None:
+    k = MonopulseConstants.from_config(load_env_config(sensors=MONO, **kw))
+    rng = np.random.default_rng(11)
+    scale = 10.0 ** rng.uniform(-3, 5.5, 400)  # up to beyond the observation bound, 1e4 x 10 mdeg
+    st = sensor_reset(rng.normal(size=(1, 2)) * scale[0], rng.normal(size=(1, 2)), k)
+    s1 = ScalarMonopulse.of(st)
+    obs12 = rng.normal(size=12).astype(np.float32)
+    for i in range(1, 400):
+        p, w = rng.normal(size=(1, 2)) * scale[i], rng.normal(size=(1, 2))
+        st = sensor_step(st, p, w, k)
+        s1 = sensor_step_1(s1, *p[0].tolist(), *w[0].tolist(), k)
+        assert (s1.out_el, s1.out_xel) == tuple(st.out[0].tolist()) and s1.k == int(st.k[0])
+        assert s1.history == tuple(map(tuple, st.history[0].tolist()))
+        o = observation_1(obs12, s1, 10.0)
+        assert np.array_equal(o[12:], sensor_observation(st, 10.0)[0]) and np.array_equal(o[:12], obs12)

@@ -30,10 +30,11 @@ from dss14_env.envs.core import (
 )
 from dss14_env.envs.monopulse import (
     MonopulseConstants,
-    MonopulseState,
+    ScalarMonopulse,
+    observation_1,
     observation_high,
     sensor_reset,
-    sensor_step,
+    sensor_step_1,
     step_obs_info,
 )
 from dss14_env.envs.plant import (
@@ -406,8 +407,8 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         self.constants = StepConstants.from_config(c)
         #: the monopulse sensor's constants (None without it)
         self.monopulse = MonopulseConstants.from_config(c) if "monopulse" in c.sensors else None
-        self._mp: MonopulseState | None = None
-        self._mp_w: np.ndarray | None = None
+        self._mp: ScalarMonopulse | None = None
+        self._mp_w: list | None = None
         self._renderer = Renderer(render_mode, c.dt, c.render_window_s) if render_mode else None
         self.episode: Episode | None = None
         self._st: ScalarState | None = None
@@ -470,9 +471,10 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         rp0, rp1 = self._st.r_az, self._st.r_el
         if self.monopulse is not None:
             p0 = np.column_stack((rinfo["pointing_error_el_mdeg"], rinfo["pointing_error_xel_mdeg"]))
-            self._mp = sensor_reset(p0, z0[None], self.monopulse)
-            obs = step_obs_info(obs, info, self._mp, k.error_scale)
-            info["monopulse_el_mdeg"], info["monopulse_xel_mdeg"] = self._mp.out[0].tolist()
+            mp = sensor_reset(p0, z0[None], self.monopulse)
+            obs = step_obs_info(obs, info, mp, k.error_scale)
+            self._mp = ScalarMonopulse.of(mp)
+            info["monopulse_el_mdeg"], info["monopulse_xel_mdeg"] = self._mp.out_el, self._mp.out_xel
         obs = obs[0]
         if cfg.info_state:
             info["plant_state"] = ep.x0.copy()
@@ -497,7 +499,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         if normals is None:
             normals = draw_noise_block(self.np_random, self._rank, k.encoder_sigma > 0.0, monopulse=mp)
         if mp:  # the sensor's columns: the last two
-            self._mp_w, normals = normals[:, -2:].copy(), normals[:, :-2]
+            self._mp_w, normals = normals[:, -2:].tolist(), normals[:, :-2]
         B = self._block
         if k0:
             B[0, -(self._m + N_STEP_OUTPUTS):] = B[NOISE_BLOCK, -(self._m + N_STEP_OUTPUTS):]
@@ -565,14 +567,14 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
 
     def _sense(self, result: tuple, j: int) -> tuple:
         """The step's result with the monopulse sensor's observation entries and info keys,
-        from the true pointing errors and row ``j`` of the sensor's noise.
+        from the true pointing errors and row ``j`` of the sensor's noise (the scalar twin).
         """
         obs, rew, term, trunc, info = result
-        p = np.array([[info["pointing_error_el_mdeg"], info["pointing_error_xel_mdeg"]]])
-        self._mp = sensor_step(self._mp, p, self._mp_w[j:j + 1], self.monopulse)
-        obs = step_obs_info(obs[None], info, self._mp, self.constants.error_scale)[0]
-        info["monopulse_el_mdeg"], info["monopulse_xel_mdeg"] = self._mp.out[0].tolist()
-        return obs, rew, term, trunc, info
+        w_el, w_xel = self._mp_w[j]
+        p_el, p_xel = info["pointing_error_el_mdeg"], info["pointing_error_xel_mdeg"]
+        st = self._mp = sensor_step_1(self._mp, p_el, p_xel, w_el, w_xel, self.monopulse)
+        info["monopulse_el_mdeg"], info["monopulse_xel_mdeg"] = st.out_el, st.out_xel
+        return observation_1(obs, st, self.constants.error_scale), rew, term, trunc, info
 
     def _step_extras(self, info: dict) -> None:
         """``info["plant_state"]`` and the render history, when asked for."""

@@ -24,8 +24,10 @@ stationary state about the true error: ``f[0] = p[0] + sigma w_0``, the delay li
 ``p[0]``.  ``monopulse_cnr_dbhz: null`` makes the sensor noiseless, ``monopulse_bandwidth_hz:
 null`` removes the loop filter (``a = 0``): with both, and no latency, ``f = p`` exactly.
 
-Every function takes arrays of ``N`` rows (the single environment calls them with ``N = 1``),
-so the two environments run the very same sensor.
+The functions take arrays of ``N`` rows (the vector environment's step; the resets of both);
+the single environment steps the sensor with the scalar twin :func:`sensor_step_1` and
+:func:`observation_1` (the same formulas on Python floats in the same order of operations,
+held equal to the batched ones bit for bit by ``tests/test_env_monopulse.py``).
 
 >>> from dss14_env.envs.config import load_env_config
 >>> k = MonopulseConstants.from_config(load_env_config(sensors=["encoders", "monopulse"]))
@@ -186,3 +188,49 @@ def step_obs_info(obs: np.ndarray, info: dict, st: MonopulseState, error_scale: 
     """
     info.update(sensor_info(st))
     return np.concatenate((obs, sensor_observation(st, error_scale)), axis=1)
+
+
+# ------------------------------------------------------------------------------ scalar twin
+class ScalarMonopulse(NamedTuple):
+    """The :class:`MonopulseState` of one environment on Python floats (:func:`sensor_step_1`)."""
+
+    #: true pointing errors ``(el, xel)`` of the last ``n_delay + 1`` steps, oldest first, mdeg
+    history: tuple
+    #: the loop output (the measurement), mdeg
+    out_el: float
+    out_xel: float
+    #: steps since the reset
+    k: int
+
+    @classmethod
+    def of(cls, st: MonopulseState) -> ScalarMonopulse:
+        """Row 0 of a batched state."""
+        return cls(tuple(map(tuple, st.history[0].tolist())), *st.out[0].tolist(), int(st.k[0]))
+
+
+def sensor_step_1(st: ScalarMonopulse, p_el: float, p_xel: float, w_el: float, w_xel: float,
+                  k: MonopulseConstants) -> ScalarMonopulse:
+    """:func:`sensor_step` of one environment on floats (the same operations in the same order)."""
+    hist = st.history[1:] + ((p_el, p_xel),)
+    n = st.k + 1
+    if k.n_update > 1 and n % k.n_update:
+        return ScalarMonopulse(hist, st.out_el, st.out_xel, n)
+    h_el, h_xel = hist[0]
+    sw, a = k.sigma_w, k.a
+    b = 1.0 - a
+    out_el = (h_el + sw * w_el) * b + a * st.out_el
+    out_xel = (h_xel + sw * w_xel) * b + a * st.out_xel
+    return ScalarMonopulse(hist, out_el, out_xel, n)
+
+
+def observation_1(obs: np.ndarray, st: ScalarMonopulse, error_scale: float) -> np.ndarray:
+    """The single environment's observation ``(14,)``: ``obs`` ``(12,)`` and the monopulse
+    entries of :func:`sensor_observation`, on floats.
+    """
+    inv = 1.0 / error_scale
+    b = OBS_ERROR_BOUND
+    o = np.empty(OBS_HIGH.size + 2, np.float32)
+    o[:OBS_HIGH.size] = obs
+    for i, x in enumerate((st.out_el * inv, st.out_xel * inv)):
+        o[OBS_HIGH.size + i] = b if x > b else (-b if x < -b else x)
+    return o
