@@ -30,6 +30,7 @@ import numpy as np
 
 from dss14_env.baselines.design import PointingConfig, default_controllers_config, rigid_pointing
 from dss14_env.baselines.lqg import LQGController
+from dss14_env.baselines.mpc import MPCController
 from dss14_env.baselines.pi import PIController, env_config
 from dss14_env.baselines.yardstick import PointingYardstickController
 from dss14_env.core.units import KMH, MDEG
@@ -181,13 +182,38 @@ class MonopulseLQGController(MonopulseMeasurement, LQGController):
 
     def __init__(self, env: Any, name: str = "LQG-monopulse", pointing: PointingConfig | None = None) -> None:
         check_monopulse(env, "lqg_monopulse")
-        if pointing is None:
-            cc = default_controllers_config()
-            mc = cc.monopulse
-            pointing = dataclasses.replace(cc.pointing, action_change_weight=mc.action_change_weight,
-                                           encoder_error_weight=mc.encoder_error_weight)
         self._monopulse_setup(env, xel_scale_of(env))
-        super().__init__(env, name, None, pointing, pointing_noise=monopulse_noise(env))
+        super().__init__(env, name, None, pointing or monopulse_pointing_config(),
+                         pointing_noise=monopulse_noise(env))
+
+
+def monopulse_pointing_config() -> PointingConfig:
+    """The pointing section of ``configs/controllers.yaml`` with the weights of section
+    ``monopulse`` (the fused designs').
+    """
+    cc = default_controllers_config()
+    mc = cc.monopulse
+    return dataclasses.replace(cc.pointing, action_change_weight=mc.action_change_weight,
+                               encoder_error_weight=mc.encoder_error_weight)
+
+
+class MonopulseMPCController(MonopulseMeasurement, MPCController):
+    """The pointing MPC on :class:`MonopulseLQGController`'s estimator and integrator
+    (``mpc_monopulse``): the Kalman filter fuses the encoders and the monopulse measurement, the
+    constrained problem (:class:`dss14_env.baselines.mpc.MPCController`, the pointing section's
+    ``mpc_action_change_weight``) is the law, the fused LQG's law the fallback.  One episode at
+    a time.
+
+    :param env: a DSS14 environment with the monopulse sensor (or its configuration)
+    :param name: label, default ``"MPC-monopulse"``
+    :raises ValueError: without the monopulse sensor
+    """
+
+    def __init__(self, env: Any, name: str = "MPC-monopulse") -> None:
+        check_monopulse(env, "mpc_monopulse")
+        self._monopulse_setup(env, xel_scale_of(env))
+        super().__init__(env, name, None, None, True, monopulse_pointing_config(),
+                         pointing_noise=monopulse_noise(env))
 
 
 class MonopulseYardstickController(MonopulseMeasurement, PointingYardstickController):

@@ -10,6 +10,7 @@ from dss14_env.baselines.interface import ControlInterface
 from dss14_env.baselines.lqg import design_lqg
 from dss14_env.baselines.monopulse import (
     MonopulseLQGController,
+    MonopulseMPCController,
     MonopulseYardstickController,
     PIMonopulseController,
     monopulse_noise,
@@ -23,7 +24,8 @@ from dss14_env.envs.vector import DSS14VectorEnv
 MONO = ["encoders", "monopulse"]
 
 
-@pytest.mark.parametrize("cls", [PIMonopulseController, MonopulseLQGController])
+@pytest.mark.parametrize("cls", [PIMonopulseController, MonopulseLQGController, MonopulseMPCController,
+                                 MonopulseYardstickController])
 def test_monopulse_controllers_need_the_sensor(cls: type) -> None:
     with pytest.raises(ValueError, match="needs the monopulse sensor") as err:
         cls(DSS14VectorEnv(num_envs=1, scenario="hold"))
@@ -78,13 +80,14 @@ def test_bench_runs_monopulse_rows_on_their_own_environment_beside_the_others() 
     # the monopulse rows get the scenario with the sensor; the others are unaffected by them
     seeds, steps = [0, 1], 400
     alone = run(["pi_kp1"], ["hold_side"], seeds, steps=steps, n_resamples=50)
-    both = run(["pi_kp1", "pi_monopulse", "lqg_monopulse"], ["hold_side"], seeds, steps=steps, n_resamples=50)
+    rows = ["pi_kp1", "pi_monopulse", "lqg_monopulse", "mpc_monopulse"]
+    both = run(rows, ["hold_side"], seeds, steps=steps, n_resamples=50, sequential_seeds=1)
     pi_eps = [ep for ep in both["episodes"] if ep["controller"] == "pi_kp1"]
     assert [ep["pointing_error_mdeg"] for ep in pi_eps] == [ep["pointing_error_mdeg"]
                                                             for ep in alone["episodes"]]
-    for name in ("pi_monopulse", "lqg_monopulse"):
+    for name in ("pi_monopulse", "lqg_monopulse", "mpc_monopulse"):
         cell = both["summary"][name]["hold_side"]
-        assert cell["failures"] == 0 and cell["terminated"] == 0
+        assert cell["failures"] == 0 and cell["terminated"] == 0 and cell["fallbacks"] == 0
         assert np.isfinite(cell["pointing_error_mdeg"]["xel"]["rms"]["value"])
 
 

@@ -153,6 +153,10 @@ CONTROLLER_ROWS: tuple[ControllerRow, ...] = (
                   "measurement, integrating the measured pointing error (`baselines/monopulse.py`; "
                   "runs with the monopulse sensor)", config="monopulse", bench=False,
                   sensors=("encoders", "monopulse")),
+    ControllerRow("mpc_monopulse", "dss14_env.baselines.monopulse", "MonopulseMPCController",
+                  "the pointing MPC on lqg_monopulse's fused estimator and integrator, OSQP "
+                  "(`baselines/monopulse.py`; runs with the monopulse sensor)", batchable=False,
+                  config="monopulse", bench=False, sensors=("encoders", "monopulse")),
     ControllerRow("yardstick_monopulse", "dss14_env.baselines.monopulse", "MonopulseYardstickController",
                   "the pointing yardstick measuring the drive encoders and the monopulse sensor, told "
                   "the episode's wind (an oracle designed without the acceleration limit)", bench=False,
