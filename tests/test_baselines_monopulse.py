@@ -50,11 +50,11 @@ def _mean_pointing_el(ctrl_factory, n: int = 4, steps: int = 3000, tail: int = 1
 
 def test_the_monopulse_loop_takes_out_the_static_pointing_error_the_pi_leaves() -> None:
     # the PI holds the drive encoders on the command: the structure's static deflection under the
-    # mean wind stays in the pointing (about -1.6 mdeg in elevation, 50 km/h front); the outer
+    # mean wind stays in the pointing (-1.6 mdeg in elevation at 50 km/h front today); the outer
     # loop (time constant 1 / 0.1 s) integrates it away within the 40 s before the window
     pi = _mean_pointing_el(PIController)
     pim = _mean_pointing_el(PIMonopulseController)
-    assert pi < -0.5
+    assert abs(pi) > 0.3  # the deflection is there to take out (its size follows the wind model)
     assert abs(pim) < 0.25 * abs(pi)
 
 
