@@ -233,6 +233,9 @@ class PolicyInterface:
     """
 
     def __init__(self, spec: InterfaceSpec, env_config: Any, n: int = 1) -> None:
+        if "monopulse" in getattr(env_config, "sensors", ()):
+            raise ValueError("sensors: the policy interfaces read the encoders' 12 observation entries only; "
+                             "use DSS14-v0 (or a scenario id) for the monopulse sensor")
         self.spec, self.env_config, self.n = spec, env_config, int(n)
         self._inv_scale = 1.0 / (env_config.action_scale_deg_s * DEG)
         #: the observation's command rate (rate-limit units) in action units, times the gain

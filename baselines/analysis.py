@@ -92,15 +92,16 @@ def lqg_as_linear(design: LQGDesign) -> LinearController:
     Kx, Ki, Ku = design.split_gain()
     ni = Ki.shape[1]
     Lg = design.L
-    Ce = dm.estimator_output(nd)
+    Ce = dm.estimator_output(nd) if design.Ce is None else design.Ce
     Imlc = np.eye(ne) - Lg @ Ce  # [x; d]_k|k = (I - L C) [x; d]^- + L y
+    Ci = Ce[2:4] if design.integral_output == "pointing" else Ce[:2]  # what the integrator sums
     # r = Fx [x; d]_k|k - Ki xi - Ku r_prev
     Fx = np.hstack([-Kx, -(np.eye(2) + Ku) if nd else np.zeros((2, 0))])
     Cc = np.hstack([Fx @ Imlc, -Ki, -Ku])
     Dc = Fx @ Lg
     nzc = ne + ni + 2
     Ac = np.zeros((nzc, nzc))
-    Bc = np.zeros((nzc, 2))
+    Bc = np.zeros((nzc, Ce.shape[0]))
     Ae = np.eye(ne)
     Ae[:n, :n] = dm.Ad
     if nd:
@@ -111,9 +112,9 @@ def lqg_as_linear(design: LQGDesign) -> LinearController:
     Ac[:ne] += Be @ Cc
     Bc[:ne] += Be @ Dc
     if ni:
-        Ac[ne:ne + ni, :ne] = -dm.dt * Ce @ Imlc
+        Ac[ne:ne + ni, :ne] = -dm.dt * Ci @ Imlc
         Ac[ne:ne + ni, ne:ne + ni] = np.eye(ni)
-        Bc[ne:ne + ni] = -dm.dt * Ce @ Lg
+        Bc[ne:ne + ni] = -dm.dt * Ci @ Lg
     Ac[ne + ni:] = Cc
     Bc[ne + ni:] = Dc
     return LinearController(Ac, Bc, Cc, Dc)
@@ -158,14 +159,20 @@ class ClosedLoop:
         return float(np.max(np.abs(self.eigenvalues())))
 
 
-def closed_loop(plant: DesignModel, ctrl: LinearController) -> ClosedLoop:
+def closed_loop(plant: DesignModel, ctrl: LinearController,
+                measurement: tuple[np.ndarray, np.ndarray] | None = None) -> ClosedLoop:
     """Interconnect a plant model with a linear controller (``y = C x + v``).
 
     The controller's command enters the plant as the held input of the next period; the
     previous command is carried as two extra states so the action change is an output.
+
+    :param measurement: ``(C, R)``: what the controller measures and the noise covariance, when
+        not the plant's encoders ``(plant.C, plant.R)`` (e.g. the encoders and the monopulse
+        sensor, :func:`design_measurement`)
     """
     n, nc = plant.n, ctrl.Ac.shape[0]
-    Ap, Bp, Cp = plant.Ad, plant.Bd, plant.C
+    Ap, Bp = plant.Ad, plant.Bd
+    Cp, Rm = (plant.C, plant.R) if measurement is None else measurement
     N = n + nc + 2
     A = np.zeros((N, N))
     A[:n, :n] = Ap + Bp @ ctrl.Dc @ Cp
@@ -177,9 +184,9 @@ def closed_loop(plant: DesignModel, ctrl: LinearController) -> ClosedLoop:
     Bv = np.vstack([Bp @ ctrl.Dc, ctrl.Bc, ctrl.Dc])
     Wx = np.zeros((N, N))
     Wx[:n, :n] = plant.Qd
-    W = Wx + Bv @ plant.R @ Bv.T
+    W = Wx + Bv @ Rm @ Bv.T
     C_e = np.zeros((2, N))
-    C_e[:, :n] = -Cp
+    C_e[:, :n] = -plant.C
     C_r = np.zeros((2, N))
     C_r[:, :n] = ctrl.Dc @ Cp
     C_r[:, n:n + nc] = ctrl.Cc
@@ -189,7 +196,16 @@ def closed_loop(plant: DesignModel, ctrl: LinearController) -> ClosedLoop:
     if plant.Cp is not None:
         C_p = np.zeros((2, N))
         C_p[:, :n] = -plant.Cp
-    return ClosedLoop(A, W, C_e, C_r, ctrl.Dc, C_rprev, plant.R, C_p)
+    return ClosedLoop(A, W, C_e, C_r, ctrl.Dc, C_rprev, Rm, C_p)
+
+
+def design_measurement(design: LQGDesign) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(C, R)`` of a design's measurement on its model's state (the estimator's without the
+    disturbance columns) for :func:`closed_loop`; None for the encoders alone.
+    """
+    if design.Ce is None or design.Ce.shape[0] == 2:
+        return None
+    return design.Ce[:, :design.dm.n], design.Rm
 
 
 def stationary_performance(cl: ClosedLoop, weights: Weights) -> dict[str, Any]:

@@ -49,20 +49,24 @@ import numpy as np
 
 #: length of the ``DSS14-v0`` observation
 OBS_SIZE = 12
+#: the lengths an observation may have: the encoders' 12, and 14 with the monopulse sensor
+#: (its two entries last, :data:`dss14_env.envs.monopulse.OBS_NAMES`)
+OBS_SIZES = (OBS_SIZE, OBS_SIZE + 2)
 
 
 def check_observation(observation: Any) -> np.ndarray:
-    """The observation of one episode as float64 ``(12,)``.
+    """The observation of one episode as float64 ``(12,)`` (``(14,)`` with the monopulse sensor).
 
-    :raises ValueError: naming the observation if it is not 12 finite numbers
+    :raises ValueError: naming the observation if it is not 12 (or 14) finite numbers
     """
     try:
         o = np.asarray(observation, dtype=np.float64)
     except (TypeError, ValueError) as exc:
         raise ValueError(f"observation must be {OBS_SIZE} numbers, got {type(observation).__name__}: "
                          f"{exc}") from None
-    if o.shape != (OBS_SIZE,):
-        raise ValueError(f"observation must have shape ({OBS_SIZE},), got {o.shape}")
+    if o.ndim != 1 or o.shape[0] not in OBS_SIZES:
+        raise ValueError(f"observation must have shape ({OBS_SIZE},) (or ({OBS_SIZES[1]},) with the "
+                         f"monopulse sensor), got {o.shape}")
     if not np.all(np.isfinite(o)):
         raise ValueError(f"observation must be finite, got NaN or inf at entries "
                          f"{np.flatnonzero(~np.isfinite(o)).tolist()}")
@@ -70,19 +74,19 @@ def check_observation(observation: Any) -> np.ndarray:
 
 
 def check_observations(observations: Any, n: int) -> np.ndarray:
-    """A batch of observations as float64 ``(n, 12)``.
+    """A batch of observations as float64 ``(n, 12)`` (``(n, 14)`` with the monopulse sensor).
 
-    :raises ValueError: naming the observations if the shape is not ``(n, 12)`` or an entry is
-        not finite
+    :raises ValueError: naming the observations if the shape is not ``(n, 12)`` (or ``(n, 14)``)
+        or an entry is not finite
     """
     try:
         o = np.asarray(observations, dtype=np.float64)
     except (TypeError, ValueError) as exc:
         raise ValueError(f"observations must be an ({n}, {OBS_SIZE}) array, got "
                          f"{type(observations).__name__}: {exc}") from None
-    if o.shape != (n, OBS_SIZE):
-        raise ValueError(f"observations must have shape ({n}, {OBS_SIZE}) (the batch started by "
-                         f"reset_batch), got {o.shape}")
+    if o.ndim != 2 or o.shape[0] != n or o.shape[1] not in OBS_SIZES:
+        raise ValueError(f"observations must have shape ({n}, {OBS_SIZE}) (or ({n}, {OBS_SIZES[1]}) with the "
+                         f"monopulse sensor; the batch started by reset_batch), got {o.shape}")
     bad = ~np.isfinite(o)
     if bad.any():
         raise ValueError(f"observations must be finite, got NaN or inf in rows "

@@ -145,6 +145,22 @@ class PointingConfig:
 
 
 @dataclass(frozen=True)
+class MonopulseConfig:
+    """Section ``monopulse``: the controllers that use the monopulse sensor
+    (:mod:`dss14_env.baselines.monopulse`).
+
+    ``outer_gain``: the DSN arrangement's outer loop (``pi_monopulse``), an integrator on the
+    measured pointing error around the report's PI; ``action_change_weight`` and
+    ``encoder_error_weight``: the fused LQG's (``lqg_monopulse``) in place of the ``pointing``
+    section's, everything else as ``pointing`` and ``lqg``.
+    """
+
+    outer_gain: float = spec("1/s", lo=0.0, lo_open=True)
+    action_change_weight: float = spec("1", lo=0.0, lo_open=True)
+    encoder_error_weight: float = spec("1", lo=0.0)
+
+
+@dataclass(frozen=True)
 class ControllersConfig:
     """The whole ``configs/controllers.yaml`` in SI plus its parameter registry."""
 
@@ -154,6 +170,7 @@ class ControllersConfig:
     pointing: PointingConfig
     params: dict
     path: str
+    monopulse: MonopulseConfig | None = None
 
 
 def load_controllers_config(path: str | Path | None = None) -> ControllersConfig:
@@ -166,14 +183,16 @@ def load_controllers_config(path: str | Path | None = None) -> ControllersConfig
     data, source = read_config("controllers" if path is None else path)
     registry: dict[str, Param] = {}
     kw = dict(documented=True, registry=registry, defaults=False)
-    sections = {"design": DesignConfig, "lqg": LQGConfig, "mpc": MPCConfig, "pointing": PointingConfig}
+    sections = {"design": DesignConfig, "lqg": LQGConfig, "mpc": MPCConfig, "pointing": PointingConfig,
+                "monopulse": MonopulseConfig}
     extra = set(data) - set(sections)
     if extra:
         raise ConfigError(f"{source}: unknown section(s) {sorted(extra)}; known: {sorted(sections)}")
+    optional = {"monopulse"}  # a file without it has no monopulse controllers' settings
     blocks = {name: load_section(cls, data.get(name), source, name, **kw)
-              for name, cls in sections.items()}
+              for name, cls in sections.items() if name not in optional or name in data}
     return ControllersConfig(blocks["design"], blocks["lqg"], blocks["mpc"], blocks["pointing"], registry,
-                             source)
+                             source, blocks.get("monopulse"))
 
 
 @lru_cache(maxsize=1)

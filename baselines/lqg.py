@@ -72,6 +72,11 @@ class LQGDesign:
     :param P_kf: Kalman Riccati solution (a-priori error covariance of ``[x; d]``)
     :param n_d: number of input-disturbance states in the estimator (0 or 2)
     :param residuals: relative DARE residuals ``{"lqr": .., "kalman": ..}``
+    :param Ce: the estimator's measurement matrix on ``[x; d]``: the encoders' (2 rows), then
+        with the monopulse sensor the pointing's ``[Cp, F]`` (el, xel; 4 rows in all)
+    :param integral_output: what the integrator sums: the encoder servo error (``"encoder"``)
+        or the measured pointing error (``"pointing"``, the monopulse's)
+    :param Rm: the measurement noise covariance of ``Ce``'s rows, rad^2
     """
 
     dm: DesignModel
@@ -89,6 +94,9 @@ class LQGDesign:
     weights: Weights
     residuals: dict = field(default_factory=dict)
     n_d: int = 0
+    Ce: np.ndarray | None = None
+    integral_output: str = "encoder"
+    Rm: np.ndarray | None = None
 
     @property
     def n_z(self) -> int:
@@ -102,11 +110,14 @@ class LQGDesign:
 
 
 def augmented_lqr_problem(dm: DesignModel, weights: Weights, w_e: float, w_a: float,
-                          w_i: float | None, w_enc: float = 0.0) -> tuple[np.ndarray, ...]:
+                          w_i: float | None, w_enc: float = 0.0, integral_output: str = "encoder"
+                          ) -> tuple[np.ndarray, ...]:
     """Matrices ``(Az, Bz, Qz, Rz, Sz)`` of the LQR on ``z = [x; xi; r_prev]`` (see the module
     docstring); ``w_i=None`` leaves the integrator out (the yardstick).  The error term scores
     ``dm.Cz`` (the encoder or the pointing error); ``w_enc`` adds the encoder servo error
     with that weight (for a pointing design that should keep the encoders near the command).
+    ``integral_output="pointing"`` integrates the pointing error (``dm.Cp``, el and xel)
+    instead of the encoder servo error.
     """
     n, dt = dm.n, dm.dt
     ni = 0 if w_i is None else 2
@@ -116,7 +127,8 @@ def augmented_lqr_problem(dm: DesignModel, weights: Weights, w_e: float, w_a: fl
     Az[:n, :n] = dm.Ad
     Bz[:n] = dm.Bd
     if ni:
-        Az[n:n + 2, :n] = -dt * dm.C  # xi += dt * e, e = -theta in deviation coordinates
+        # xi += dt * e, e = -theta (or -pointing) in deviation coordinates
+        Az[n:n + 2, :n] = -dt * (dm.Cp if integral_output == "pointing" else dm.C)
         Az[n:n + 2, n:n + 2] = np.eye(2)
     Bz[n + ni:] = np.eye(2)
     qe = w_e / weights.error_scale ** 2
@@ -136,7 +148,8 @@ def augmented_lqr_problem(dm: DesignModel, weights: Weights, w_e: float, w_a: fl
 @single_threaded
 def design_lqg(dm: DesignModel, weights: Weights, w_e: float = 1.0, w_a: float = 1.0,
                w_i: float | None = 1e-3, input_noise: float = 0.0, disturbance_drift: float | None = 0.0,
-               rate_limit: float | None = None, w_enc: float = 0.0) -> LQGDesign:
+               rate_limit: float | None = None, w_enc: float = 0.0, pointing_noise: float | None = None
+               ) -> LQGDesign:
     """LQR (with optional integral action) + steady-state Kalman filter on ``dm``.
 
     :param dm: design model (:func:`dss14_env.baselines.design.build_design_model`)
@@ -153,8 +166,14 @@ def design_lqg(dm: DesignModel, weights: Weights, w_e: float = 1.0, w_a: float =
     :param rate_limit: rad/s, needed when ``input_noise > 0`` or ``disturbance_drift > 0``
     :param w_enc: extra weight on the normalised encoder servo error when ``dm`` scores the
         pointing (:func:`augmented_lqr_problem`)
+    :param pointing_noise: None: the encoders only; otherwise the Kalman filter also measures
+        the dish's pointing ``Cp x + F d`` (the monopulse sensor; ``F`` the static deflection
+        of ``d``, :func:`dss14_env.baselines.design.static_deflection_map`) with white noise of
+        this standard deviation per step (rad), and the integrator sums the measured pointing
+        error (needs a model with the pointing outputs)
     """
-    Az, Bz, Qz, Rz, Sz = augmented_lqr_problem(dm, weights, w_e, w_a, w_i, w_enc)
+    integral_output = "encoder" if pointing_noise is None else "pointing"
+    Az, Bz, Qz, Rz, Sz = augmented_lqr_problem(dm, weights, w_e, w_a, w_i, w_enc, integral_output)
     # Scale angles (theta, xi) by the error scale and the commands by the action scale so the
     # Riccati solvers see O(1) numbers (an exact similarity, undone below).
     nz = Az.shape[0]
@@ -181,7 +200,10 @@ def design_lqg(dm: DesignModel, weights: Weights, w_e: float = 1.0, w_a: float =
     Ae = np.eye(ne)
     Ae[:n, :n] = dm.Ad
     Ae[:n, n:] = dm.Bd if nd else np.zeros((n, 0))
-    Ce = dm.estimator_output(nd)
+    Ce, Rm = dm.estimator_output(nd), dm.R
+    if pointing_noise is not None:
+        Ce = np.vstack([Ce, np.hstack([dm.Cp, static_deflection_map()[:, :nd]])])
+        Rm = linalg.block_diag(dm.R, pointing_noise ** 2 * np.eye(2))
     Qn = np.zeros((ne, ne))
     Qn[:n, :n] = dm.Qd
     if input_noise > 0:
@@ -194,13 +216,14 @@ def design_lqg(dm: DesignModel, weights: Weights, w_e: float = 1.0, w_a: float =
     Ax = Ae * sx[None, :] / sx[:, None]
     Cx = Ce * sx[None, :] / weights.error_scale
     Qx = Qn / np.outer(sx, sx)
-    Rx = dm.R / weights.error_scale ** 2
+    Rx = Rm / weights.error_scale ** 2
     Pxs = linalg.solve_discrete_are(Ax.T, Cx.T, Qx, Rx)
     Px = Pxs * np.outer(sx, sx)
-    L = Px @ Ce.T @ np.linalg.inv(Ce @ Px @ Ce.T + dm.R)
+    L = Px @ Ce.T @ np.linalg.inv(Ce @ Px @ Ce.T + Rm)
     res = {"lqr": dare_residual(As, Bs, Qs, Rs, Ps, Ss),
            "kalman": dare_residual(Ax.T, Cx.T, Qx, Rx, Pxs)}
-    return LQGDesign(dm, K, L, P, Px, Az, Bz, Qz, Rz, Sz, Qn, w_i is not None, weights, res, nd)
+    return LQGDesign(dm, K, L, P, Px, Az, Bz, Qz, Rz, Sz, Qn, w_i is not None, weights, res, nd, Ce,
+                     integral_output, Rm)
 
 
 # ------------------------------------------------------------------------- analysis
@@ -232,6 +255,7 @@ class DesignMaps:
     Hx: np.ndarray | None = None
     Hd: np.ndarray | None = None
     Dm: np.ndarray | None = None
+    Dy: np.ndarray | None = None
 
     def reference_shift(self, x_ref: np.ndarray, dist: np.ndarray) -> np.ndarray | None:
         """The encoder-angle shift ``(k, 2)`` (rad) of the rows' reference states ``x_ref`` under
@@ -264,7 +288,9 @@ class DesignMaps:
         if nd:
             Ae[:n, n:] = dm.Bd
         Be = np.vstack([dm.Bd, np.zeros((nd, 2))])
-        Ce = dm.estimator_output(nd)
+        Ce = dm.estimator_output(nd) if design.Ce is None else design.Ce
+        Dm = dm.disturbance_measurement()
+        Dy = Dm if Ce.shape[0] == 2 else np.vstack([Dm, static_deflection_map()])
         Xc = np.zeros((n, 2))
         Xc[:2] = np.eye(2)
         Xv, Rv = np.zeros((n, 2)), np.zeros((2, 2))
@@ -281,8 +307,7 @@ class DesignMaps:
             Sinv_T = np.linalg.inv(rigid_pointing(dm.xel_scale)).T
             Hx = -dm.deformation_map().T @ Sinv_T
             Hd = -static_deflection_map().T @ Sinv_T
-        return cls(design, Ae, Be, Ce, Xc, Xv, Rv, design.split_gain()[0], reference, Hx, Hd,
-                   dm.disturbance_measurement())
+        return cls(design, Ae, Be, Ce, Xc, Xv, Rv, design.split_gain()[0], reference, Hx, Hd, Dm, Dy)
 
     def measured_reference(self, x_ref: np.ndarray, dist: np.ndarray) -> np.ndarray:
         """What the encoders read ``(k, 2)`` at the rows' reference states ``x_ref`` under the
@@ -532,7 +557,7 @@ class EstimatorController(Controller):
             # d enters through Ae when estimated, as a known input otherwise
             u = r_prev[est] if D.n_d else r_prev[est] + self._d_fixed[idx][est]
             prior = xe[est] @ M.Ae.T + u @ M.Be.T
-            y_est = y[est] if D.n_d else y[est] - self._d_fixed[idx][est] @ M.Dm.T
+            y_est = y[est] if D.n_d else y[est] - self._d_fixed[idx][est] @ M.Dy.T
             xe[est] = prior + (y_est - prior @ M.Ce.T) @ D.L.T
         dist = xe[:, n:] if D.n_d else self._d_fixed[idx]
         beta = np.zeros(len(idx))
@@ -550,7 +575,7 @@ class EstimatorController(Controller):
             z, r_ss = self._deviation(D, xe, x_ref, r_ff, dist, xi, r_prev)
             beta = self._condition(M, z, r_ss, r_prev, xe, x_ref)
             z, r_ss = self._deviation(D, xe, x_ref, r_ff, dist, xi, r_prev)
-            c_int = M.measured_reference(x_ref, dist)
+            c_int = self._integral_target(M, x_ref, dist, shift)
             if shift is not None:
                 x_ref[:, :2] -= shift  # the reference model runs on the command, unshifted
             self._xr[idx, :n], self._rr[idx] = x_ref, r_ff
@@ -560,18 +585,39 @@ class EstimatorController(Controller):
             if shift is not None:
                 x_ref[:, :2] += shift
             z, r_ss = self._deviation(D, xe, x_ref, cd @ M.Rv.T, dist, xi, r_prev)
-            c_int = M.measured_reference(x_ref, dist)
+            c_int = self._integral_target(M, x_ref, dist, shift)
         r = self.law_rows(D, idx, z, r_ss, r_prev)
         if D.integral:
-            self._xi[idx] = xi + self.interface.dt * np.clip(c_int - y, -self.integral_clip,
+            y_int = y[:, 2:4] if D.integral_output == "pointing" else y[:, :2]
+            self._xi[idx] = xi + self.interface.dt * np.clip(c_int - y_int, -self.integral_clip,
                                                              self.integral_clip)
         self._xe[idx, :ne] = xe
         return r, beta
 
+    @staticmethod
+    def _integral_target(M: DesignMaps, x_ref: np.ndarray, dist: np.ndarray, shift: np.ndarray | None
+                         ) -> np.ndarray:
+        """What the integrator holds the measurement to, for the rows' (shifted) reference
+        states: the encoders' reading of it (:meth:`DesignMaps.measured_reference`), or for a
+        design that integrates the pointing, the pointing of the unshifted reference angles.
+        """
+        if M.design.integral_output != "pointing":
+            return M.measured_reference(x_ref, dist)
+        theta = x_ref[:, :2] if shift is None else x_ref[:, :2] - shift
+        return theta @ rigid_pointing(M.design.dm.xel_scale).T
+
+    def measurement(self, obs: np.ndarray, y: np.ndarray, c: np.ndarray) -> np.ndarray:
+        """The Kalman filter's measurement of the rows ``(n, p)``: the encoder readings ``y``
+        (rad, relative to the start); a controller with more sensors appends theirs (``obs``
+        the checked observations, ``c`` the commands, rad).
+        """
+        return y
+
     def _step(self, obs: np.ndarray) -> np.ndarray:
-        """One period for all rows; ``obs`` checked, float64 ``(n, 12)``."""
+        """One period for all rows; ``obs`` checked, float64 ``(n, 12)`` (or ``(n, 14)``)."""
         t0 = time.perf_counter()
         y, c, cd, r_prev = self.reader.read(obs)
+        y = self.measurement(obs, y, c)
         fresh = self._fresh.copy()
         if fresh.any():
             self._start_rows(np.flatnonzero(fresh), c, cd, r_prev)
@@ -624,7 +670,8 @@ class EstimatorController(Controller):
 
 def lqg_design_from_config(interface: ControlInterface, cfg: LQGConfig | None = None,
                            order: Any = "config", wind: Any = None,
-                           pointing: PointingConfig | None = None) -> LQGDesign:
+                           pointing: PointingConfig | None = None,
+                           pointing_noise: float | None = None) -> LQGDesign:
     """The LQG design of ``configs/controllers.yaml`` for an environment interface.
 
     :param wind: ``None``: the direction-free design wind; ``(speed, direction)``: a coherent gust
@@ -632,6 +679,8 @@ def lqg_design_from_config(interface: ControlInterface, cfg: LQGConfig | None = 
         the pointing design -- the error term scores the dish's pointing error plus the
         section's encoder weight, the action-change multiplier and (with ``order="config"``)
         the reduced order are the section's, everything else is ``cfg``'s
+    :param pointing_noise: with a pointing design, the Kalman filter also measures the pointing
+        (the monopulse sensor) with this noise std per step, rad (:func:`design_lqg`)
     """
     cfg = cfg or default_controllers_config().lqg
     noise = math.hypot(interface.encoder_noise, cfg.measurement_noise)
@@ -647,7 +696,7 @@ def lqg_design_from_config(interface: ControlInterface, cfg: LQGConfig | None = 
     return design_lqg(dm, interface.weights, w_e=cfg.error_weight, w_a=w_a,
                       w_i=cfg.integral_weight, input_noise=cfg.input_noise,
                       disturbance_drift=cfg.disturbance_drift, rate_limit=interface.rate_limit,
-                      w_enc=w_enc)
+                      w_enc=w_enc, pointing_noise=pointing_noise)
 
 
 #: the inferred wind directions are rounded to this step for the design cache, rad
@@ -671,12 +720,16 @@ class LQGController(EstimatorController):
     :param config: LQG settings, default section ``lqg`` of ``configs/controllers.yaml``
     :param pointing: None (the encoder design) or the pointing design's settings (section
         ``pointing``; :func:`lqg_design_from_config`, :class:`PointingLQGController`)
+    :param pointing_noise: with ``pointing``, the Kalman filter also measures the pointing (the
+        monopulse sensor, :class:`dss14_env.baselines.monopulse.MonopulseLQGController`) with
+        this noise std per step, rad; None: the encoders only
     """
 
     def __init__(self, env: Any = None, name: str = "LQG", config: LQGConfig | None = None,
-                 pointing: PointingConfig | None = None) -> None:
+                 pointing: PointingConfig | None = None, *, pointing_noise: float | None = None) -> None:
         interface = as_interface(env)
         self.pointing = pointing
+        self.pointing_noise = pointing_noise
         self.config = cfg = config or default_controllers_config().lqg
         self._designs_by_wind: dict[Any, LQGDesign] = {}
         self.interface = interface
@@ -689,7 +742,8 @@ class LQGController(EstimatorController):
         """The design for a wind key (:meth:`wind_key`; cached)."""
         if wind not in self._designs_by_wind:
             self._designs_by_wind[wind] = lqg_design_from_config(self.interface, self.config, wind=wind,
-                                                                 pointing=self.pointing)
+                                                                 pointing=self.pointing,
+                                                                 pointing_noise=self.pointing_noise)
         return self._designs_by_wind[wind]
 
     def wind_key(self, r0: np.ndarray, c_rate0: np.ndarray) -> tuple[float, float] | None:

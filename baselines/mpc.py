@@ -273,13 +273,15 @@ class MPCController(LQGController):
     :param pointing: None (the encoder design) or the pointing design's settings (section
         ``pointing``: :class:`PointingMPCController`); its ``mpc_action_change_weight`` is the
         MPC's action-change multiplier
+    :param pointing_noise: with ``pointing``, the estimator also measures the pointing (the
+        monopulse sensor, :class:`dss14_env.baselines.monopulse.MonopulseMPCController`)
     """
 
     batchable = False
 
     def __init__(self, env: Any = None, name: str = "MPC", config: MPCConfig | None = None,
                  lqg_config: LQGConfig | None = None, fast: bool = True,
-                 pointing: PointingConfig | None = None) -> None:
+                 pointing: PointingConfig | None = None, *, pointing_noise: float | None = None) -> None:
         cc = default_controllers_config()
         self.mpc_config = mcfg = config or cc.mpc
         lcfg = lqg_config or cc.lqg
@@ -289,7 +291,7 @@ class MPCController(LQGController):
             pointing = dataclasses.replace(pointing, action_change_weight=pointing.mpc_action_change_weight)
         self.fast = bool(fast)
         self._mpcs: dict[int, CondensedMPC] = {}
-        super().__init__(env, name, lcfg, pointing)
+        super().__init__(env, name, lcfg, pointing, pointing_noise=pointing_noise)
         ci = self.interface
         # 0.1 % margin: the observed previous command is float32, the limiter checks in float64
         self.settings = MPCSettings(int(mcfg.horizon), ci.rate_limit * (1 - 1e-3),

@@ -55,7 +55,7 @@ import numpy as np
 from dss14_env.baselines.base import Controller
 from dss14_env.core.results import POINTING_AXES, EpisodeFigures, ErrorStats
 from dss14_env.core.units import AXES
-from dss14_env.envs.core import OBS, OBS_SIZE
+from dss14_env.envs.core import OBS
 from dss14_env.envs.scenarios import axes_mask
 
 
@@ -262,7 +262,7 @@ def run_rows(driver: Any, env: Any, seeds: Sequence[int], steps: int, warmup_s: 
             break
         tc[k] = (time.perf_counter() - t0) / n
         obs, rew, term, _, info = env.step(a)
-        o = obs.reshape(n, OBS_SIZE)
+        o = obs.reshape(n, -1)  # 12 entries, 14 with the monopulse sensor
         E[k, :, 0], E[k, :, 1] = info["servo_error_az_mdeg"], info["servo_error_el_mdeg"]
         P[k, :, 0], P[k, :, 1] = info["pointing_error_el_mdeg"], info["pointing_error_xel_mdeg"]
         Cm[k] = o[:, OBS.command]

@@ -59,6 +59,7 @@ import numpy as np
 
 from dss14_env.baselines.analysis import (
     closed_loop,
+    design_measurement,
     lqg_as_linear,
     pi_as_linear,
     riccati_cost,
@@ -96,17 +97,26 @@ def _check_error(error: str) -> str:
 
 def yardstick_design(spec: ControlInterface, wind_speed: float, direction: str | float,
                      runnable: bool = False, error: str = "encoder", action_change: float = 1.0,
-                     plants: Any = None) -> LQGDesign:
+                     pointing_noise: float | None = None, plants: Any = None) -> LQGDesign:
     """See :func:`_yardstick_design` (cached)."""
     direction = direction if isinstance(direction, str) else float(direction)
     return _yardstick_design(spec, float(wind_speed), direction, bool(runnable), _check_error(error),
-                             float(action_change), plants)
+                             float(action_change), _check_noise(pointing_noise), plants)
+
+
+def _check_noise(pointing_noise: float | None) -> float | None:
+    if pointing_noise is None:
+        return None
+    if not (math.isfinite(pointing_noise) and pointing_noise > 0):
+        raise ValueError(f"pointing_noise must be None or a positive std (rad), got {pointing_noise!r}")
+    return float(pointing_noise)
 
 
 @lru_cache(maxsize=32)
 def _yardstick_design(spec: ControlInterface, wind_speed: float, direction: str | float,
                       runnable: bool = False, error: str = "encoder",
-                      action_change: float = 1.0, plants: Any = None) -> LQGDesign:
+                      action_change: float = 1.0, pointing_noise: float | None = None,
+                      plants: Any = None) -> LQGDesign:
     """The full-order H2-optimal design for one scenario wind.
 
     :param spec: environment interface (period, scales, weight, encoder)
@@ -116,6 +126,9 @@ def _yardstick_design(spec: ControlInterface, wind_speed: float, direction: str 
     :param error: ``"encoder"`` (``J_enc``) or ``"pointing"`` (``J_point``)
     :param action_change: multiplier on the environment's action-change weight (1: the
         benchmark's cost; :data:`ERROR_ONLY_WEIGHT`: the error-only limit)
+    :param pointing_noise: None: the drive encoders alone; otherwise the yardstick also
+        measures the dish's pointing (the monopulse sensor) with white noise of this std per
+        step, rad (:func:`dss14_env.baselines.lqg.design_lqg`)
     :param plants: the model the yardstick is optimal for: a
         :class:`~dss14_env.envs.plant.PlantFactory` (its model and wind loads, e.g. a drive
         variant's), None for the shipped model
@@ -133,23 +146,25 @@ def _yardstick_design(spec: ControlInterface, wind_speed: float, direction: str 
     return design_lqg(dm, spec.weights, w_e=1.0, w_a=action_change, w_i=None,
                       input_noise=REGULARISING_INPUT_NOISE,
                       disturbance_drift=RUNNABLE_DRIFT if runnable else None,
-                      rate_limit=spec.rate_limit)
+                      rate_limit=spec.rate_limit, pointing_noise=pointing_noise)
 
 
 def expected_performance(spec: ControlInterface | Any, wind_speed: float, direction: str | float,
-                         error: str = "encoder", action_change: float = 1.0, plants: Any = None) -> dict:
-    """See :func:`_expected_performance` (cached per interface, wind, cost and model; a copy
-    is returned).
+                         error: str = "encoder", action_change: float = 1.0,
+                         pointing_noise: float | None = None, plants: Any = None) -> dict:
+    """See :func:`_expected_performance` (cached per interface, wind, cost, measurement and
+    model; a copy is returned).
     """
     spec = as_interface(spec)
     direction = direction if isinstance(direction, str) else float(direction)
     return copy.deepcopy(_expected_performance(spec, float(wind_speed), direction, _check_error(error),
-                                               float(action_change), plants))
+                                               float(action_change), _check_noise(pointing_noise), plants))
 
 
-@lru_cache(maxsize=64)
+@lru_cache(maxsize=256)
 def _expected_performance(spec: ControlInterface, wind_speed: float, direction: str | float,
-                          error: str = "encoder", action_change: float = 1.0, plants: Any = None) -> dict:
+                          error: str = "encoder", action_change: float = 1.0,
+                          pointing_noise: float | None = None, plants: Any = None) -> dict:
     """A yardstick's expected 3-sigma errors (mdeg), acceleration and per-step cost.
 
     :return: dict (JSON-ready): ``error`` (which cost), ``action_change`` (its multiplier),
@@ -158,15 +173,18 @@ def _expected_performance(spec: ControlInterface, wind_speed: float, direction: 
         [az, el] (3σ of the command's change per period over the period) against
         ``accel_limit_deg_s2``, ``cost`` (``J_enc`` per step), ``cost_pointing`` (``J_point``),
         ``cost_riccati`` (the design's own cost from the Riccati solutions), ``n_states`` of the
-        plant model and the Riccati residuals
+        plant model and the Riccati residuals; ``pointing_noise`` (rad, or None) the monopulse
+        measurement's (:func:`yardstick_design`)
     """
-    d = yardstick_design(spec, wind_speed, direction, error=error, action_change=action_change, plants=plants)
-    perf = stationary_performance(closed_loop(d.dm, lqg_as_linear(d)), spec.weights)
+    d = yardstick_design(spec, wind_speed, direction, error=error, action_change=action_change,
+                         pointing_noise=pointing_noise, plants=plants)
+    perf = stationary_performance(closed_loop(d.dm, lqg_as_linear(d), design_measurement(d)), spec.weights)
     acc = [3.0 * x / spec.dt * R2D for x in perf.pop("command_change_rms_rad_s")]
     perf.update({"error": error, "action_change": float(action_change),
                  "accel_three_sigma_deg_s2": acc, "accel_limit_deg_s2": spec.accel_limit * R2D,
                  "cost_riccati": riccati_cost(d), "n_states": d.dm.n, "n_augmented": d.n_z,
                  "residuals": d.residuals, "wind_speed_mps": float(wind_speed),
+                 "pointing_noise_rad": pointing_noise,
                  "direction": direction if isinstance(direction, str) else float(direction)})
     return perf
 
@@ -200,11 +218,12 @@ def error_only_limit(spec: ControlInterface | Any, wind_speed: float, direction:
     linear controller on the drive encoders reaches on the model, with the acceleration it needs
     (``accel_three_sigma_deg_s2`` against ``accel_limit_deg_s2``).
     """
-    return expected_performance(spec, wind_speed, direction, error, ERROR_ONLY_WEIGHT, plants)
+    return expected_performance(spec, wind_speed, direction, error, ERROR_ONLY_WEIGHT, plants=plants)
 
 
 def acceleration_matched(spec: ControlInterface | Any, wind_speed: float, direction: str | float,
-                         error: str = "encoder", iterations: int = 12, plants: Any = None) -> dict:
+                         error: str = "encoder", iterations: int = 12,
+                         pointing_noise: float | None = None, plants: Any = None) -> dict:
     """The yardstick of ``error``'s kind whose action-change weight makes its largest 3σ
     acceleration (over the axes) equal the command limiter's acceleration limit: the 3σ
     reference of the family of H2-optimal laws that the limit leaves usable (bisection on
@@ -215,19 +234,24 @@ def acceleration_matched(spec: ControlInterface | Any, wind_speed: float, direct
     yardstick (``w = 1``) already stays within the limit, ``w`` is the bracket's low end or
     the weight where the acceleration reaches it.
 
+    :param pointing_noise: with the monopulse measurement (:func:`yardstick_design`)
+    :param plants: on a given model (:func:`yardstick_design`)
     :return: :func:`expected_performance` of the matched design (``action_change`` its ``w``)
     """
     spec = as_interface(spec)
     limit = spec.accel_limit * R2D
+
+    def perf(w: float) -> dict:
+        return expected_performance(spec, wind_speed, direction, error, w, pointing_noise, plants)
+
     lo, hi = (math.log(x) for x in MATCH_BRACKET)
-    accel = lambda lw: max(expected_performance(spec, wind_speed, direction, error,  # noqa: E731
-                                                math.exp(lw), plants)["accel_three_sigma_deg_s2"])
+    accel = lambda lw: max(perf(math.exp(lw))["accel_three_sigma_deg_s2"])  # noqa: E731
     if accel(lo) <= limit:
-        return expected_performance(spec, wind_speed, direction, error, MATCH_BRACKET[0], plants)
+        return perf(MATCH_BRACKET[0])
     for _ in range(int(iterations)):
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if accel(mid) > limit else (lo, mid)
-    return expected_performance(spec, wind_speed, direction, error, math.exp(hi), plants)
+    return perf(math.exp(hi))
 
 
 def references(spec: ControlInterface | Any, wind_speed: float, direction: str | float,
@@ -254,13 +278,18 @@ class YardstickController(EstimatorController):
     :param direction: initial design direction
     :param name: label, default ``"yardstick"``
     :param error: ``"encoder"`` (default, ``J_enc``) or ``"pointing"`` (``J_point``)
+    :param pointing_noise: None (the drive encoders) or the monopulse measurement's noise std
+        per step, rad (:func:`yardstick_design`; the controller's :meth:`measurement` must then
+        append the pointing, :class:`dss14_env.baselines.monopulse.MonopulseYardstickController`)
     """
 
     def __init__(self, env: Any = None, wind_speed: float = 50 * KMH,
-                 direction: str | float = "front", name: str = "yardstick", error: str = "encoder") -> None:
+                 direction: str | float = "front", name: str = "yardstick", error: str = "encoder",
+                 pointing_noise: float | None = None) -> None:
         interface = as_interface(env)
         self.interface = interface
         self.error = _check_error(error)
+        self.pointing_noise = _check_noise(pointing_noise)
         self._designs_by_wind: dict[tuple, LQGDesign] = {}
         self._scenarios: list[tuple[float, str | float]] | None = None
         super().__init__(self.design_for(wind_speed, direction), interface, name)
@@ -271,7 +300,8 @@ class YardstickController(EstimatorController):
         key = (round(speed, 9), direction if isinstance(direction, str) else round(float(direction), 9))
         if key not in self._designs_by_wind:
             self._designs_by_wind[key] = yardstick_design(self.interface, speed, direction, runnable=True,
-                                                          error=self.error)
+                                                          error=self.error,
+                                                          pointing_noise=self.pointing_noise)
         return self._designs_by_wind[key]
 
     def reset(self, seed: int | None = None) -> None:
@@ -318,5 +348,5 @@ class PointingYardstickController(YardstickController):
     """
 
     def __init__(self, env: Any = None, wind_speed: float = 50 * KMH, direction: str | float = "front",
-                 name: str = "yardstick_pointing") -> None:
-        super().__init__(env, wind_speed, direction, name, error="pointing")
+                 name: str = "yardstick_pointing", pointing_noise: float | None = None) -> None:
+        super().__init__(env, wind_speed, direction, name, error="pointing", pointing_noise=pointing_noise)

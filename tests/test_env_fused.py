@@ -202,6 +202,9 @@ CASES = {
     "pointing-reward-terminating": (dict(reward="pointing", max_error_deg=0.002, wind_speed_kmh="random"),
                                     0.05, 256),
     "no-wind-random-params": (dict(wind_speed_kmh=0.0, randomize_params=True), 0.02, 200),
+    "monopulse-late-held-terminating": (dict(sensors=["encoders", "monopulse"], encoder_noise_mdeg=0.1,
+                                             monopulse_latency_s=0.06, monopulse_update_s=0.04,
+                                             max_error_deg=0.002, wind_speed_kmh="random"), 0.05, 256),
 }
 
 

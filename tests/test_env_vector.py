@@ -27,6 +27,11 @@ CASES = {
     "hold-truncating-at-a-block-end": (dict(scenario="hold", wind_speed_kmh="random", start_el_deg="random",
                                             start_el_range_deg=[6.05, 9.0], encoder_noise_mdeg=0.1),
                                        -0.3, 256),
+    "monopulse-late-held-terminating": (dict(scenario="hold", wind_speed_kmh="random", start_el_deg="random",
+                                             start_el_range_deg=[6.05, 9.0], encoder_noise_mdeg=0.1,
+                                             sensors=["encoders", "monopulse"], monopulse_latency_s=0.1,
+                                             monopulse_update_s=0.04, monopulse_cnr_dbhz=20.0),
+                                        -0.3, 256),
 }
 
 
@@ -42,19 +47,20 @@ def test_vector_env_equals_single_envs_with_seeds_seed_plus_i(case: str) -> None
     # 700 steps cross two noise blocks of 256 steps, episodes end at max_steps or earlier
     kw, const, max_steps = CASES[case]
     N, T, seed = 3, 700, 10
+    info_keys = INFO + (("monopulse_el_mdeg", "monopulse_xel_mdeg") if "sensors" in kw else ())
     acts = _actions(const, T, N)
     venv = DSS14VectorEnv(num_envs=N, max_episode_steps=max_steps, **kw)
     obs, info = venv.reset(seed=seed)
-    v_obs, v_rew, v_term, v_trunc, v_info = [obs], [], [], [], [np.stack([info[k] for k in INFO], 1)]
+    v_obs, v_rew, v_term, v_trunc, v_info = [obs], [], [], [], [np.stack([info[k] for k in info_keys], 1)]
     for t in range(T):
         obs, r, te, tr, info = venv.step(acts[t])
         v_obs.append(obs), v_rew.append(r), v_term.append(te), v_trunc.append(tr)
-        v_info.append(np.stack([info[k] for k in INFO], 1))
+        v_info.append(np.stack([info[k] for k in info_keys], 1))
     v_obs, v_rew, v_term, v_trunc, v_info = map(np.array, (v_obs, v_rew, v_term, v_trunc, v_info))
     for i in range(N):
         env = DSS14Env(**kw)
         obs, info = env.reset(seed=seed + i)
-        s_obs, s_rew, s_term, s_trunc, s_info = [obs], [], [], [], [[info[k] for k in INFO]]
+        s_obs, s_rew, s_term, s_trunc, s_info = [obs], [], [], [], [[info[k] for k in info_keys]]
         done = False
         for t in range(T):
             if done:  # the vector env's autoreset step
@@ -65,7 +71,7 @@ def test_vector_env_equals_single_envs_with_seeds_seed_plus_i(case: str) -> None
                 tr = env.elapsed_steps >= max_steps
                 done = te or tr
             s_obs.append(obs), s_rew.append(r), s_term.append(te), s_trunc.append(tr)
-            s_info.append([info[k] for k in INFO])
+            s_info.append([info[k] for k in info_keys])
         assert np.array_equal(np.array(s_term), v_term[:, i])
         assert np.array_equal(np.array(s_trunc), v_trunc[:, i])
         np.testing.assert_allclose(np.array(s_obs), v_obs[:, i], rtol=1e-6, atol=1e-6)

@@ -52,6 +52,8 @@ class ControllerRow:
     :param config: its section of ``configs/controllers.yaml`` (None: none)
     :param bench: in a bench run without ``--controllers``
     :param campaign: in a campaign without ``--controllers``
+    :param sensors: the environment's sensors it needs (``sensors`` of ``configs/env.yaml``):
+        the runner gives it the scenario's environment with these
     """
 
     name: str
@@ -64,6 +66,7 @@ class ControllerRow:
     config: str | None = None
     bench: bool = True
     campaign: bool = False
+    sensors: tuple[str, ...] = ("encoders",)
 
     def make(self, env: Any) -> Any:
         """The controller for ``env`` (it reads the environment's interface, never its plant)."""
@@ -144,6 +147,24 @@ CONTROLLER_ROWS: tuple[ControllerRow, ...] = (
                   "the pointing yardstick: the H2-optimal full-order LQG for the dish's pointing "
                   "error from the drive encoders, told the episode's wind (an oracle designed "
                   "without the acceleration limit)", bench=False),
+    ControllerRow("pi_monopulse", "dss14_env.baselines.monopulse", "PIMonopulseController",
+                  "the DSN's arrangement: the report's PI (kp 1) on the encoders inside a monopulse "
+                  "loop that integrates the measured pointing error (`baselines/monopulse.py`; "
+                  "runs with the monopulse sensor)", config="monopulse", bench=False,
+                  sensors=("encoders", "monopulse")),
+    ControllerRow("lqg_monopulse", "dss14_env.baselines.monopulse", "MonopulseLQGController",
+                  "the pointing LQG with a Kalman filter fusing the encoders and the monopulse "
+                  "measurement, integrating the measured pointing error (`baselines/monopulse.py`; "
+                  "runs with the monopulse sensor)", config="monopulse", bench=False,
+                  sensors=("encoders", "monopulse")),
+    ControllerRow("mpc_monopulse", "dss14_env.baselines.monopulse", "MonopulseMPCController",
+                  "the pointing MPC on lqg_monopulse's fused estimator and integrator, OSQP "
+                  "(`baselines/monopulse.py`; runs with the monopulse sensor)", batchable=False,
+                  config="monopulse", bench=False, sensors=("encoders", "monopulse")),
+    ControllerRow("yardstick_monopulse", "dss14_env.baselines.monopulse", "MonopulseYardstickController",
+                  "the pointing yardstick measuring the drive encoders and the monopulse sensor, told "
+                  "the episode's wind (an oracle designed without the acceleration limit)", bench=False,
+                  sensors=("encoders", "monopulse")),
 )
 
 #: the row that ``--ppo-model`` replaces by the given policy

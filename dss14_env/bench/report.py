@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from dss14_env.bench.envelope import band_envelopes, envelope_table
 from dss14_env.bench.plan import LOADED_AXES, SWEEP_DIRECTIONS, SWEEP_WARMUP_S, BenchPlan
 from dss14_env.bench.statistics import flatten
 from dss14_env.core.outdir import atomic_write_text
@@ -201,6 +202,11 @@ def assemble_results(plan: BenchPlan, ran: Mapping[str, Any], wall_time_s: float
                     "meta": {k: v for k, v in var["meta"].items() if k != "statistics"},
                     "summary": var["summary"], "yardstick": var["yardstick"],
                     "episodes": episode_columns(var["episodes"])}
+    envelopes = None
+    if plan.sweep_directions:
+        points = [(same or n, d, v) for n, d, v, same in ran["sweep_points"]]
+        episodes = list(main["episodes"]) + (list(ran["sweep"]["episodes"]) if ran["sweep"] else [])
+        envelopes = band_envelopes(episodes, points, seed=plan.bootstrap_seed)
     return {
         "bench": {"command": plan.command, "config": plan.as_dict(), "notes": list(plan.notes),
                   "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
@@ -215,6 +221,7 @@ def assemble_results(plan: BenchPlan, ran: Mapping[str, Any], wall_time_s: float
         "yardstick": main["yardstick"],
         "wind_sweep": sweep,
         "drive_variants": variants,
+        "wind_envelope": envelopes,
         "episodes": episode_columns(main["episodes"]),
     }
 
@@ -720,6 +727,13 @@ def results_markdown(results: Mapping[str, Any]) -> str:
                   f"model; the pointing yardstick is each model's own)", ""]
         for t in vt:
             parts += [t, ""]
+    env = results.get("wind_envelope")
+    if env and env["controllers"]:
+        req = env["requirements_rms_mdeg"]
+        parts += [f"## Wind envelope: the highest mean wind (km/h) up to which the rms pointing error "
+                  f"stays within the Ka-band requirement ({req['Ka']:.2f} mdeg per axis, el and xel) and "
+                  f"the X-band one ({req['X']:.2f}), 95 % intervals (the sweep's speeds and directions; "
+                  f"dss14_env/bench/envelope.py)", "", envelope_table(env), ""]
     parts += ["## Errors in detail (mdeg)", "", error_table(results), "",
               "## Commands, limits, timing, health", "", command_table(results), ""]
     fl = fallback_lines(results)

@@ -129,6 +129,20 @@ class _ScenarioEnvs:
         return self.vectors[n]
 
 
+def _sensor_envs(by_sensors: dict[tuple, _ScenarioEnvs], kw: dict[str, Any], sensors: Any) -> _ScenarioEnvs:
+    """The scenario's environments with the sensors a controller row needs (the monopulse
+    sensor: :attr:`dss14_env.bench.catalog.ControllerRow.sensors`); the scenario's own for a
+    row that needs no more than the encoders, or for a controller that is not a row.
+    """
+    if sensors is None or "monopulse" not in sensors:
+        return next(iter(by_sensors.values()))
+    key = tuple(sensors)
+    if key not in by_sensors:
+        kw2 = {**kw, "sensors": list(key)}
+        by_sensors[key] = _ScenarioEnvs(kw2, _make_env(kw2), {})
+    return by_sensors[key]
+
+
 def _controller_episodes(ctrl: Controller, envs: _ScenarioEnvs, seeds: Sequence[int], n_seq: int,
                          steps: int, warmup_s: float, record: bool, batch: bool,
                          progress: Callable[[list[dict[str, Any]]], None]
@@ -180,6 +194,7 @@ def _run_scenario(ctrls: list[tuple[str, Callable[[Any], Controller]]], sname: s
     per controller, whether it ran batched and its wall time (s, building it included).
     """
     envs = _ScenarioEnvs(kw, _make_env(kw), {})
+    by_sensors = {tuple(kw.get("sensors", ("encoders",))): envs}
     ref = yardstick_reference(sc, envs.single)
     by_ctrl: dict[str, list[dict[str, Any]]] = {}
     cells: dict[str, Any] = {}
@@ -192,7 +207,8 @@ def _run_scenario(ctrls: list[tuple[str, Callable[[Any], Controller]]], sname: s
         def tick(eps: list[dict[str, Any]], c: str = cname) -> None:
             if progress is not None:
                 progress(_progress_line(c, sname, eps), len(eps))
-        eps, batched = _controller_episodes(factory(envs.single), envs, seeds, n_seq, n_steps,
+        cenvs = _sensor_envs(by_sensors, kw, getattr(factory, "sensors", None))
+        eps, batched = _controller_episodes(factory(cenvs.single), cenvs, seeds, n_seq, n_steps,
                                             sc.warmup_s, record, batch, tick)
         flags[cname] = (batched, time.perf_counter() - t0)
         for ep in eps:

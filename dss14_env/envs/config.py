@@ -54,6 +54,11 @@ REWARD_CHOICES = ("servo", "pointing")
 #: default) or the structure's pointing angles at the axes ([R]'s "encoders located close to
 #: the axes")
 ENCODER_CHOICES = ("drive", "axis")
+#: the sensors a controller sees (``sensors``): the encoders (always) and the monopulse feed
+#: (:mod:`dss14_env.envs.monopulse`)
+SENSOR_CHOICES = ("encoders", "monopulse")
+#: the monopulse sensor's bands (``monopulse_band``)
+BAND_CHOICES = ("S", "X", "Ka")
 
 #: Largest mean wind speed, km/h (assumed).  The DSN antennas stop tracking and are stowed in
 #: high wind, so the model is meant for operating winds: the report's Table 4 is at 50 km/h and
@@ -133,6 +138,14 @@ class EnvConfig:
     randomize_params: bool = spec(None, kind="bool")
     params: dict | None = spec(None, kind="mapping", optional=True, default=None)
     info_state: bool = spec(None, kind="bool", default=False)
+    sensors: tuple = spec(None, kind="list", items=Spec(None, kind="str", choices=SENSOR_CHOICES),
+                          default=("encoders",))
+    monopulse_band: str = spec(None, kind="str", choices=BAND_CHOICES, default="Ka")
+    monopulse_slope: float = spec("1", lo=0.5, hi=4.0, default=1.6)
+    monopulse_cnr_dbhz: float | None = spec("dB-Hz", lo=0.0, hi=90.0, optional=True, default=30.0)
+    monopulse_bandwidth_hz: float | None = spec("Hz", lo=1.0e-3, hi=1.0e3, optional=True, default=1.0)
+    monopulse_update_s: float | None = spec("s", lo=0.0, lo_open=True, hi=10.0, optional=True, default=None)
+    monopulse_latency_s: float = spec("s", lo=0.0, hi=10.0, default=0.0)
     render_window_s: float = spec("s", lo=0.0, lo_open=True, hi=600.0, default=20.0)
 
     def __hash__(self) -> int:  # params is a dict
@@ -185,6 +198,20 @@ class EnvConfig:
         if self.slew_rate_deg_s > self.rate_limit_deg_s:
             raise bad("slew_rate_deg_s", f"be <= rate_limit_deg_s {self.rate_limit_deg_s:g}",
                       self.slew_rate_deg_s)
+        if self.sensors[0] != "encoders" or len(set(self.sensors)) != len(self.sensors):
+            raise bad("sensors", "list 'encoders' first, each sensor once (e.g. [encoders, monopulse])",
+                      list(self.sensors))
+        n_u = whole_steps(self.monopulse_update_s, self.dt, 1)
+        if n_u is None:
+            raise bad("monopulse_update_s", f"be null or a whole multiple of dt = {self.dt:g} s",
+                      self.monopulse_update_s)
+        if whole_steps(self.monopulse_latency_s, self.dt, 0) is None:
+            raise bad("monopulse_latency_s", f"be a whole multiple (>= 0) of dt = {self.dt:g} s",
+                      self.monopulse_latency_s)
+        b = self.monopulse_bandwidth_hz
+        if b is not None and b > 0.5 / (n_u * self.dt):
+            raise bad("monopulse_bandwidth_hz", f"be <= the update rate's Nyquist frequency 1 / (2 x "
+                      f"{n_u * self.dt:g} s) (the update period monopulse_update_s, default dt)", b)
         if self.slew_accel_deg_s2 > self.accel_limit_deg_s2:
             raise bad("slew_accel_deg_s2", f"be <= accel_limit_deg_s2 {self.accel_limit_deg_s2:g}",
                       self.slew_accel_deg_s2)
@@ -231,6 +258,21 @@ class EnvConfig:
         """The keys and values (lists for pairs and grids), as in ``configs/env.yaml``."""
         return {f.name: (list(v) if isinstance(v := getattr(self, f.name), tuple) else v)
                 for f in dataclasses.fields(self)}
+
+
+def whole_steps(seconds: float | None, dt: float, least: int) -> int | None:
+    """A duration as a whole number (>= ``least``) of control periods ``dt``: None for a
+    duration that is not one (within 1e-9 relative); ``least`` for None.
+
+    >>> whole_steps(0.1, 0.02, 1), whole_steps(0.03, 0.02, 1), whole_steps(None, 0.02, 1)
+    (5, None, 1)
+    """
+    if seconds is None:
+        return least
+    n = round(seconds / dt)
+    if n < least or abs(n * dt - seconds) > 1e-9 * max(seconds, dt):
+        return None
+    return int(n)
 
 
 def _short(value: Any) -> str:

@@ -28,6 +28,15 @@ from dss14_env.envs.core import (
     step_1,
     step_constants,
 )
+from dss14_env.envs.monopulse import (
+    MonopulseConstants,
+    ScalarMonopulse,
+    observation_1,
+    observation_high,
+    sensor_reset,
+    sensor_step_1,
+    step_obs_info,
+)
 from dss14_env.envs.plant import (
     N_STEP_OUTPUTS,
     OUTPUTS,
@@ -203,6 +212,24 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
     are clamped to them, which can only act on a terminating step (or with encoder noise).
     At reset, entries 2, 3 are 0.
 
+    With the monopulse sensor (``sensors=["encoders", "monopulse"]``; the default is the
+    encoders only, and then nothing below changes) the observation is ``Box(float32, (14,))``:
+
+    | index  | observation                                              | unit |
+    |--------|----------------------------------------------------------|------|
+    | 12, 13 | monopulse measurement of the pointing error, el, xel     | ``error_scale_mdeg`` |
+
+    bounded and clamped to +-1e4.  The feed measures the beam's own pointing error (the true one
+    is the info's ``pointing_error_el_mdeg`` / ``pointing_error_xel_mdeg``) through the
+    receiver's tracking loop: latency ``monopulse_latency_s``, a first-order loop of noise
+    bandwidth ``monopulse_bandwidth_hz`` updated every ``monopulse_update_s`` (held between),
+    and its jitter ``theta_3dB / (k_m sqrt(2 (C/N_0) / B_L))`` per axis from the band's beamwidth
+    (``monopulse_band``), the monopulse slope (``monopulse_slope``) and the carrier's
+    ``monopulse_cnr_dbhz`` (default Ka, 1.6, 30 dB-Hz, 1 Hz: 0.115 mdeg rms).  Its noise is drawn
+    from ``np_random`` with the noise blocks; the info carries the measurement as
+    ``monopulse_el_mdeg`` and ``monopulse_xel_mdeg`` (every step and at reset).  The model, its
+    constants and their sources: :mod:`dss14_env.envs.monopulse` and docs/env.md, "Monopulse sensor".
+
     ## Reward
 
     ``r = -( (e_az^2 + e_el^2) / error_scale_mdeg^2 + action_change_weight * ||a[k] - a[k-1]||^2 )``
@@ -375,8 +402,13 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         self.render_mode = render_mode
         self.metadata = dict(self.metadata, render_fps=1.0 / c.dt)
         self.action_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
-        self.observation_space = spaces.Box(-OBS_HIGH, OBS_HIGH, dtype=np.float32)
+        high = observation_high(c.sensors)
+        self.observation_space = spaces.Box(-high, high, dtype=np.float32)
         self.constants = StepConstants.from_config(c)
+        #: the monopulse sensor's constants (None without it)
+        self.monopulse = MonopulseConstants.from_config(c) if "monopulse" in c.sensors else None
+        self._mp: ScalarMonopulse | None = None
+        self._mp_w: list | None = None
         self._renderer = Renderer(render_mode, c.dt, c.render_window_s) if render_mode else None
         self.episode: Episode | None = None
         self._st: ScalarState | None = None
@@ -403,7 +435,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
             self.plants.check_params(cfg.params, cfg.source_of("params"))
         super().reset(seed=seed)
         k = self.constants
-        ep, ne, normals = draw_reset(cfg, self.np_random, self.plants, k.encoder_sigma)
+        ep, ne, z0, normals = draw_reset(cfg, self.np_random, self.plants, k.encoder_sigma)
         p = ep.plant
         MT, Tm, Pm, C = p.episode_step(ep.kappa, ep.t_mean)
         x0 = Pm @ ep.x0
@@ -437,6 +469,12 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         self._st = ScalarState.of(st)
         info = {**episode_info(ep, self.plants.wind_loads), **{key: float(v[0]) for key, v in rinfo.items()}}
         rp0, rp1 = self._st.r_az, self._st.r_el
+        if self.monopulse is not None:
+            p0 = np.column_stack((rinfo["pointing_error_el_mdeg"], rinfo["pointing_error_xel_mdeg"]))
+            mp = sensor_reset(p0, z0[None], self.monopulse)
+            obs = step_obs_info(obs, info, mp, k.error_scale)
+            self._mp = ScalarMonopulse.of(mp)
+            info["monopulse_el_mdeg"], info["monopulse_xel_mdeg"] = self._mp.out_el, self._mp.out_xel
         obs = obs[0]
         if cfg.info_state:
             info["plant_state"] = ep.x0.copy()
@@ -457,8 +495,11 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         first block, the state the last step wrote starts the new one.
         """
         k = self.constants
+        mp = self.monopulse is not None
         if normals is None:
-            normals = draw_noise_block(self.np_random, self._rank, k.encoder_sigma > 0.0)
+            normals = draw_noise_block(self.np_random, self._rank, k.encoder_sigma > 0.0, monopulse=mp)
+        if mp:  # the sensor's columns: the last two
+            self._mp_w, normals = normals[:, -2:].tolist(), normals[:, :-2]
         B = self._block
         if k0:
             B[0, -(self._m + N_STEP_OUTPUTS):] = B[NOISE_BLOCK, -(self._m + N_STEP_OUTPUTS):]
@@ -518,9 +559,22 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
             self._next_block(self._k0 + j)
             st, j = st._replace(j=0), 0
         result, self._st = step_1(action, self._views[j], st, self._M, self._rows[j], self._sc)
+        if self.monopulse is not None:
+            result = self._sense(result, j)
         if self._extras:
             self._step_extras(result[4])
         return result
+
+    def _sense(self, result: tuple, j: int) -> tuple:
+        """The step's result with the monopulse sensor's observation entries and info keys,
+        from the true pointing errors and row ``j`` of the sensor's noise (the scalar twin).
+        """
+        obs, rew, term, trunc, info = result
+        w_el, w_xel = self._mp_w[j]
+        p_el, p_xel = info["pointing_error_el_mdeg"], info["pointing_error_xel_mdeg"]
+        st = self._mp = sensor_step_1(self._mp, p_el, p_xel, w_el, w_xel, self.monopulse)
+        info["monopulse_el_mdeg"], info["monopulse_xel_mdeg"] = st.out_el, st.out_xel
+        return observation_1(obs, st, self.constants.error_scale), rew, term, trunc, info
 
     def _step_extras(self, info: dict) -> None:
         """``info["plant_state"]`` and the render history, when asked for."""
@@ -541,7 +595,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
     #: the attributes of the dynamic state (:meth:`get_state`)
     _STATE = ("_block", "_st", "_rows", "_k0", "_parts", "_np_random", "_np_random_seed", "episode", "_M",
               "_sc", "_m", "_rank", "_state_map", "_C_gust", "_gust_az", "_gust_inv", "_info_state",
-              "_extras")
+              "_extras", "_mp", "_mp_w")
     #: the parts of it that never change in place (kept by reference in a snapshot)
     _SHARED = ("episode", "_M", "_sc", "_rows", "_parts", "_state_map", "_C_gust")
 

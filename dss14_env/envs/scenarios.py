@@ -12,7 +12,9 @@ generator, in the same order, so both give the same episodes for the same seeds:
    order), ``slew`` draws the two signs, ``hold`` and ``step`` draw nothing;
 6. the standard normals (one per filter state, 4) of the stationary gust-filter state.
 
-After that the environment draws the episode's first noise block (:func:`draw_noise_block`).
+After that the environment draws the encoder noise at t = 0 (with encoder noise), the
+monopulse sensor's start (with it) and the episode's first noise block
+(:func:`draw_reset`, :func:`draw_noise_block`).
 
 Command trajectories (per axis, relative to the start position, all zero at t = 0)::
 
@@ -255,16 +257,21 @@ def draw_episode(cfg: EnvConfig, rng: np.random.Generator, plants: PlantFactory)
 
 
 def draw_reset(cfg: EnvConfig, rng: np.random.Generator, plants: PlantFactory, encoder_sigma: float
-               ) -> tuple[Episode, np.ndarray, np.ndarray]:
+               ) -> tuple[Episode, np.ndarray, np.ndarray, np.ndarray]:
     """Every draw of a reset, in their order, for both environments: the episode
     (:func:`draw_episode`), the encoder noise of the reading at t = 0 (rad; zeros without
-    noise) and the standard normals of the first noise block (:func:`draw_noise_block`).
+    noise), with the monopulse sensor (``sensors``) the standard normals of its start
+    (:func:`dss14_env.envs.monopulse.sensor_reset`; zeros without it), and the standard normals
+    of the first noise block (:func:`draw_noise_block`).
 
     :param encoder_sigma: encoder noise std, rad
+    :return: ``(episode, encoder noise, monopulse start normals, noise block)``
     """
     ep = draw_episode(cfg, rng, plants)
     ne = rng.standard_normal(2) * encoder_sigma if encoder_sigma else np.zeros(2)
-    return ep, ne, draw_noise_block(rng, ep.plant.noise_rank, encoder_sigma > 0.0)
+    monopulse = "monopulse" in cfg.sensors
+    z0 = rng.standard_normal(2) if monopulse else np.zeros(2)
+    return ep, ne, z0, draw_noise_block(rng, ep.plant.noise_rank, encoder_sigma > 0.0, monopulse=monopulse)
 
 
 def start_elevation(cfg: EnvConfig, rng: np.random.Generator, plants: PlantFactory) -> float:
@@ -308,7 +315,8 @@ def block_rows(tr: Mapping[str, np.ndarray], k0: int, dt: float, rate_limit: flo
     :param k0: first step of the block
     :param dt: control period, s
     :param rate_limit: rate limit, rad/s (scales c_dot)
-    :param normals: :func:`draw_noise_block` output ``(NOISE_BLOCK, k [+ 2])``
+    :param normals: :func:`draw_noise_block` output ``(NOISE_BLOCK, k [+ 2])`` without the
+        monopulse columns (its last two columns are the encoder's, with encoder noise)
     :param encoder_sigma: encoder noise std, rad (0: the normals have no encoder columns)
     :param parts: :func:`command_parts` of ``tr`` (computed here if None)
     :return: ``(NOISE_BLOCK, 8)``, a transposed view (its rows are read as lists)
@@ -328,18 +336,24 @@ def block_rows(tr: Mapping[str, np.ndarray], k0: int, dt: float, rate_limit: flo
 
 
 def draw_noise_block(rng: np.random.Generator, noise_rank: int, encoder_noise: bool,
-                     out: np.ndarray | None = None) -> np.ndarray:
+                     out: np.ndarray | None = None, monopulse: bool = False) -> np.ndarray:
     """Standard normals for the next :data:`NOISE_BLOCK` steps of one episode.
 
     :param out: a C-contiguous float64 array of the block's shape to draw into (the same
         draws; default: a new array)
-    :return: ``(NOISE_BLOCK, noise_rank + 2)`` with encoder noise (az, el in the last two
-        columns), else ``(NOISE_BLOCK, noise_rank)``
+    :param monopulse: add the monopulse sensor's two columns (:mod:`dss14_env.envs.monopulse`)
+    :return: ``(NOISE_BLOCK, width)``: the gust's ``noise_rank`` columns, then with encoder
+        noise the encoders' (az, el), then with the monopulse sensor its (el, xel)
     :raises ValueError: ``out`` of another shape
     """
-    shape = (NOISE_BLOCK, noise_rank + (2 if encoder_noise else 0))
+    shape = (NOISE_BLOCK, noise_width(noise_rank, encoder_noise, monopulse))
     if out is None:
         return rng.standard_normal(shape)
     if out.shape != shape:
         raise ValueError(f"out must have the noise block's shape {shape}, got {out.shape}")
     return rng.standard_normal(out=out)  # without the size argument: a sixth faster, the same draws
+
+
+def noise_width(noise_rank: int, encoder_noise: bool, monopulse: bool) -> int:
+    """Standard normals per step (:func:`draw_noise_block`'s columns)."""
+    return noise_rank + (2 if encoder_noise else 0) + (2 if monopulse else 0)

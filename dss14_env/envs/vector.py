@@ -54,7 +54,6 @@ from dss14_env.envs import fused
 from dss14_env.envs.config import EnvConfig, load_env_config
 from dss14_env.envs.core import (
     INFO_KEYS,
-    OBS_HIGH,
     OBS_SIZE,
     StepConstants,
     StepState,
@@ -72,6 +71,15 @@ from dss14_env.envs.core import (
     terminated,
 )
 from dss14_env.envs.env import EnvState, check_snapshot, restore, snapshot
+from dss14_env.envs.monopulse import (
+    MonopulseConstants,
+    MonopulseState,
+    observation_high,
+    sensor_reset,
+    sensor_rows,
+    sensor_step,
+    step_obs_info,
+)
 from dss14_env.envs.plant import N_STEP_OUTPUTS, Plant, PlantFactory, resolve_factory
 from dss14_env.envs.scenarios import (
     NOISE_BLOCK,
@@ -81,6 +89,7 @@ from dss14_env.envs.scenarios import (
     draw_noise_block,
     draw_reset,
     episode_info,
+    noise_width,
 )
 
 _TRAJ_KEYS = ("v", "amp", "omega", "phase", "sin_phase", "step", "t_step", "slew_acc", "slew_t0",
@@ -160,9 +169,13 @@ class DSS14VectorEnv(VectorEnv):
         self.render_mode = None
         self.single_action_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
-        self.single_observation_space = spaces.Box(-OBS_HIGH, OBS_HIGH, dtype=np.float32)
+        high = observation_high(self.config.sensors)
+        self.single_observation_space = spaces.Box(-high, high, dtype=np.float32)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.constants = StepConstants.from_config(self.config)
+        #: the monopulse sensor's constants (None without it)
+        self.monopulse = (MonopulseConstants.from_config(self.config) if "monopulse" in self.config.sensors
+                          else None)
         self._rngs: list[np.random.Generator | None] = [None] * self.num_envs
         self._Z = None
         #: whether the step runs compiled (:mod:`dss14_env.envs.fused`) or as numpy pieces
@@ -229,6 +242,9 @@ class DSS14VectorEnv(VectorEnv):
                             np.zeros(N, np.int64))
         self._r0 = np.zeros((N, 2))  # the drawn start rate commands and t = 0 encoder noise,
         self._ne0 = np.zeros((N, 2))  # until _reset_rows makes the state of them
+        self._z0 = np.zeros((N, 2))  # and the monopulse sensor's start normals
+        #: the monopulse sensor's state (None without it)
+        self._mp: MonopulseState | None = None
         self._max_e = np.zeros(N)
         self._wind = np.zeros((N, 2))  # speed (m/s), direction (rad)
         self._pid = np.zeros(N, np.int64)
@@ -254,10 +270,11 @@ class DSS14VectorEnv(VectorEnv):
         k = self.constants
         inv_old = self._inv
         draws = [draw_reset(cfg, self._rngs[i], self.plants, k.encoder_sigma) for i in idx.tolist()]
-        episodes = [ep for ep, _, _ in draws]
+        episodes = [ep for ep, _, _, _ in draws]
         self._store_episodes(idx, episodes, inv_old)
-        self._put_blocks(idx, np.stack([normals for _, _, normals in draws], axis=1))
-        self._ne0[idx] = [ne for _, ne, _ in draws]
+        self._put_blocks(idx, np.stack([normals for _, _, _, normals in draws], axis=1))
+        self._ne0[idx] = [ne for _, ne, _, _ in draws]
+        self._z0[idx] = [z0 for _, _, z0, _ in draws]
         self._max_e[idx] = cfg.max_error_deg * DEG * R2MD
         self._k[idx] = 0
         self._s.j[idx] = 0
@@ -324,6 +341,12 @@ class DSS14VectorEnv(VectorEnv):
                                     self._wind[idx], self.plants.xel_scale, self.constants)
         for name in ("r_prev", "a_prev", "em_prev", "hits"):
             getattr(self._s, name)[idx] = getattr(st, name)
+        if self.monopulse is not None:
+            p0 = np.column_stack((info["pointing_error_el_mdeg"], info["pointing_error_xel_mdeg"]))
+            rows = sensor_reset(p0, self._z0[idx], self.monopulse)
+            all_rows = self._mp is None or idx.size == self.num_envs
+            self._mp = rows if all_rows else sensor_rows(self._mp, idx, rows)
+            obs = step_obs_info(obs, info, rows, self.constants.error_scale)
         return obs, info
 
     def _reset_obs(self, idx: np.ndarray) -> np.ndarray:
@@ -380,8 +403,10 @@ class DSS14VectorEnv(VectorEnv):
         return rows
 
     def _noise_width(self) -> int:
-        """Standard normals per step: the noise rank, plus 2 with encoder noise."""
-        return self._k_rank + (2 if self.constants.encoder_sigma else 0)
+        """Standard normals per step: the noise rank, plus 2 with encoder noise, plus 2 with the
+        monopulse sensor (:func:`dss14_env.envs.scenarios.noise_width`).
+        """
+        return noise_width(self._k_rank, self.constants.encoder_sigma > 0.0, self.monopulse is not None)
 
     def _draw_blocks(self, idx: np.ndarray) -> None:
         """The next noise blocks of the sub-environments ``idx``, each from its own generator
@@ -390,7 +415,7 @@ class DSS14VectorEnv(VectorEnv):
         blocks = self._stage[:idx.size]
         enc = self.constants.encoder_sigma > 0.0
         for b, i in zip(blocks, idx.tolist(), strict=True):
-            draw_noise_block(self._rngs[i], self._k_rank, enc, out=b)
+            draw_noise_block(self._rngs[i], self._k_rank, enc, out=b, monopulse=self.monopulse is not None)
         self._put_blocks(idx, blocks.transpose(1, 0, 2))
 
     def _put_blocks(self, idx: np.ndarray, blocks: np.ndarray) -> None:
@@ -460,7 +485,8 @@ class DSS14VectorEnv(VectorEnv):
         theta, point = self._advance(R, normals[:, :self._k_rank])
         self._k += 1
         # encoders, errors, episode end, reward, observation and info at t[k+1]
-        noise = normals[:, self._k_rank:] * kc.encoder_sigma if kc.encoder_sigma else None
+        k = self._k_rank
+        noise = normals[:, k:k + 2] * kc.encoder_sigma if kc.encoder_sigma else None
         rel = read_encoders(theta, self._start, noise, kc)
         em, e = servo_errors(c, rel), servo_errors(c, theta)
         term = terminated(e, theta, self._start, self._max_e, kc)
@@ -476,7 +502,17 @@ class DSS14VectorEnv(VectorEnv):
         s.hits[:, 1] += acc_hit
         self._s = s = StepState(R, a, em, s.hits, s.j)
         info = step_info(e, em, pe, self._wind, A, R, rate_hit, acc_hit, s.hits)
+        if self.monopulse is not None:
+            obs = self._sense(obs, info, normals)
         return self._autoreset(obs, rew, term, trunc, info, any_term)
+
+    def _sense(self, obs: np.ndarray, info: dict, normals: np.ndarray) -> np.ndarray:
+        """The step's observation with the monopulse sensor's entries (info: its keys added),
+        from the true pointing errors and the last two columns of this step's normals.
+        """
+        p = np.column_stack((info["pointing_error_el_mdeg"], info["pointing_error_xel_mdeg"]))
+        self._mp = sensor_step(self._mp, p, normals[:, -2:], self.monopulse)
+        return step_obs_info(obs, info, self._mp, self.constants.error_scale)
 
     def _refuse_non_finite(self, rew: np.ndarray) -> None:
         """Raise for the sub-environments whose reward is NaN or infinite."""
@@ -519,8 +555,10 @@ class DSS14VectorEnv(VectorEnv):
         info = {**dict(zip(fused.INFO_FLOAT_ROWS, info_f, strict=True)),
                 **dict(zip(fused.INFO_INT_ROWS, info_i, strict=True)),
                 "action_unclipped": A, "rate_limited": rate_hit, "accel_limited": acc_hit}
-        return (obs, rew, term, trunc, {key: info[key] for key in INFO_KEYS},
-                bool(flags & fused.ANY_TERMINATED))
+        info = {key: info[key] for key in INFO_KEYS}
+        if self.monopulse is not None:
+            obs = self._sense(obs, info, normals)
+        return obs, rew, term, trunc, info, bool(flags & fused.ANY_TERMINATED)
 
     def _autoreset(self, obs: np.ndarray, rew: np.ndarray, term: np.ndarray, trunc: np.ndarray, info: dict,
                    any_term: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
@@ -550,7 +588,8 @@ class DSS14VectorEnv(VectorEnv):
     # ------------------------------------------------------------------ copies and state
     #: the attributes of the dynamic state (:meth:`get_state`)
     _STATE = ("_Z", "_cur", "_t_mean_s", "_Y", "_kappa", "_kappa_s", "_start", "_traj", "_parts", "_k", "_s",
-              "_noise", "_g", "_jmax", "_r0", "_ne0", "_max_e", "_wind", "_pid", "_plants", "_groups",
+              "_noise", "_g", "_jmax", "_r0", "_ne0", "_z0", "_mp", "_max_e", "_wind", "_pid", "_plants",
+              "_groups",
               "_prev_done", "_any_noise", "_clamp_always", "_perm", "_inv", "_rngs", "_np_random",
               "_np_random_seed")
 
@@ -586,8 +625,8 @@ class DSS14VectorEnv(VectorEnv):
         s = data["_s"]
         shapes = {"_Z": (2, n + 4 + 2 * k, N), "_t_mean_s": (2, N), "_Y": (N, N_STEP_OUTPUTS),
                   "_noise": (NOISE_BLOCK, N, self._noise_width()), "_start": (N, 2), "_k": (N,),
-                  "_wind": (N, 2),
-                  "_max_e": (N,), "_r0": (N, 2), "_ne0": (N, 2), "_prev_done": (N,), "_pid": (N,),
+                  "_wind": (N, 2), "_max_e": (N,), "_r0": (N, 2), "_ne0": (N, 2), "_z0": (N, 2),
+                  "_prev_done": (N,), "_pid": (N,),
                   "_kappa": (N, 2), "_kappa_s": (2, N)}
         bad = [name for name, shape in shapes.items()
                if not isinstance(data[name], np.ndarray) or data[name].shape != shape]
