@@ -150,12 +150,12 @@ CONTROLLER_ROWS: tuple[ControllerRow, ...] = (
     ControllerRow("pi_monopulse", "dss14_env.baselines.monopulse", "PIMonopulseController",
                   "the DSN's arrangement: the report's PI (kp 1) on the encoders inside a monopulse "
                   "loop that integrates the measured pointing error (`baselines/monopulse.py`; "
-                  "runs with the monopulse sensor)", config="monopulse", bench=False,
+                  "runs with the monopulse sensor)", config="monopulse", bench=True,
                   sensors=("encoders", "monopulse")),
     ControllerRow("lqg_monopulse", "dss14_env.baselines.monopulse", "MonopulseLQGController",
                   "the pointing LQG with a Kalman filter fusing the encoders and the monopulse "
                   "measurement, integrating the measured pointing error (`baselines/monopulse.py`; "
-                  "runs with the monopulse sensor)", config="monopulse", bench=False,
+                  "runs with the monopulse sensor)", config="monopulse", bench=True,
                   sensors=("encoders", "monopulse")),
     ControllerRow("mpc_monopulse", "dss14_env.baselines.monopulse", "MonopulseMPCController",
                   "the pointing MPC on lqg_monopulse's fused estimator and integrator, OSQP "
