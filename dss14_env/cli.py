@@ -403,8 +403,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--scenarios", nargs="+", metavar="NAME", default=None,
                    help=catalog.choices_help(catalog.scenario_names(), catalog.scenario_names("bench")))
     p.add_argument("--wind-speeds", nargs="+", metavar="KMH", default=None,
-                   help="speeds of the error-vs-wind sweep, km/h (default: the environment's "
-                   "wind_speed_grid_kmh, configs/env.yaml)")
+                   help="speeds of the error-vs-wind sweep, km/h (default: 10, 20 and the "
+                   "environment's wind_speed_grid_kmh, configs/env.yaml)")
     p.add_argument("--no-sweep", action="store_true", help="skip the error-vs-wind sweep")
     p.add_argument("--variants", nargs="*", metavar="NAME", default=None,
                    help="drive variants whose hold scenarios also run "

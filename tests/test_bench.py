@@ -125,7 +125,7 @@ def test_default_and_quick_plans(monkeypatch) -> None:
     monkeypatch.setattr(catalog.ControllerRow, "policy_problem", lambda self: None)  # as if shipped
     plan = P.build_plan()
     assert plan.controllers == list(P.DEFAULT_CONTROLLERS) and plan.scenarios == list(P.DEFAULT_SCENARIOS)
-    assert plan.wind_speeds_kmh == [30, 40, 50, 60, 70] and plan.threads == 1 and not plan.overwrite
+    assert plan.wind_speeds_kmh == [10, 20, 30, 40, 50, 60, 70] and plan.threads == 1 and not plan.overwrite
     for s, b in P.DEFAULT_BUDGETS.items():
         r = plan.runs[s]
         assert r.steps == round(50 * b.seconds) and r.seeds == tuple(range(b.episodes))

@@ -281,13 +281,20 @@ def _seed_option(seeds: int | Sequence[str | int] | None) -> list[int] | None:
     return parse_seeds(seeds)
 
 
+#: light winds the sweep adds below the environment's grid: the Ka-band wind envelope
+#: (:mod:`dss14_env.bench.envelope`) needs a speed each controller still meets it at
+LIGHT_WIND_SPEEDS_KMH: tuple[float, ...] = (10.0, 20.0)
+
+
 def default_wind_speeds() -> tuple[float, ...]:
-    """The sweep's speeds without ``--wind-speeds``, km/h: the environment's
-    ``wind_speed_grid_kmh`` (``configs/env.yaml``, the grid ``DSS14-v0`` draws from).
+    """The sweep's speeds without ``--wind-speeds``, km/h: :data:`LIGHT_WIND_SPEEDS_KMH` and the
+    environment's ``wind_speed_grid_kmh`` (``configs/env.yaml``, the grid ``DSS14-v0`` draws
+    from).
     """
     from dss14_env.envs.config import load_env_config  # (the environment, loaded when used)
 
-    return tuple(load_env_config().wind_speed_grid_kmh)
+    grid = tuple(load_env_config().wind_speed_grid_kmh)
+    return tuple(sorted(set(LIGHT_WIND_SPEEDS_KMH + grid)))
 
 
 def parse_wind_speeds(values: Sequence[str | float] | None, error: type[ValueError] = BenchOptionError,
