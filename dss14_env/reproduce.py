@@ -878,9 +878,9 @@ def reproduce(out_dir: str | Path, model: DSS14Model | None = None, figures: boo
 
     :param model: a calibrated model, default the shipped one; a model other than
         :func:`dss14_env.model.default_model` gets its own wind-load calibration
-    :return: ``{"metrics", "results", "markdown", "figures", "failed"}``: the metrics rows, the
-        whole content of ``metrics.json``, the Markdown, the figure files and
-        :func:`failed_rows`
+    :return: ``{"metrics", "results", "markdown", "figures", "failed", "table"}``: the metrics
+        rows, the whole content of ``metrics.json``, the Markdown, the figure files,
+        :func:`failed_rows` and the README's labelled table (:func:`readme_table`)
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -897,9 +897,10 @@ def reproduce(out_dir: str | Path, model: DSS14Model | None = None, figures: boo
                "wind_loads": dict(wind_load_summary(loads),
                                   drive_sensitivity=wind_drive_sensitivity(m, loads)),
                "calibrated": m.derived(), "config": _config_label(m.cfg)}
-    atomic_write_text(out / "metrics.json", json.dumps(results, indent=2, default=float))
+    text = json.dumps(results, indent=2, default=float)
+    atomic_write_text(out / "metrics.json", text)
     md = results_markdown(results)
     atomic_write_text(out / "metrics.md", md)
     files = draw_figures(m, out) + draw_wind_figures(loads, records, WIND_SIM["dt"], out) if figures else []
     return {"metrics": metrics, "results": results, "markdown": md, "figures": files,
-            "failed": failed_rows(metrics)}
+            "failed": failed_rows(metrics), "table": readme_table(json.loads(text))}

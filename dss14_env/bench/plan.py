@@ -35,7 +35,7 @@ QUICK_BUDGETS: Mapping[str, Budget] = MappingProxyType({r.name: r.quick for r in
 #: a point of the error-vs-wind sweep (the MPC is left out: the 50 km/h points are the hold
 #: scenarios, where it runs)
 DEFAULT_SWEEP = Budget(60.0, 32, 0)
-#: ``--quick``: the CI smoke test (well under 30 s)
+#: ``--quick``: the CI smoke test
 QUICK_SWEEP = Budget(15.0, 8, 0)
 #: controllers of a run without ``--controllers`` (the catalog's bench rows)
 DEFAULT_CONTROLLERS: tuple[str, ...] = catalog.controller_names("bench")

@@ -16,6 +16,7 @@ from dss14_env.bench import runner
 from dss14_env.bench.catalog import SCENARIO_ROWS
 from dss14_env.bench.plan import SWEEP_DIRECTIONS, BenchPlan, ScenarioRun, sweep_name, sweep_scenario
 from dss14_env.bench.runner import Scenario
+from dss14_env.core.progress import Progress
 
 #: scenarios whose first seed's time histories the figures draw (the catalog's traced rows)
 TRACED = tuple(r.name for r in SCENARIO_ROWS if r.traced)
@@ -84,26 +85,22 @@ def run_plan(plan: BenchPlan, progress: bool = True) -> dict[str, Any]:
     step scenarios) and the wind sweep.
 
     :param plan: the plan (:func:`dss14_env.bench.plan.build_plan`)
-    :param progress: show a tqdm progress bar (stderr), one tick per episode
+    :param progress: show the episodes done on stderr (:class:`~dss14_env.core.progress.Progress`:
+        a bar on a terminal, lines otherwise)
     :return: ``{"main": runner result (episodes with ``trace``), "sweep": runner result of the
         sweep points that ran (or None), "sweep_points": [(name, direction, speed, same_as)],
         "wall_time_s": {"main", "sweep"}}``
     """
-    from tqdm.auto import tqdm
-
     ctrls = controller_entries(plan)
     points = sweep_points(plan)
     to_run = [(n, sc) for n, _, _, sc, same in points if same is None]
     total = _expected_episodes(plan, list(plan.runs.values()) + [plan.sweep] * len(to_run))
     t0 = time.perf_counter()
-    with tqdm(total=total, unit="ep", disable=not progress, dynamic_ncols=True,
-              desc="building the model") as bar:
+    with Progress(total, "bench", unit="episodes", enabled=progress) as bar:
         def tick(line: str, n: int) -> None:
             head, _, tail = line.partition(":")
-            bar.set_description_str(" ".join(head.split()), refresh=False)
-            bar.set_postfix_str(tail.strip(), refresh=False)
-            if bar.n + n > bar.total:
-                bar.total = bar.n + n
+            bar.set_description(" ".join(head.split()))
+            bar.set_note(tail.strip())
             bar.update(n)
 
         main = _merge([_run_one(plan, ctrls, s, plan.scenario(s), plan.runs[s], tick, s in TRACED)
@@ -111,7 +108,7 @@ def run_plan(plan: BenchPlan, progress: bool = True) -> dict[str, Any]:
         t1 = time.perf_counter()
         sweep = _merge([_run_one(plan, ctrls, n, sc, plan.sweep, tick, False) for n, sc in to_run]) \
             if to_run else None
-        bar.total = bar.n
+        bar.set_total(bar.n)
     t2 = time.perf_counter()
     return {"main": main, "sweep": sweep,
             "sweep_points": [(n, d, v, same) for n, d, v, _, same in points],
