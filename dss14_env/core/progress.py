@@ -26,8 +26,8 @@ from typing import Any, TextIO
 
 #: most seconds between two lines when stderr is not a terminal
 LINE_EVERY_S = 30.0
-#: a line whenever another this share of the total is done (not a terminal)
-LINE_EVERY_SHARE = 0.1
+#: a line whenever another 1/LINE_SHARES of the total is done (not a terminal)
+LINE_SHARES = 10
 
 
 def format_duration(seconds: float) -> str:
@@ -90,7 +90,7 @@ class Progress:
             self._bar = tqdm(total=total, initial=initial, desc=desc, unit=unit.rstrip("s") or unit,
                              file=self.stream, dynamic_ncols=True)
         else:
-            self._line("starting" if initial == 0 else f"continuing from {self._count()}")
+            self._line("starting" if initial == 0 else "continuing")
 
     # ---------------------------------------------------------------- what the caller calls
     def update(self, n: float = 1) -> None:
@@ -107,7 +107,8 @@ class Progress:
             self.n = float(n)
             return
         if self._bar is not None:
-            self._bar.update(n - self.n)
+            step = n - self.n
+            self._bar.update(int(step) if float(step).is_integer() else step)
             self.n = float(n)
             return
         self.n = float(n)
@@ -161,8 +162,8 @@ class Progress:
 
     # ---------------------------------------------------------------- lines
     def _share(self) -> int:
-        """Tenths (:data:`LINE_EVERY_SHARE`) of the total done."""
-        return int(self.n / self.total / LINE_EVERY_SHARE) if self.total > 0 else 0
+        """Tenths (1 / :data:`LINE_SHARES`) of the total done."""
+        return int(self.n * LINE_SHARES // self.total) if self.total > 0 else 0
 
     def _count(self) -> str:
         pct = f" ({100 * self.n / self.total:.0f} %)" if self.total > 0 else ""
@@ -180,4 +181,4 @@ class Progress:
         self._last_t, self._last_share = self.clock(), self._share()
 
 
-__all__ = ["LINE_EVERY_S", "LINE_EVERY_SHARE", "Progress", "eta_seconds", "format_duration", "is_terminal"]
+__all__ = ["LINE_EVERY_S", "LINE_SHARES", "Progress", "eta_seconds", "format_duration", "is_terminal"]
