@@ -196,14 +196,15 @@ def _continue_campaign(cfg: TrainConfig, out: str | Path, seeds: Sequence[int]) 
 
 
 def resumable_checkpoint(cfg: TrainConfig, run: Path) -> Path | None:
-    """The last checkpoint of an unfinished run of ``cfg`` (its ``config.yaml`` is ``cfg``), which
-    the run continues from; None: no such run or no checkpoint (it trains anew).
+    """The last checkpoint of an unfinished run of ``cfg`` (its ``config.yaml`` is ``cfg``) before
+    its last step, which the run continues from; None: no such run or no such checkpoint (it
+    trains anew).
     """
     try:
         saved = yaml.safe_load((run / "config.yaml").read_text())
     except (OSError, yaml.YAMLError):
         return None
-    return last_checkpoint(run) if saved == _as_yaml_data(cfg) else None
+    return last_checkpoint(run, before=cfg.total_timesteps) if saved == _as_yaml_data(cfg) else None
 
 
 def kept_work(cfg: TrainConfig, folder: str | Path, seeds: Sequence[int]) -> str:
@@ -269,6 +270,13 @@ def seed_items(cfg: TrainConfig, folder: Path, seeds: Sequence[int], finished: s
     return [{"config": cfg, "k": int(k), "folder": str(folder),
              "test_seeds": [int(s) for s in test_seeds], "test_steps": int(test_steps),
              "finished": k in finished, "progress": progress} for k in seeds]
+
+
+def say_plan(cfg: TrainConfig, folder: Path, runs: int, finished: int = 0) -> None:
+    """One line on stderr as a campaign starts: what it trains, how long a run, where."""
+    again = f" ({finished} finished earlier)" if finished else ""
+    print(f"{cfg.algo} on {cfg.env_id}: {counted(runs, 'run')}{again} of {cfg.total_timesteps} "
+          f"steps into {folder}", file=sys.stderr, flush=True)
 
 
 def run_seed_items(executor: Executor, items: Sequence[Mapping[str, Any]],
@@ -425,6 +433,7 @@ def train_seeds(config: TrainConfig | Mapping[str, Any] | str | Path, seeds: Seq
     with pinned_threads(1):  # a training environment that cannot be made: before any work
         check_env(cfg)
     folder, finished = open_campaign(cfg, out, seeds, overwrite, resume)
+    say_plan(cfg, folder, len(seeds), len(finished))
     with manifest_kept(folder):
         items = seed_items(cfg, folder, seeds, finished, test_seeds, test_steps, progress)
         ex = executor if executor is not None else SerialExecutor()
@@ -595,7 +604,7 @@ def write_curves(folder: Path, runs: Sequence[Path], tasks: Sequence[EvalTask],
 
 __all__ = ["CAMPAIGN_FILES", "SEED_STRIDE", "campaign_tasks", "check_saved_config",
            "check_training_seeds", "finished_run", "kept_work", "resumable_checkpoint", "run_seed_items",
-           "owned_files",
+           "say_plan", "owned_files",
            "best_seed_policy", "is_campaign_folder", "learning_curves", "open_campaign", "parse_seeds",
            "seed_items", "train_one_seed", "train_seeds",
            "training_seed", "write_curves", "write_summary"]

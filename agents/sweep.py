@@ -43,6 +43,7 @@ from dss14_env.agents.campaign import (
     open_campaign,
     owned_files,
     run_seed_items,
+    say_plan,
     seed_items,
     training_seed,
     write_summary,
@@ -208,6 +209,7 @@ def train_sweep(config: TrainConfig | Mapping[str, Any] | str | Path, seeds: Seq
         check_training_seeds(p.config, seeds)
     _check_envs(points, cfg.sweep)
     folder, campaigns = _open(cfg, points, out, seeds, overwrite, resume)
+    say_plan(cfg, folder, len(points) * len(seeds), sum(len(f) for _, f in campaigns))
     with manifest_kept(folder):
         return _run_sweep(cfg, points, folder, campaigns, seeds, test_seeds, test_steps, figures,
                           executor, progress)

@@ -757,10 +757,13 @@ def _train_in(cfg: TrainConfig, run: Path, src: _Resume | None, plan: EnvPlan, o
     return run
 
 
-def last_checkpoint(run: Path) -> Path | None:
-    """The latest complete checkpoint folder of a run (None: none written yet)."""
+def last_checkpoint(run: Path, before: int | None = None) -> Path | None:
+    """The latest complete checkpoint folder of a run (None: none written yet), or the latest
+    of fewer than ``before`` steps.
+    """
     found = [(int(d.name[:-6]), d) for d in (run / "checkpoints").glob("*_steps")
-             if _CKPT_RE.match(d.name) and (d / COUNTERS).is_file()]
+             if _CKPT_RE.match(d.name) and (d / COUNTERS).is_file()
+             and (before is None or int(d.name[:-6]) < before)]
     return max(found)[1] if found else None
 
 

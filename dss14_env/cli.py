@@ -146,9 +146,6 @@ def _train(args: argparse.Namespace) -> int:
         raise ValueError("--resume keeps the finished runs in --out: without --overwrite")
     seeds = parse_seeds(args.train_seeds)
     run_all = train_sweep if cfg.sweep else train_seeds
-    print(f"dss14 train: {cfg.algo} on {cfg.env_id}, {counted(len(seeds), 'training seed')}"
-          + (f" x {counted(len(cfg.points()), 'sweep point')}" if cfg.sweep else "")
-          + f", {cfg.total_timesteps} steps a run, into {args.out}", file=sys.stderr, flush=True)
     try:
         with make_executor(use_ray, address=args.address, num_cpus=args.num_cpus) as ex:
             out = run_all(cfg, seeds, args.out, overwrite=args.overwrite, executor=ex,

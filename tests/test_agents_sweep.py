@@ -1,7 +1,7 @@
 """Hyperparameter sweeps: the ``sweep`` key of a training configuration (agents/config.py), the
 grid and its labels, bad specifications named in one line, and ``train_sweep`` / ``dss14 train
 --seeds`` with a sweep (agents/sweep.py): one campaign per point, sweep.json consistent with the
-points' summary.json, ``--continue``; a configuration without a sweep is unchanged."""
+points' summary.json, ``--resume``; a configuration without a sweep is unchanged."""
 
 from __future__ import annotations
 

@@ -36,7 +36,7 @@ def test_interrupt_is_status_130(capsys) -> None:
         raise KeyboardInterrupt
 
     assert run_command(_args(stop)) == 130
-    assert "interrupted" in capsys.readouterr().err
+    assert "stopped (SIGINT)" in capsys.readouterr().err
 
 
 def test_a_bug_keeps_its_traceback() -> None:

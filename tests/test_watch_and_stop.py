@@ -17,7 +17,7 @@ import yaml
 
 from dss14_env import cli
 from dss14_env.core.progress import Progress, format_duration
-from dss14_env.core.stop import StopRequests, Stopped, exit_status, terminate_as_interrupt
+from dss14_env.core.stop import Stopped, StopRequests, exit_status, terminate_as_interrupt
 
 TINY = dict(algo="ppo", env_id="Pendulum-v1", n_envs=2, vec_env="dummy", total_timesteps=512,
             seed=0, n_steps=64, batch_size=64, n_epochs=1, net_arch=[8], eval_freq=256,
