@@ -53,7 +53,7 @@ RENAMED = {"train": {"seeds": ("--seeds", "--train-seeds (training-seed indices;
            "campaign": {"continue_": ("--continue", "--resume")}}
 
 
-def _refuse_renamed(args: argparse.Namespace) -> None:
+def refuse_renamed(args: argparse.Namespace) -> None:
     """One line for an option of an earlier version, naming the one that replaced it."""
     for dest, (old, new) in RENAMED.get(args.command, {}).items():
         if getattr(args, dest, None) not in (None, False):
@@ -109,7 +109,7 @@ def _train(args: argparse.Namespace) -> int:
     from dss14_env.core.parallel import check_ray_options, make_executor, probe_address, require_ray
     from dss14_env.core.stop import exit_status, signal_name, signal_of
 
-    _refuse_renamed(args)
+    refuse_renamed(args)
     use_ray = args.ray or args.address is not None or args.num_cpus is not None
     resume, resume_campaign = _train_resume(args)
     cfg = config_for_command(args.algo, args.config, args.env, resume, args.timesteps,
@@ -220,7 +220,7 @@ def _campaign(args: argparse.Namespace) -> int:
     from dss14_env.bench.campaign_report import parse_requirements
     from dss14_env.core.parallel import check_ray_options, make_executor, probe_address, require_ray
 
-    _refuse_renamed(args)
+    refuse_renamed(args)
     args.ppo_model = _policy_option(args.ppo_model)
     given = {k: v for k, v in (("controllers", args.controllers), ("plants", args.plants),
                                ("first_plant", args.first_plant), ("steps", args.steps),
@@ -332,6 +332,13 @@ def _add_campaign_parser(sub: Any) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``dss14`` console script."""
+    args = build_parser().parse_args(argv)
+    args.argv = list(argv) if argv is not None else sys.argv[1:]
+    return run_command(args)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The parser of every subcommand (``dss14 --help``)."""
     from dss14_env import __version__
 
     parser = argparse.ArgumentParser(prog="dss14", description="DSS-14 antenna servo model and tools")
@@ -438,9 +445,7 @@ def main(argv: list[str] | None = None) -> int:
     _add_progress(p, "episodes")
     p.set_defaults(func=_bench)
     _add_campaign_parser(sub)
-    args = parser.parse_args(argv)
-    args.argv = list(argv) if argv is not None else sys.argv[1:]
-    return run_command(args)
+    return parser
 
 
 def run_command(args: argparse.Namespace) -> int:
