@@ -703,42 +703,44 @@ def _train_in(cfg: TrainConfig, run: Path, src: _Resume | None, plan: EnvPlan, o
     policy_name = "MlpLstmPolicy" if is_recurrent(cfg.algo) else "MlpPolicy"
     ckpts: list[Path] = []
     model = None
+    requests = StopRequests()  # a stop asked for from here on ends the training at its next step
     try:
-        model = cls(policy_name, venv, policy_kwargs=policy_kwargs(cfg), seed=cfg.seed,
-                    device="cpu", tensorboard_log=tb, verbose=cfg.verbose, **algo_kwargs(cfg))
-        start = 0
-        if src is not None:
-            start = _restore(model, venv, src, cfg)
-            if start >= cfg.total_timesteps:
-                raise ValueError(f"checkpoint {src.path} is at {start} steps, total_timesteps is "
-                                 f"{cfg.total_timesteps}: raise total_timesteps (--timesteps)")
-            model.num_timesteps = start
-            _drop_abandoned(run, src)
-            say(f"resuming {src.path} at {start} steps")
-        atomic_write_text(run / CONFIG, config_text)
-        update_manifest(run)
-        callbacks = _callbacks(cfg, plan, run, run_id, config_text, venv, start, ckpts)
-        say(f"{cfg.algo} on {cfg.env_id}: {cfg.n_envs} envs ({vec_env_kind(cfg, plan)}), "
-            f"obs {obs_space.shape}, action {act_space.shape}, {cfg.total_timesteps - start} "
-            f"steps -> {run}")
-        t0 = time.perf_counter()
-        requests = StopRequests()
-        watch = [stop_callback(requests),
-                 progress_callback(cfg.total_timesteps, start, run.name, enabled=progress)]
-        try:
-            with requests, threadpool_limits(limits=1):
-                model.learn(total_timesteps=cfg.total_timesteps - start, callback=watch + callbacks,
-                            tb_log_name=cfg.algo, reset_num_timesteps=src is None)
-        except KeyboardInterrupt as exc:  # a second signal, or one outside a step: no new checkpoint
-            last = ckpts[-1] if ckpts else last_checkpoint(run)
-            raise TrainingInterrupted(run, int(model.num_timesteps), last, _resume_command(cfg, run, last),
-                                      getattr(exc, "signum", signal.SIGINT)) from None
-        if requests.signum is not None and model.num_timesteps < cfg.total_timesteps:
-            kept = _stop_checkpoint(cfg, run, run_id, model, venv, config_text)
-            raise TrainingInterrupted(run, int(model.num_timesteps), kept,
-                                      _resume_command(cfg, run, kept), requests.signum)
-        wall = time.perf_counter() - t0
-        save_checkpoint(run, cfg, run_id, model, venv, config_text)
+        with requests:
+            model = cls(policy_name, venv, policy_kwargs=policy_kwargs(cfg), seed=cfg.seed,
+                        device="cpu", tensorboard_log=tb, verbose=cfg.verbose, **algo_kwargs(cfg))
+            start = 0
+            if src is not None:
+                start = _restore(model, venv, src, cfg)
+                if start >= cfg.total_timesteps:
+                    raise ValueError(f"checkpoint {src.path} is at {start} steps, total_timesteps is "
+                                     f"{cfg.total_timesteps}: raise total_timesteps (--timesteps)")
+                model.num_timesteps = start
+                _drop_abandoned(run, src)
+                say(f"resuming {src.path} at {start} steps")
+            atomic_write_text(run / CONFIG, config_text)
+            update_manifest(run)
+            callbacks = _callbacks(cfg, plan, run, run_id, config_text, venv, start, ckpts)
+            say(f"{cfg.algo} on {cfg.env_id}: {cfg.n_envs} envs ({vec_env_kind(cfg, plan)}), "
+                f"obs {obs_space.shape}, action {act_space.shape}, {cfg.total_timesteps - start} "
+                f"steps -> {run}")
+            t0 = time.perf_counter()
+            watch = [stop_callback(requests),
+                     progress_callback(cfg.total_timesteps, start, run.name, enabled=progress)]
+            try:
+                with threadpool_limits(limits=1):
+                    model.learn(total_timesteps=cfg.total_timesteps - start, callback=watch + callbacks,
+                                tb_log_name=cfg.algo, reset_num_timesteps=src is None)
+            except KeyboardInterrupt as exc:  # a second signal: stopped at once, no new checkpoint
+                last = ckpts[-1] if ckpts else last_checkpoint(run)
+                raise TrainingInterrupted(run, int(model.num_timesteps), last,
+                                          _resume_command(cfg, run, last),
+                                          getattr(exc, "signum", signal.SIGINT)) from None
+            if requests.signum is not None and model.num_timesteps < cfg.total_timesteps:
+                kept = _stop_checkpoint(cfg, run, run_id, model, venv, config_text)
+                raise TrainingInterrupted(run, int(model.num_timesteps), kept,
+                                          _resume_command(cfg, run, kept), requests.signum)
+            wall = time.perf_counter() - t0
+            save_checkpoint(run, cfg, run_id, model, venv, config_text)
     finally:
         venv.close()
     summary = {

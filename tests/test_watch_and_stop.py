@@ -198,3 +198,43 @@ def test_a_stopped_campaign_keeps_every_seeds_work_and_resume_continues_each(
     if finished_before:  # the finished seed is scored again, not retrained
         assert json.loads((out / "seed_0" / "train_summary.json").read_text()) == finished_before
     assert json.loads((out / "summary.json").read_text())["seed_indices"] == [0, 1]
+
+
+@pytest.mark.slow
+def test_a_stopped_campaign_on_ray_keeps_a_checkpoint_of_every_running_seed(tmp_path: Path, capsys) -> None:
+    """Ctrl-C while two seeds train at once as Ray tasks: each saves a checkpoint where it stops
+    (the executor stops its tasks as Ctrl-C would), and the resume continues both from there."""
+    import threading
+    import time
+
+    pytest.importorskip("ray")
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(yaml.safe_dump({**TINY, "total_timesteps": 20_000, "eval_freq": 0}))
+    out = tmp_path / "camp"
+
+    def interrupt_once_both_train() -> None:
+        deadline = time.monotonic() + 300
+        while time.monotonic() < deadline:
+            if all((out / f"seed_{k}" / "config.yaml").is_file() for k in (0, 1)):  # both built
+                time.sleep(1.0)
+                signal.raise_signal(signal.SIGINT)
+                return
+            time.sleep(0.2)
+
+    threading.Thread(target=interrupt_once_both_train, daemon=True).start()
+    argv = ["train", "ppo", "--config", str(cfg), "--train-seeds", "0-1", "--out", str(out),
+            "--num-cpus", "2"]
+    assert cli.main(argv) == 130
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    stopped = {}
+    for k in (0, 1):
+        (ckpt,) = (out / f"seed_{k}" / "checkpoints").iterdir()
+        stopped[k] = int(ckpt.name[:-6])
+        assert 0 < stopped[k] < 20_000
+        assert f"seed_{k} at {stopped[k]} steps" in last
+    command = shlex.split(last.split("continue with: ")[1])
+    assert command[-3:] == ["--num-cpus", "2"] or "--num-cpus" in command
+    assert cli.main(command[1:]) == 0
+    for k in (0, 1):
+        summary = json.loads((out / f"seed_{k}" / "train_summary.json").read_text())
+        assert summary["start_timesteps"] == stopped[k] and summary["num_timesteps"] >= 20_000
