@@ -724,8 +724,8 @@ def _train_in(cfg: TrainConfig, run: Path, src: _Resume | None, plan: EnvPlan, o
                 f"obs {obs_space.shape}, action {act_space.shape}, {cfg.total_timesteps - start} "
                 f"steps -> {run}")
             t0 = time.perf_counter()
-            watch = [stop_callback(requests),
-                     progress_callback(cfg.total_timesteps, start, run.name, enabled=progress)]
+            shown = progress_callback(cfg.total_timesteps, start, run.name, enabled=progress)
+            watch = [stop_callback(requests, shown.write), shown]
             try:
                 with threadpool_limits(limits=1):
                     model.learn(total_timesteps=cfg.total_timesteps - start, callback=watch + callbacks,

@@ -10,6 +10,7 @@
 from __future__ import annotations
 
 import sys
+from collections.abc import Callable
 from typing import Any
 
 from dss14_env.core.progress import Progress
@@ -39,11 +40,22 @@ def progress_callback(total: int, start: int, desc: str, enabled: bool = True) -
             if self.progress is not None:
                 self.progress.close()
 
+        def write(self, line: str) -> None:
+            """A message line that does not break the bar."""
+            if self.progress is not None:
+                self.progress.write(line)
+            else:
+                print(line, file=sys.stderr, flush=True)
+
     return StepProgress()
 
 
-def stop_callback(requests: StopRequests) -> Any:
-    """A callback that ends the training at the first step after a recorded stop signal."""
+def stop_callback(requests: StopRequests, say: Callable[[str], None] | None = None) -> Any:
+    """A callback that ends the training at the first step after a recorded stop signal.
+
+    :param say: where its one message goes (default: a line on stderr); a progress callback's
+        ``write`` keeps the bar whole
+    """
     from stable_baselines3.common.callbacks import BaseCallback
 
     class StopOnSignal(BaseCallback):
@@ -57,9 +69,12 @@ def stop_callback(requests: StopRequests) -> Any:
             if requests.signum is None:
                 return True
             if not self.told:
-                print(f"{signal_name(requests.signum)}: stopping at {self.num_timesteps} steps and "
-                      f"saving a checkpoint (a second one stops at once, without it)",
-                      file=sys.stderr, flush=True)
+                line = (f"{signal_name(requests.signum)}: stopping at {self.num_timesteps} steps and "
+                        f"saving a checkpoint (a second one stops at once, without it)")
+                if say is not None:
+                    say(line)
+                else:
+                    print(line, file=sys.stderr, flush=True)
                 self.told = True
             return False
 

@@ -143,7 +143,10 @@ def _signal_at(monkeypatch, run_name: str, steps: int, sig: int) -> None:
     def watched(total, start, desc, enabled=True):
         from stable_baselines3.common.callbacks import CallbackList
 
-        return CallbackList([real(total, start, desc, enabled)] + ([Send()] if desc == run_name else []))
+        shown = real(total, start, desc, enabled)
+        both = CallbackList([shown] + ([Send()] if desc == run_name else []))
+        both.write = shown.write
+        return both
 
     monkeypatch.setattr(T, "progress_callback", watched)
 
@@ -174,6 +177,7 @@ def test_a_stopped_campaign_keeps_every_seeds_work_and_resume_continues_each(
     stopped = json.loads((out / stop_in / "checkpoints").iterdir().__next__().joinpath(
         "counters.json").read_text())["num_timesteps"]
     assert 300 <= stopped < 512  # the checkpoint is where it stopped (checkpoint_freq is 0)
+    assert f"{signal.Signals(sig).name}: stopping at " in "\n".join(err)  # said as it stops
     last = err[-1]
     assert f"campaign stopped ({signal.Signals(sig).name})" in last
     want = {"seed_1": f"seed_0 finished, seed_1 at {stopped} steps (checkpoints/{stopped}_steps)",
