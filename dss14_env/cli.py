@@ -26,7 +26,7 @@ def _reproduce(args: argparse.Namespace) -> int:
     prepare_output_dir(args.out, OWNED_FILES, overwrite=args.overwrite)
     with manifest_kept(args.out):
         model = build_model(cfg) if cfg is not None else default_model()
-        res = reproduce(args.out, model, figures=not args.no_figures)
+        res = reproduce(args.out, model, figures=not args.no_figures, progress=args.progress)
     print(res["table"])
     print(f"{counted(len(res['figures']), 'figure')}, metrics.json and metrics.md (every row by its "
           f"key) written to {args.out} in {time.perf_counter() - t0:.1f} s")
@@ -351,6 +351,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-figures", action="store_true", help="metrics only")
     p.add_argument("--overwrite", action="store_true",
                    help="replace the results of an earlier run in --out (metrics, figures)")
+    _add_progress(p, "stages")
     p.set_defaults(func=_reproduce)
     p = sub.add_parser("train", help="train a learned controller (PPO, RecurrentPPO, SAC)",
                        description="Train one run (or one per seed with --train-seeds) into a run "

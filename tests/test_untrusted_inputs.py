@@ -232,7 +232,7 @@ def test_dry_run_and_remove_run_files_touch_only_listed_files(tmp_path: Path) ->
 def test_reproduce_overwrite_keeps_the_users_pngs(tmp_path: Path, monkeypatch) -> None:
     from dss14_env import reproduce as R
 
-    def fake(out, model, figures=True):  # the real run takes minutes; its files are what matter
+    def fake(out, model, figures=True, progress=False):  # the real run takes minutes; its files matter
         Path(out, "metrics.json").write_text("{}")
         Path(out, "metrics.md").write_text("")
         Path(out, "fig01.png").write_bytes(b"png")
