@@ -8,6 +8,7 @@ from __future__ import annotations
 import io
 import json
 import os
+import re
 import shlex
 import signal
 from pathlib import Path
@@ -242,3 +243,52 @@ def test_a_stopped_campaign_on_ray_keeps_a_checkpoint_of_every_running_seed(tmp_
     for k in (0, 1):
         summary = json.loads((out / f"seed_{k}" / "train_summary.json").read_text())
         assert summary["start_timesteps"] == stopped[k] and summary["num_timesteps"] >= 20_000
+
+
+@pytest.mark.slow
+def test_a_terminal_session_shows_a_bar_and_ctrl_c_to_its_process_group_keeps_a_checkpoint(
+        tmp_path: Path) -> None:
+    """``dss14 train`` on a pseudo-terminal, stopped as a terminal's Ctrl-C stops it (SIGINT to
+    the whole foreground process group)."""
+    import fcntl
+    import pty
+    import select
+    import struct
+    import subprocess
+    import sys
+    import termios
+    import time
+
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(yaml.safe_dump({**TINY, "total_timesteps": 1_000_000, "eval_freq": 0}))
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 120, 0, 0))
+    proc = subprocess.Popen([sys.executable, "-m", "dss14_env.cli", "train", "ppo", "--config", str(cfg),
+                             "--out", str(tmp_path / "r")], stdin=slave, stdout=slave, stderr=slave,
+                            start_new_session=True)
+    os.close(slave)
+    text, sent, deadline = b"", False, time.monotonic() + 300
+    try:
+        while time.monotonic() < deadline:
+            ready, _, _ = select.select([master], [], [], 0.5)
+            chunk = b""
+            if ready:
+                try:
+                    chunk = os.read(master, 65536)
+                except OSError:  # the terminal's other end closed: the command ended
+                    break
+                text += chunk
+            if not sent and re.search(rb"r: +\d+%\|.*steps?/s", text):
+                os.killpg(proc.pid, signal.SIGINT)
+                sent = True
+            if proc.poll() is not None and not chunk:
+                break
+    finally:
+        os.close(master)
+        if proc.poll() is None:
+            proc.kill()
+    assert sent, text.decode(errors="replace")[-2000:]
+    assert proc.wait() == 130
+    (ckpt,) = (tmp_path / "r" / "checkpoints").iterdir()
+    lines = text.decode(errors="replace").replace("\r", "\n")
+    assert f"kept checkpoint {ckpt}" in " ".join(lines.split())
