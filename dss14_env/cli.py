@@ -240,8 +240,9 @@ def _campaign(args: argparse.Namespace) -> int:
         return make_executor(use_ray, address=args.address, num_cpus=args.num_cpus)
 
     where = "Ray " + (f"at {args.address}" if args.address else "(local)") if use_ray else "in-process"
-    print(f"campaign: {spec.plants} plants x {len(spec.conditions)} wind conditions x "
-          f"{len(spec.names)} controllers = {spec.n_episodes} episodes of {spec.steps} steps, "
+    print(f"campaign: {counted(spec.plants, 'plant')} x {counted(len(spec.conditions), 'wind condition')} "
+          f"x {counted(len(spec.names), 'controller')} = {counted(spec.n_episodes, 'episode')} of "
+          f"{spec.steps} steps, "
           f"{counted(len(spec.chunks()), 'chunk')}, {where}", flush=True)
     try:
         res = C.run_campaign(spec, args.out, executor=executor, requirements=reqs, resume=args.resume,

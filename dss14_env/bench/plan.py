@@ -28,6 +28,7 @@ import numpy as np
 from dss14_env.bench import catalog
 from dss14_env.bench.catalog import SCENARIO_ROWS, Budget, ControllerRow, Scenario
 from dss14_env.core.seeds import parse_seed_list
+from dss14_env.core.text import counted
 
 #: per scenario, the default run's budget and the ``--quick`` one (the catalog's rows)
 DEFAULT_BUDGETS: Mapping[str, Budget] = MappingProxyType({r.name: r.default for r in SCENARIO_ROWS})
@@ -145,7 +146,7 @@ class BenchPlan:
         """One line: what the plan runs."""
         parts = [f"{s} {r.steps * self.dt:g} s x {len(r.seeds)} (one-at-a-time: {r.sequential})"
                  for s, r in self.runs.items()]
-        line = (f"bench: {len(self.controllers)} controllers ({', '.join(self.controllers)}); "
+        line = (f"bench: {counted(len(self.controllers), 'controller')} ({', '.join(self.controllers)}); "
                 f"episodes per scenario: {'; '.join(parts)}")
         if self.sweep_directions:
             line += (f"; wind sweep {'/'.join(self.sweep_directions)} at "
