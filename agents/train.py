@@ -756,6 +756,8 @@ def _train_in(cfg: TrainConfig, run: Path, src: _Resume | None, plan: EnvPlan, o
     atomic_write_text(run / "train_summary.json", json.dumps(summary, indent=2) + "\n")
     say(f"{model.num_timesteps} steps in {wall:.1f} s ({summary['steps_per_s']} steps/s); "
         f"run folder {run}")
+    if requests.signum is not None:  # asked to stop as the run ended: the run is whole, and the
+        signal.raise_signal(requests.signum)  # signal goes on to the caller (a campaign stops)
     return run
 
 

@@ -292,3 +292,16 @@ def test_a_terminal_session_shows_a_bar_and_ctrl_c_to_its_process_group_keeps_a_
     (ckpt,) = (tmp_path / "r" / "checkpoints").iterdir()
     lines = text.decode(errors="replace").replace("\r", "\n")
     assert f"kept checkpoint {ckpt}" in " ".join(lines.split())
+
+
+def test_a_stop_as_a_seed_ends_keeps_it_whole_and_still_stops_the_campaign(tmp_path: Path, monkeypatch,
+                                                                             capsys) -> None:
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(yaml.safe_dump({**TINY, "eval_freq": 0}))
+    out = tmp_path / "camp"
+    _signal_at(monkeypatch, "seed_0", 512, signal.SIGINT)  # at its last step
+    argv = ["train", "ppo", "--config", str(cfg), "--train-seeds", "0-1", "--out", str(out)]
+    assert cli.main(argv) == 130
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "kept in" in last and "seed_0 finished, seed_1 nothing yet" in last
+    assert not (out / "seed_1").exists()
