@@ -282,8 +282,8 @@ def _budgets_help(field: str | None = None, quick: bool = False) -> str:
 def _add_progress(p: argparse.ArgumentParser, what: str) -> None:
     """The one progress option of every long command."""
     p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=True,
-                   help=f"show the {what} done on stderr: a bar with its ETA on a terminal, else a "
-                   f"line every tenth of the work or {LINE_EVERY_S:g} s (default: on)")
+                   help=f"{what} on stderr as they are done: a bar with its ETA on a terminal, "
+                   f"else a line every tenth or {LINE_EVERY_S:g} s (default: on)")
 
 
 def _add_campaign_parser(sub: Any) -> None:
@@ -327,7 +327,7 @@ def _add_campaign_parser(sub: Any) -> None:
     p.add_argument("--continue", dest="continue_", action="store_true", help=argparse.SUPPRESS)
     p.add_argument("--overwrite", action="store_true", help="replace a campaign in --out")
     p.add_argument("--no-figures", action="store_true", help="results.json and results.md only")
-    _add_progress(p, "chunks")
+    _add_progress(p, "the chunks")
     p.set_defaults(func=_campaign)
 
 
@@ -352,11 +352,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-figures", action="store_true", help="metrics only")
     p.add_argument("--overwrite", action="store_true",
                    help="replace the results of an earlier run in --out (metrics, figures)")
-    _add_progress(p, "stages")
+    _add_progress(p, "the stages")
     p.set_defaults(func=_reproduce)
     p = sub.add_parser("train", help="train a learned controller (PPO, RecurrentPPO, SAC)",
                        description="Train one run (or one per seed with --train-seeds) into a run "
-                       "folder (docs/rl.md).")
+                       "folder (docs/rl.md). Ctrl-C or SIGTERM stops every run at its next step "
+                       "with a checkpoint there and prints the command that continues (--resume).")
     p.add_argument("algo", choices=["ppo", "recurrent_ppo", "sac"], help="algorithm")
     p.add_argument("--config", default=None, metavar="NAME|FILE",
                    help="training YAML, or a shipped training config's name ("
@@ -382,7 +383,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--env-module", default=None, metavar="MODULE",
                    help="import this module of yours first, to register the env_id it trains on "
                    "(importing runs its code: a configuration file can never ask for it)")
-    _add_progress(p, "environment steps of every run")
+    _add_progress(p, "each run's environment steps")
     p.add_argument("--timesteps", type=int, default=None, help="override total_timesteps")
     p.add_argument("--seed", type=int, default=None, help="override seed")
     p.add_argument("--train-seeds", nargs="+", default=None, metavar="K",
@@ -444,7 +445,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="replace the results of an earlier bench in --out (results.json, results.md, "
                    "its figures; nothing else)")
     p.add_argument("--no-figures", action="store_true", help="results.json and results.md only")
-    _add_progress(p, "episodes")
+    _add_progress(p, "the episodes")
     p.set_defaults(func=_bench)
     _add_campaign_parser(sub)
     return parser
