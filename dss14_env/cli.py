@@ -287,13 +287,17 @@ def _add_progress(p: argparse.ArgumentParser, what: str) -> None:
 
 
 def _add_campaign_parser(sub: Any) -> None:
+    from dss14_env.bench import campaign_spec as S
+    from dss14_env.bench.campaign_report import DEFAULT_REQUIREMENTS
+
     p = sub.add_parser("campaign", help="robustness campaign: controllers over plants drawn from "
                        "the report's parameter ranges, in chunks, in-process or on Ray",
                        description="N plants drawn from the report's hydraulic parameter ranges "
                        "(stable part) x wind speeds x directions x controllers, hold episodes in "
                        "chunks; writes results.json, results.md and a CDF figure per wind speed; "
                        "--resume continues an interrupted campaign (docs/scale.md).")
-    p.add_argument("--plants", type=int, default=None, metavar="N", help="number of plants (default 200)")
+    p.add_argument("--plants", type=int, default=None, metavar="N",
+                   help=f"number of plants (default {S.DEFAULT_PLANTS})")
     p.add_argument("--first-plant", type=int, default=None, metavar="K",
                    help="index of the first plant (default 0): plants K .. K+N-1")
     p.add_argument("--controllers", nargs="+", metavar="NAME", default=None,
@@ -306,16 +310,20 @@ def _add_campaign_parser(sub: Any) -> None:
                    help="draw the plants without conditioning on the report's PI being stable (only "
                    "the drive must be): results.md gives each controller's unstable share")
     p.add_argument("--wind-speeds", nargs="+", metavar="KMH", default=None,
-                   help="mean wind speeds, km/h (default 50)")
+                   help="mean wind speeds, km/h (default "
+                   + " ".join(f"{v:g}" for v in S.DEFAULT_WIND_SPEEDS_KMH) + ")")
     p.add_argument("--directions", nargs="+", metavar="DIR", default=None,
-                   help="front, side or degrees from the boresight (default: front side)")
+                   help="front, side or degrees from the boresight (default: "
+                   f"{' '.join(map(str, S.DEFAULT_DIRECTIONS))})")
     p.add_argument("--steps", type=int, default=None,
-                   help="episode length, control periods of the environment's dt (default 1500: 30 s "
-                   "at 0.02 s; 5-s warm-up)")
+                   help=f"episode length, control periods of the environment's dt (default "
+                   f"{S.DEFAULT_STEPS}; the first {S.WARMUP_S:g} s are a warm-up)")
     p.add_argument("--chunk-size", type=int, default=None, metavar="N",
-                   help="plants per chunk, the unit of work and of resuming (default 5)")
+                   help=f"plants per chunk, the unit of work and of resuming (default "
+                   f"{S.DEFAULT_CHUNK_SIZE})")
     p.add_argument("--requirements", nargs="+", metavar="NAME=MDEG", default=None,
-                   help="pointing requirements on the 3-sigma pointing error (default: Ka=2 X=8)")
+                   help="pointing requirements on the 3-sigma pointing error (default: "
+                   + " ".join(f"{k}={v:g}" for k, v in DEFAULT_REQUIREMENTS.items()) + ")")
     p.add_argument("--ray", action="store_true", help="run the chunks as Ray tasks (a local Ray by default)")
     p.add_argument("--address", default=None,
                    help="join a running Ray cluster: 'auto' or its address (implies --ray)")
@@ -341,6 +349,7 @@ def main(argv: list[str] | None = None) -> int:
 def build_parser() -> argparse.ArgumentParser:
     """The parser of every subcommand (``dss14 --help``)."""
     from dss14_env import __version__
+    from dss14_env.bench.plan import DEFAULT_SWEEP, DEFAULT_WIND_SPEEDS_KMH
 
     parser = argparse.ArgumentParser(prog="dss14", description="DSS-14 antenna servo model and tools")
     parser.add_argument("--version", action="version", version=f"dss14 {__version__}")
@@ -425,10 +434,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--scenarios", nargs="+", metavar="NAME", default=None,
                    help=catalog.choices_help(catalog.scenario_names(), catalog.scenario_names("bench")))
     p.add_argument("--wind-speeds", nargs="+", metavar="KMH", default=None,
-                   help="speeds of the error-vs-wind sweep, km/h (default: 30 40 50 60 70)")
+                   help="speeds of the error-vs-wind sweep, km/h (default: "
+                   + " ".join(f"{v:g}" for v in DEFAULT_WIND_SPEEDS_KMH) + ")")
     p.add_argument("--no-sweep", action="store_true", help="skip the error-vs-wind sweep")
     p.add_argument("--sweep-seeds", type=int, default=None, metavar="N",
-                   help="episodes per sweep point of the batched controllers (default 32)")
+                   help=f"episodes per sweep point of the batched controllers (default "
+                   f"{DEFAULT_SWEEP.episodes})")
     p.add_argument("--steps", type=int, default=None,
                    help="episode length of every scenario and sweep point, control periods "
                    "(default: the scenario's; one period is the environment's dt)")
