@@ -60,7 +60,7 @@ def _number(x: float) -> str:
 class Progress:
     """A bar on a terminal, whole lines otherwise (see the module doc).
 
-    :param total: the amount of work (steps, episodes, chunks), > 0
+    :param total: the amount of work (steps, episodes, chunks); more done than that raises it
     :param desc: what is being done (the start of every line)
     :param unit: the unit of ``total`` in the plural
     :param enabled: False: nothing is shown
