@@ -15,7 +15,7 @@ A top-level ``sweep`` mapping (configuration keys -> lists of values) makes the 
 hyperparameter sweep: the grid of every combination of the values, each point the rest of the
 file with those values set (:meth:`TrainConfig.points`; a dotted key such as
 ``env_kwargs.action_scale_deg_s`` sets one entry of a mapping).  Every point is validated as a
-configuration of its own when the file is read; ``dss14 train --seeds`` trains one campaign per
+configuration of its own when the file is read; ``dss14 train --train-seeds`` trains one campaign per
 point (:mod:`dss14_env.agents.sweep`).
 
 >>> cfg = TrainConfig.from_dict({"env_id": "Pendulum-v1", "n_envs": 2, "n_steps": 64,
@@ -83,7 +83,7 @@ MAX_ENVS, MAX_ROLLOUT, MAX_THREADS, MAX_TIMESTEPS = 1024, 10_000_000, 256, 10**1
 _INT = Spec("1", "integer", lo=0, hi=MAX_SEED)
 #: the package whose modules (and only those) a configuration file may name in ``env_module``
 OWN_PACKAGE = "dss14_env"
-#: keys a sweep cannot vary: the seeds come from ``--seeds``, the algorithm fixes the key set
+#: keys a sweep cannot vary: the seeds come from ``--train-seeds``, the algorithm fixes the key set
 NOT_SWEPT = ("algo", "seed", "sweep")
 #: most points of a sweep's grid
 MAX_SWEEP_POINTS = 1000
@@ -339,7 +339,7 @@ def _sweep_value_spec(key: str, algo: str, source: str) -> Spec | None:
     if not key or not all(key.split(".")):
         raise ConfigError(f"{source}: field 'sweep': keys must be configuration keys, got {key!r}")
     if head in NOT_SWEPT:
-        why = ("the seeds of a sweep are --seeds" if head == "seed" else
+        why = ("the seeds of a sweep are --train-seeds" if head == "seed" else
                "a sweep cannot be swept" if head == "sweep" else "a sweep keeps one algorithm")
         raise ConfigError(f"{where}: cannot be swept ({why})")
     fields = {f.name: f for f in dataclasses.fields(SETTINGS[algo])}

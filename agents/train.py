@@ -17,8 +17,10 @@
 
 A new run refuses a folder that already holds a run (finished or interrupted) unless
 ``overwrite`` (which removes exactly what training owns there); an ``--out`` that is a file
-or cannot be written fails before any work.  Ctrl-C raises :class:`TrainingInterrupted`
-naming the last checkpoint and the command that resumes from it.
+or cannot be written fails before any work.  Ctrl-C (SIGINT) or SIGTERM stops the run at the
+next environment step with a checkpoint of that step and raises :class:`TrainingInterrupted`
+naming it and the command that resumes from it.  The run's steps show on stderr as it trains
+(:mod:`dss14_env.agents.train_control`).
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ import json
 import math
 import re
 import shlex
+import signal
 import time
 from collections.abc import Mapping
 from datetime import datetime
@@ -69,6 +72,7 @@ from dss14_env.agents.storage import (
     save_replay_buffer,
     write_policy_folder,
 )
+from dss14_env.agents.train_control import progress_callback, stop_callback
 from dss14_env.core.outdir import (
     atomic_folder,
     atomic_write_bytes,
@@ -78,6 +82,7 @@ from dss14_env.core.outdir import (
     reopen_output_dir,
     update_manifest,
 )
+from dss14_env.core.stop import Stopped, StopRequests, signal_name
 
 #: what a training run owns in its folder (removed by ``overwrite``)
 RUN_FILES = (CONFIG, WEIGHTS, STATS, OPTIMIZER, COUNTERS, REPLAY, "return_normalization.npz",
@@ -86,24 +91,28 @@ RUN_FILES = (CONFIG, WEIGHTS, STATS, OPTIMIZER, COUNTERS, REPLAY, "return_normal
 _CKPT_RE = re.compile(r"^(?P<steps>\d+)_steps$")
 
 
-class TrainingInterrupted(KeyboardInterrupt):
-    """Ctrl-C during training; :attr:`message` is one line with the resume command.
+class TrainingInterrupted(Stopped):
+    """A training stopped by Ctrl-C (SIGINT) or SIGTERM; :attr:`message` is one line naming the
+    checkpoint kept and the command that resumes from it.
 
     :param run: the run folder
     :param steps: environment steps done
-    :param checkpoint: the last checkpoint folder, or None
+    :param checkpoint: the checkpoint folder kept (saved on the stop, or the last periodic one),
+        or None
     :param command: the command that resumes from it, or None
+    :param signum: the signal that stopped it
     """
 
-    def __init__(self, run: Path, steps: int, checkpoint: Path | None, command: str | None) -> None:
+    def __init__(self, run: Path, steps: int, checkpoint: Path | None, command: str | None,
+                 signum: int = signal.SIGINT) -> None:
         self.run, self.steps, self.checkpoint, self.command = run, steps, checkpoint, command
+        head = f"training stopped ({signal_name(signum)}) at {steps} steps"
         if checkpoint is not None:
-            self.message = (f"training interrupted at {steps} steps; last checkpoint {checkpoint}; "
-                            f"resume with: {command}")
+            self.message = f"{head}; kept checkpoint {checkpoint}; resume with: {command}"
         else:
-            self.message = (f"training interrupted at {steps} steps; no checkpoint was written yet "
-                            f"(checkpoint_freq); start again with: {command}")
-        super().__init__(self.message)
+            self.message = (f"{head}; no checkpoint was written (stopped at once); start again "
+                            f"with: {command}")
+        super().__init__(signum, self.message)
 
 
 # ------------------------------------------------------------------------------ resume sources
@@ -234,6 +243,19 @@ def save_checkpoint(folder: Path, cfg: TrainConfig, run_id: str, model: Any, ven
     atomic_write_text(folder / COUNTERS, json.dumps(
         {"num_timesteps": int(model.num_timesteps), "run_id": run_id,
          "episode_num": int(getattr(model, "_episode_num", 0))}, indent=2) + "\n")
+
+
+def _stop_checkpoint(cfg: TrainConfig, run: Path, run_id: str, model: Any, venv: Any,
+                     config_text: str) -> Path:
+    """The checkpoint of a run stopped by a signal, at its step count (``checkpoints/<N>_steps``;
+    the periodic one when it was just written at that count).
+    """
+    folder = run / "checkpoints" / f"{int(model.num_timesteps)}_steps"
+    if not (folder / COUNTERS).is_file():
+        with atomic_folder(folder) as tmp:  # the whole folder, or none of it
+            save_checkpoint(tmp, cfg, run_id, model, venv, config_text)
+        update_manifest(run)
+    return folder
 
 
 def _restore(model: Any, venv: Any, src: _Resume, cfg: TrainConfig) -> int:
@@ -617,18 +639,22 @@ def train(config: TrainConfig | Mapping[str, Any] | str | Path, run_dir: str | P
         folder) to continue from; a foreign SB3 ``.zip`` only with ``trust_pickle``
     :param overwrite: a new run may replace the run files in ``run_dir``
     :param trust_pickle: allow a foreign (pickled) resume source
-    :param progress: show the progress bar (None: the config's ``progress_bar``); a run-time
+    :param progress: show the run's steps on stderr, a bar with its ETA on a terminal, a line
+        every tenth of the run otherwise (None: the config's ``progress_bar``); a run-time
         choice, not written into the run's config
     :return: the run folder
-    :raises ValueError: bad config (or a sweep: ``dss14 train --seeds``), unusable folder,
+    :raises ValueError: bad config (or a sweep: ``dss14 train --train-seeds``), unusable folder,
         unmakeable environment, missing or refused checkpoint, budget already reached, or an
         architecture that differs from the checkpoint's
-    :raises TrainingInterrupted: on Ctrl-C (a KeyboardInterrupt with the resume command)
+    :raises TrainingInterrupted: on Ctrl-C (SIGINT) or SIGTERM: the run stops at the next
+        environment step and saves a checkpoint there (a second signal stops at once, keeping
+        the last periodic checkpoint); a KeyboardInterrupt naming the checkpoint and the
+        command that resumes from it
     """
     cfg = as_config(config)
     if cfg.sweep:
         raise ValueError(f"{cfg.source}: field 'sweep': a sweep trains one campaign per point "
-                         f"(dss14 train --seeds ... --out DIR, or dss14_env.agents.sweep.train_sweep)")
+                         f"(dss14 train --train-seeds ... --out DIR, or dss14_env.agents.sweep.train_sweep)")
     # everything checked before the folder is claimed (nothing removed before that)
     src = resume_source(resume, trust_pickle)
     plan, obs_space, act_space, env_config = check_env(cfg)
@@ -667,9 +693,6 @@ def _train_in(cfg: TrainConfig, run: Path, src: _Resume | None, plan: EnvPlan, o
     else:
         print("note: tensorboard is not installed; training curves go to monitor/ and "
               "eval/evaluations.npz only (pip install tensorboard)")
-    if progress and not _installed("tqdm", "rich"):
-        print("note: tqdm and rich are not installed; no progress bar (pip install tqdm rich)")
-        progress = False
 
     torch.set_num_threads(cfg.torch_threads)
     monitor = run / "monitor" / (f"resume_{max(src.steps, 0)}_steps" if src is not None else "")
@@ -680,36 +703,44 @@ def _train_in(cfg: TrainConfig, run: Path, src: _Resume | None, plan: EnvPlan, o
     policy_name = "MlpLstmPolicy" if is_recurrent(cfg.algo) else "MlpPolicy"
     ckpts: list[Path] = []
     model = None
+    requests = StopRequests()  # a stop asked for from here on ends the training at its next step
     try:
-        model = cls(policy_name, venv, policy_kwargs=policy_kwargs(cfg), seed=cfg.seed,
-                    device="cpu", tensorboard_log=tb, verbose=cfg.verbose, **algo_kwargs(cfg))
-        start = 0
-        if src is not None:
-            start = _restore(model, venv, src, cfg)
-            if start >= cfg.total_timesteps:
-                raise ValueError(f"checkpoint {src.path} is at {start} steps, total_timesteps is "
-                                 f"{cfg.total_timesteps}: raise total_timesteps (--timesteps)")
-            model.num_timesteps = start
-            _drop_abandoned(run, src)
-            say(f"resuming {src.path} at {start} steps")
-        atomic_write_text(run / CONFIG, config_text)
-        update_manifest(run)
-        callbacks = _callbacks(cfg, plan, run, run_id, config_text, venv, start, ckpts)
-        say(f"{cfg.algo} on {cfg.env_id}: {cfg.n_envs} envs ({vec_env_kind(cfg, plan)}), "
-            f"obs {obs_space.shape}, action {act_space.shape}, {cfg.total_timesteps - start} "
-            f"steps -> {run}")
-        t0 = time.perf_counter()
-        try:
-            with threadpool_limits(limits=1):
-                model.learn(total_timesteps=cfg.total_timesteps - start, callback=callbacks,
-                            tb_log_name=cfg.algo, reset_num_timesteps=src is None,
-                            progress_bar=progress)
-        except KeyboardInterrupt:
-            last = ckpts[-1] if ckpts else last_checkpoint(run)
-            cmd = _resume_command(cfg, run, last)
-            raise TrainingInterrupted(run, int(model.num_timesteps), last, cmd) from None
-        wall = time.perf_counter() - t0
-        save_checkpoint(run, cfg, run_id, model, venv, config_text)
+        with requests:
+            model = cls(policy_name, venv, policy_kwargs=policy_kwargs(cfg), seed=cfg.seed,
+                        device="cpu", tensorboard_log=tb, verbose=cfg.verbose, **algo_kwargs(cfg))
+            start = 0
+            if src is not None:
+                start = _restore(model, venv, src, cfg)
+                if start >= cfg.total_timesteps:
+                    raise ValueError(f"checkpoint {src.path} is at {start} steps, total_timesteps is "
+                                     f"{cfg.total_timesteps}: raise total_timesteps (--timesteps)")
+                model.num_timesteps = start
+                _drop_abandoned(run, src)
+                say(f"resuming {src.path} at {start} steps")
+            atomic_write_text(run / CONFIG, config_text)
+            update_manifest(run)
+            callbacks = _callbacks(cfg, plan, run, run_id, config_text, venv, start, ckpts)
+            say(f"{cfg.algo} on {cfg.env_id}: {cfg.n_envs} envs ({vec_env_kind(cfg, plan)}), "
+                f"obs {obs_space.shape}, action {act_space.shape}, {cfg.total_timesteps - start} "
+                f"steps -> {run}")
+            t0 = time.perf_counter()
+            shown = progress_callback(cfg.total_timesteps, start, run.name, enabled=progress)
+            watch = [stop_callback(requests, shown.write), shown]
+            try:
+                with threadpool_limits(limits=1):
+                    model.learn(total_timesteps=cfg.total_timesteps - start, callback=watch + callbacks,
+                                tb_log_name=cfg.algo, reset_num_timesteps=src is None)
+            except KeyboardInterrupt as exc:  # a second signal: stopped at once, no new checkpoint
+                last = ckpts[-1] if ckpts else last_checkpoint(run)
+                raise TrainingInterrupted(run, int(model.num_timesteps), last,
+                                          _resume_command(cfg, run, last),
+                                          getattr(exc, "signum", signal.SIGINT)) from None
+            if requests.signum is not None and model.num_timesteps < cfg.total_timesteps:
+                kept = _stop_checkpoint(cfg, run, run_id, model, venv, config_text)
+                raise TrainingInterrupted(run, int(model.num_timesteps), kept,
+                                          _resume_command(cfg, run, kept), requests.signum)
+            wall = time.perf_counter() - t0
+            save_checkpoint(run, cfg, run_id, model, venv, config_text)
     finally:
         venv.close()
     summary = {
@@ -725,13 +756,18 @@ def _train_in(cfg: TrainConfig, run: Path, src: _Resume | None, plan: EnvPlan, o
     atomic_write_text(run / "train_summary.json", json.dumps(summary, indent=2) + "\n")
     say(f"{model.num_timesteps} steps in {wall:.1f} s ({summary['steps_per_s']} steps/s); "
         f"run folder {run}")
+    if requests.signum is not None:  # asked to stop as the run ended: the run is whole, and the
+        signal.raise_signal(requests.signum)  # signal goes on to the caller (a campaign stops)
     return run
 
 
-def last_checkpoint(run: Path) -> Path | None:
-    """The latest complete checkpoint folder of a run (None: none written yet)."""
+def last_checkpoint(run: Path, before: int | None = None) -> Path | None:
+    """The latest complete checkpoint folder of a run (None: none written yet), or the latest
+    of fewer than ``before`` steps.
+    """
     found = [(int(d.name[:-6]), d) for d in (run / "checkpoints").glob("*_steps")
-             if _CKPT_RE.match(d.name) and (d / COUNTERS).is_file()]
+             if _CKPT_RE.match(d.name) and (d / COUNTERS).is_file()
+             and (before is None or int(d.name[:-6]) < before)]
     return max(found)[1] if found else None
 
 

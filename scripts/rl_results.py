@@ -8,7 +8,7 @@ Three steps, each writing what the next reads::
     #    the PI and LQG in the track, 0.1 deg step and 5 deg slew (the tracking, step and slew
     #    table's references; seconds)
     python scripts/rl_results.py scenario-references   # -> docs/results/rl_scenario_references.json
-    # 2. the training campaigns (dss14 train <algo> --config <cfg> --seeds 0-4 --out runs/<agent>),
+    # 2. the training campaigns (dss14 train <algo> --config <cfg> --train-seeds 0-4 --out runs/<agent>),
     #    then the results file and the learning-curve figures
     python scripts/rl_results.py build --runs runs  # -> docs/results/rl_results.json, rl/*.png
     #    (an agent whose campaign is not under --runs keeps its row of the committed file,

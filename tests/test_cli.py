@@ -36,7 +36,7 @@ def test_interrupt_is_status_130(capsys) -> None:
         raise KeyboardInterrupt
 
     assert run_command(_args(stop)) == 130
-    assert "interrupted" in capsys.readouterr().err
+    assert "stopped (SIGINT)" in capsys.readouterr().err
 
 
 def test_a_bug_keeps_its_traceback() -> None:
@@ -93,3 +93,31 @@ def test_atomic_writes_give_ordinary_file_modes(tmp_path) -> None:
         os.umask(old)
     assert stat.S_IMODE((tmp_path / "results.json").stat().st_mode) == 0o644
     assert [p.name for p in tmp_path.iterdir()] == ["results.json"]  # no temporary left behind
+
+
+def test_reproduce_prints_the_readme_table_and_counts_figures_in_words(tmp_path, monkeypatch, capsys) -> None:
+    from pathlib import Path
+
+    from dss14_env import reproduce as R
+    from dss14_env.cli import main
+
+    def fake(out, model, figures=True, progress=False):
+        Path(out, "metrics.json").write_text("{}")
+        return {"markdown": "| `pi_pm45_gain_factor_drive_az` |", "table": "| labelled quantity |",
+                "figures": ["fig01.png"], "failed": [], "metrics": {}}
+
+    monkeypatch.setattr(R, "reproduce", fake)
+    monkeypatch.setattr("dss14_env.model.assembly.default_model", lambda: None)
+    assert main(["reproduce", "--out", str(tmp_path / "o")]) == 0
+    out = capsys.readouterr().out
+    assert "| labelled quantity |" in out and "pi_pm45_gain_factor_drive_az" not in out
+    assert "1 figure, metrics.json" in out
+
+
+def test_version(capsys) -> None:
+    from dss14_env import __version__
+    from dss14_env.cli import main
+
+    with pytest.raises(SystemExit) as info:
+        main(["--version"])
+    assert info.value.code == 0 and capsys.readouterr().out.strip() == f"dss14 {__version__}"

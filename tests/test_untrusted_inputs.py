@@ -232,11 +232,11 @@ def test_dry_run_and_remove_run_files_touch_only_listed_files(tmp_path: Path) ->
 def test_reproduce_overwrite_keeps_the_users_pngs(tmp_path: Path, monkeypatch) -> None:
     from dss14_env import reproduce as R
 
-    def fake(out, model, figures=True):  # the real run takes minutes; its files are what matter
+    def fake(out, model, figures=True, progress=False):  # the real run takes minutes; its files matter
         Path(out, "metrics.json").write_text("{}")
         Path(out, "metrics.md").write_text("")
         Path(out, "fig01.png").write_bytes(b"png")
-        return {"markdown": "", "figures": ["fig01.png"], "failed": [], "metrics": {}}
+        return {"markdown": "", "table": "", "figures": ["fig01.png"], "failed": [], "metrics": {}}
 
     monkeypatch.setattr(R, "reproduce", fake)
     monkeypatch.setattr("dss14_env.model.assembly.default_model", lambda: None)
@@ -327,9 +327,9 @@ def test_a_seeds_campaign_interrupted_gives_the_campaign_command(tmp_path: Path,
     monkeypatch.setattr(campaign, "train", stop)
     cfg = _write(tmp_path / "c.yaml", {**TINY, "checkpoint_freq": 0, "eval_freq": 64})
     out = tmp_path / "camp"
-    assert cli.main(["train", "ppo", "--config", str(cfg), "--seeds", "0-1", "--out", str(out)]) == 130
-    err = _one_line(capsys, "continue with:")
-    want = f"dss14 train ppo --config {out / 'config.yaml'} --seeds 0-1 --out {out} --resume"
+    assert cli.main(["train", "ppo", "--config", str(cfg), "--train-seeds", "0-1", "--out", str(out)]) == 130
+    err = capsys.readouterr().err.strip().splitlines()[-1]  # after the campaign's plan line
+    want = f"dss14 train ppo --config {out / 'config.yaml'} --train-seeds 0-1 --out {out} --resume"
     assert err.endswith(want)
     monkeypatch.undo()
     # the command given continues the campaign
@@ -362,20 +362,25 @@ def test_an_interrupted_bench_gives_the_command_that_starts_it_again(tmp_path: P
     monkeypatch.setattr(B, "run_plan", stop)
     argv = ["bench", "--controllers", "pi_kp1", "--scenarios", "step", "--out", str(tmp_path / "b")]
     assert cli.main(argv) == 130
-    err = _one_line(capsys, "interrupted")
+    err = _one_line(capsys, "stopped (SIGINT)")
     assert err.endswith("start again with: dss14 " + " ".join(argv) + " --overwrite")
 
 
-def test_continue_is_the_same_as_resume_for_a_campaign(tmp_path: Path, capsys) -> None:
+def test_resume_continues_a_campaign_and_continue_names_it(tmp_path: Path, capsys) -> None:
     cfg = _write(tmp_path / "c.yaml", {**TINY, "checkpoint_freq": 0, "eval_freq": 64,
                                        "total_timesteps": 128})
     out = tmp_path / "camp"
-    assert cli.main(["train", "ppo", "--config", str(cfg), "--seeds", "0", "--out", str(out)]) == 0
+    assert cli.main(["train", "ppo", "--config", str(cfg), "--train-seeds", "0", "--out", str(out)]) == 0
     kept = (out / "seed_0" / "policy.pt").stat().st_mtime_ns
-    for word in ("--resume", "--continue"):
-        assert cli.main(["train", "ppo", "--config", str(cfg), "--seeds", "0", "--out", str(out),
-                         word]) == 0
+    assert cli.main(["train", "ppo", "--config", str(cfg), "--train-seeds", "0", "--out", str(out),
+                     "--resume"]) == 0
     assert (out / "seed_0" / "policy.pt").stat().st_mtime_ns == kept  # scored, not retrained
+    capsys.readouterr()
+    for old, new in ((["--continue"], "--resume"), (["--seeds", "0"], "--train-seeds")):
+        assert cli.main(["train", "ppo", "--config", str(cfg), "--out", str(out), *old]) == 2
+        _one_line(capsys, f"{old[0]}: is now {new}")
+    assert cli.main(["campaign", "--out", str(tmp_path / "c"), "--continue"]) == 2
+    _one_line(capsys, "--continue: is now --resume")
 
 
 # ------------------------------------------------------------------ YAML and numbers
@@ -440,8 +445,8 @@ def test_values_torch_numpy_or_sb3_cannot_take_are_refused_before_the_folder(
 def test_seed_indices_past_the_largest_seed_are_refused(tmp_path: Path, capsys) -> None:
     path = _write(tmp_path / "c.yaml", {**TINY, "seed": MAX_SEED - 10})
     out = tmp_path / "out"
-    assert cli.main(["train", "ppo", "--config", str(path), "--seeds", "0-1", "--out", str(out)]) == 2
-    _one_line(capsys, "--seeds", "seed index 1")
+    assert cli.main(["train", "ppo", "--config", str(path), "--train-seeds", "0-1", "--out", str(out)]) == 2
+    _one_line(capsys, "--train-seeds", "seed index 1")
     assert not out.exists()
 
 

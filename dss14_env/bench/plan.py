@@ -27,6 +27,7 @@ import numpy as np
 from dss14_env.bench import catalog
 from dss14_env.bench.catalog import Budget, ControllerRow, LiveMapping, Scenario
 from dss14_env.core.seeds import parse_seed_list
+from dss14_env.core.text import counted
 from dss14_env.model.variants import DRIVE_VARIANTS
 
 #: per scenario, the default run's budget and the ``--quick`` one (the catalog's rows)
@@ -36,7 +37,7 @@ QUICK_BUDGETS: Mapping[str, Budget] = LiveMapping(lambda: {n: r.quick for n, r i
 #: a point of the error-vs-wind sweep (the MPC is left out: the 50 km/h points are the hold
 #: scenarios, where it runs)
 DEFAULT_SWEEP = Budget(60.0, 32, 0)
-#: ``--quick``: the CI smoke test (well under 30 s)
+#: ``--quick``: the CI smoke test
 QUICK_SWEEP = Budget(15.0, 8, 0)
 #: controllers of a run without ``--controllers``: the shipped bench rows (with registered
 #: rows: :func:`dss14_env.bench.catalog.controller_names`)
@@ -164,7 +165,7 @@ class BenchPlan:
         """One line: what the plan runs."""
         parts = [f"{s} {r.steps * self.dt:g} s x {len(r.seeds)} (one-at-a-time: {r.sequential})"
                  for s, r in self.runs.items()]
-        line = (f"bench: {len(self.controllers)} controllers ({', '.join(self.controllers)}); "
+        line = (f"bench: {counted(len(self.controllers), 'controller')} ({', '.join(self.controllers)}); "
                 f"episodes per scenario: {'; '.join(parts)}")
         if self.sweep_directions:
             line += (f"; wind sweep {'/'.join(self.sweep_directions)} at "

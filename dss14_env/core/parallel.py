@@ -198,6 +198,9 @@ def check_ray_options(address: str | None = None, num_cpus: int | None = None,
         raise ValueError(f"cpus_per_task: must be an integer >= 1, got {cpus_per_task!r}")
 
 
+#: most seconds the running tasks of an interrupted run get to stop on their own (a training saves
+#: its checkpoint at its next step; an evaluation in progress ends first)
+STOP_GRACE_S = 60.0
 #: seconds a cluster address has to answer before it is called unreachable
 PROBE_TIMEOUT_S = 10.0
 #: Ray's default ports: the cluster's GCS (``host:port``) and the client server (``ray://``)
@@ -294,8 +297,9 @@ class RayExecutor:
                       labels: Sequence[str] | None = None) -> Iterator[tuple[int, Any]]:
         """Submit every item, then ``(index, result)`` as each task finishes.
 
-        A failed task cancels the others that have not finished and raises
-        :class:`TaskFailedError`; so does closing the iterator early (no task is left running).
+        A failed task stops the others that have not finished (:meth:`stop`) and raises
+        :class:`TaskFailedError`; so do closing the iterator early and an interruption (Ctrl-C,
+        SIGTERM): no task is left running.
         """
         ray = self._ray
         remote = ray.remote(num_cpus=self.cpus_per_task, max_retries=0)(call_pinned)
@@ -314,7 +318,26 @@ class RayExecutor:
                                               f"{cause}") from None
                     yield i, res
         finally:
-            for ref in pending:
+            self.stop(list(pending))
+
+    def stop(self, refs: Sequence[Any], grace_s: float | None = None) -> None:
+        """Stop the tasks ``refs``: first as Ctrl-C would (a KeyboardInterrupt in each, through
+        its SIGINT handler: a training saves a checkpoint where it stops,
+        :mod:`dss14_env.core.stop`), waiting up to ``grace_s`` (default :data:`STOP_GRACE_S`)
+        for them to end, then by force.  A second interruption while waiting ends them at once.
+        """
+        if not refs:
+            return
+        ray = self._ray
+        for ref in refs:
+            ray.cancel(ref, force=False)
+        try:
+            ray.wait(list(refs), num_returns=len(refs),
+                     timeout=STOP_GRACE_S if grace_s is None else grace_s)
+        except KeyboardInterrupt:
+            pass
+        finally:
+            for ref in refs:
                 ray.cancel(ref, force=True)
 
     def describe(self) -> dict[str, Any]:
@@ -353,7 +376,7 @@ def make_executor(ray: bool = False, address: str | None = None, num_cpus: int |
     return SerialExecutor(threads=threads, torch=torch)
 
 
-__all__ = ["PROBE_TIMEOUT_S", "RAY_CLIENT_PORT", "RAY_INSTALL", "RAY_PORT", "Executor",
+__all__ = ["PROBE_TIMEOUT_S", "RAY_CLIENT_PORT", "RAY_INSTALL", "RAY_PORT", "STOP_GRACE_S", "Executor",
            "RayExecutor", "RayNotInstalledError", "SerialExecutor",
            "TaskFailedError", "call_pinned", "check_ray_options", "make_executor", "pinned_threads",
            "probe_address", "require_ray", "split_address"]
