@@ -22,7 +22,7 @@ def _reproduce(args: argparse.Namespace) -> int:
 
     t0 = time.perf_counter()
     cfg = load_model_config(args.config) if args.config else None  # bad config: before any work
-    prepare_output_dir(args.out, OWNED_FILES, overwrite=args.overwrite)
+    prepare_output_dir(args.out, OWNED_FILES, overwrite=args.overwrite, command="reproduce")
     with manifest_kept(args.out):
         model = build_model(cfg) if cfg is not None else default_model()
         res = reproduce(args.out, model, figures=not args.no_figures)
@@ -89,7 +89,7 @@ def campaign_resume_command(args: argparse.Namespace) -> str:
 
 
 def _train(args: argparse.Namespace) -> int:
-    from dss14_env.agents.campaign import owned_files, parse_seeds, train_seeds
+    from dss14_env.agents.campaign import COMMAND, owned_files, parse_seeds, train_seeds
     from dss14_env.agents.sweep import train_sweep
     from dss14_env.agents.train import TrainingInterrupted, config_for_command, train
     from dss14_env.core.outdir import prepare_output_dir
@@ -110,7 +110,8 @@ def _train(args: argparse.Namespace) -> int:
         require_ray()
         probe_address(args.address)
         if not resume_campaign:  # checked only: nothing removed before the runs are checked
-            prepare_output_dir(args.out, owned_files(args.out), args.overwrite, dry_run=True)
+            prepare_output_dir(args.out, owned_files(args.out), args.overwrite, dry_run=True,
+                               command=COMMAND)
     if args.seeds is None:
         if args.continue_:
             raise ValueError("--continue continues a campaign: give --seeds and --out")
@@ -409,7 +410,11 @@ def run_command(args: argparse.Namespace) -> int:
     be written, a full disk) exit with status 2, an interruption (Ctrl-C) with 130; a bug still
     shows its traceback.
     """
+    from dss14_env.core.outdir import check_folder_name
+
     try:
+        if getattr(args, "out", None) is not None:
+            check_folder_name(args.out)  # before a path of it ('' becomes '.') is made
         return args.func(args)
     except (ValueError, KeyError, RuntimeError, OSError) as exc:
         print(f"dss14 {args.command}: error: {_one_line(exc)}", file=sys.stderr)
