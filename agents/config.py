@@ -668,7 +668,7 @@ def load_config(path: str | Path | None = None, env_module: str | None = None) -
     """
     if path is not None:
         check_training_config_name(path)
-    data, source = read_config(path if path is not None else "ppo")
+    data, source = read_config(path if path is not None else "ppo", kind="training")
     return check_file_imports(TrainConfig.from_dict(data, source=source), env_module)
 
 

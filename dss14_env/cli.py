@@ -175,9 +175,12 @@ def _policy_option(path: str | None) -> str | None:
 def _bench(args: argparse.Namespace) -> int:
     import shlex
 
-    from dss14_env.bench.bench import bench, build_plan, prepare_out
+    from dss14_env.bench.bench import COMMAND, OWNED_FILES, bench, build_plan, prepare_out
     from dss14_env.bench.plan import parse_episodes
+    from dss14_env.core.outdir import prepare_output_dir
 
+    # the folder first: checked before any policy is loaded (seconds), nothing made or removed
+    prepare_output_dir(args.out, OWNED_FILES, args.overwrite, dry_run=True, command=COMMAND)
     args.ppo_model = _policy_option(args.ppo_model)
     cmd = "dss14 " + shlex.join(args.argv)
     seeds = parse_episodes(args.episodes) if args.episodes is not None else args.seeds
@@ -206,6 +209,7 @@ def _campaign(args: argparse.Namespace) -> int:
 
     from dss14_env.bench import campaign as C
     from dss14_env.bench.campaign_report import parse_requirements
+    from dss14_env.core.outdir import prepare_output_dir
     from dss14_env.core.parallel import check_ray_options, make_executor, probe_address, require_ray
 
     args.ppo_model = _policy_option(args.ppo_model)
@@ -216,6 +220,8 @@ def _campaign(args: argparse.Namespace) -> int:
                                ("directions", C.parse_directions(args.directions))) if v is not None}
     spec = C.CampaignSpec(**given, condition_on_pi=not args.unconditioned)
     reqs = parse_requirements(args.requirements)
+    if not (Path(args.out) / "campaign.json").is_file():  # a new campaign's folder: before any policy loads
+        prepare_output_dir(args.out, C.OWNED, args.overwrite, dry_run=True, command=C.COMMAND)
     C.check_policy(spec)  # before any work: a policy that cannot act on the environment
     use_ray = args.ray or args.address is not None or args.num_cpus is not None
     if use_ray:  # before any work: bad Ray options, or no Ray (then how to install it)

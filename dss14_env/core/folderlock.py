@@ -114,15 +114,15 @@ def lock_folder(folder: str | os.PathLike, command: str, option: str = "--out") 
 
 
 def unlock_folder(folder: str | os.PathLike) -> None:
-    """Drop this process's lock on ``folder`` and remove its lock file (nothing when it holds
-    none).
+    """Drop this process's locks on ``folder`` and on the folders inside it (a run's nested
+    runs end with it) and remove their lock files (nothing when it holds none).
     """
-    fd = _HELD.pop(_key(folder), None)
-    if fd is None:
-        return
-    with contextlib.suppress(OSError):
-        os.unlink(Path(_key(folder)) / LOCK_FILE)
-    os.close(fd)
+    top = Path(_key(folder))
+    for key in [k for k in _HELD if Path(k) == top or top in Path(k).parents]:
+        fd = _HELD.pop(key)
+        with contextlib.suppress(OSError):
+            os.unlink(Path(key) / LOCK_FILE)
+        os.close(fd)
 
 
 @contextlib.contextmanager

@@ -87,12 +87,14 @@ def _owned_entries(folder: Path, owned: Iterable[str]) -> list[Path]:
 
 
 def _files_under(entry: Path) -> list[Path]:
-    """``entry`` itself (a file or link) or every file below it (links not followed)."""
+    """``entry`` itself (a file or link) or every file below it (links not followed; lock
+    files left out).
+    """
     if entry.is_symlink() or not entry.is_dir():
         return [entry]
     out = []
     for root, dirs, files in os.walk(entry, followlinks=False):
-        out += [Path(root) / f for f in files]
+        out += [Path(root) / f for f in files if f != LOCK_FILE]  # a nested run's lock: no result
         out += [Path(root) / d for d in dirs if (Path(root) / d).is_symlink()]
     return out
 
@@ -339,7 +341,9 @@ def reopen_output_dir(path: str | os.PathLike, owned: Iterable[str], option: str
 
 
 def release_output_dir(path: str | os.PathLike) -> None:
-    """The run in ``path`` has ended: drop its lock (nothing when this process holds none)."""
+    """The run in ``path`` has ended: drop its lock and those of the runs inside it (nothing
+    when this process holds none).
+    """
     unlock_folder(path)
 
 
