@@ -3,8 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
+import os
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -421,13 +425,80 @@ def run_command(args: argparse.Namespace) -> int:
     try:
         if getattr(args, "out", None) is not None:
             check_folder_name(args.out)  # before a path of it ('' becomes '.') is made
-        return args.func(args)
+        with report_stream():
+            return args.func(args)
     except (ValueError, KeyError, RuntimeError, OSError) as exc:
         print(f"dss14 {args.command}: error: {_one_line(exc)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"dss14 {args.command}: interrupted{_again(args)}", file=sys.stderr)
         return 130
+
+
+class _Report(io.TextIOBase):
+    """The command's standard output: a reader gone away (``| head``) ends the report, not the
+    command, and a character the stream's encoding lacks is written as a backslash escape, so that the
+    exit status says how the work went, not how its report was read.
+    """
+
+    def __init__(self, inner: Any) -> None:
+        super().__init__()
+        self.inner = inner
+        self.gone = False
+
+    @property
+    def encoding(self) -> str:  # noqa: D102 - the stream's
+        return getattr(self.inner, "encoding", None) or "utf-8"
+
+    def write(self, s: str) -> int:  # noqa: D102 - io.TextIOBase's
+        if self.gone:
+            return len(s)
+        try:
+            self.inner.write(s)
+        except UnicodeEncodeError:
+            self._guarded(lambda: self.inner.write(s.encode(self.encoding, "backslashreplace")
+                                                   .decode(self.encoding)))
+        except BrokenPipeError:
+            self._reader_gone()
+        return len(s)
+
+    def flush(self) -> None:  # noqa: D102 - io.TextIOBase's
+        if not self.gone:
+            self._guarded(self.inner.flush)
+
+    def isatty(self) -> bool:  # noqa: D102 - the stream's
+        return bool(getattr(self.inner, "isatty", lambda: False)())
+
+    def _guarded(self, fn: Any) -> None:
+        try:
+            fn()
+        except BrokenPipeError:
+            self._reader_gone()
+
+    def _reader_gone(self) -> None:
+        """Nothing more is shown; what the stream still buffers goes nowhere (else Python's
+        own flush at exit would fail on the closed pipe).
+        """
+        self.gone = True
+        try:
+            fd = self.inner.fileno()
+        except (OSError, ValueError, AttributeError):
+            return
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, fd)
+        os.close(devnull)
+
+
+@contextlib.contextmanager
+def report_stream() -> Iterator[None]:
+    """Context manager: ``sys.stdout`` is a :class:`_Report` for the block."""
+    inner = sys.stdout
+    sys.stdout = report = _Report(inner)
+    try:
+        yield
+        report.flush()
+    finally:
+        sys.stdout = inner
 
 
 def _again(args: argparse.Namespace) -> str:

@@ -206,12 +206,20 @@ def check_folder_name(path: str | os.PathLike, option: str = "--out") -> None:
         raise OutputDirError(f"{option} {str(path)!r}: is empty; name a folder (e.g. {option} results)")
 
 
-def _check_writable(path: str | os.PathLike, option: str) -> Path:
-    """Create the folder ``path`` if needed and check that it is a writable folder."""
+def _check_writable(path: str | os.PathLike, option: str, create: bool = True) -> Path:
+    """Create the folder ``path`` if needed and check that it is a writable folder (without
+    ``create``, a missing folder is checked to be one that can be made, and is not made).
+    """
     check_folder_name(path, option)
     p = Path(path)
     if p.exists() and not p.is_dir():
         raise OutputDirError(f"{option} {p}: is a file, not a folder")
+    if not create and not p.exists():
+        up = next(a for a in p.absolute().parents if a.exists())
+        if not up.is_dir() or not os.access(up, os.W_OK | os.X_OK):
+            raise OutputDirError(f"{option} {p}: cannot create the folder ({up} is not a writable "
+                                 f"folder)")
+        return p
     try:
         p.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -247,7 +255,7 @@ def prepare_output_dir(path: str | os.PathLike, owned: Iterable[str], overwrite:
     :param option: the command-line option that named the folder (for the message)
     :param claim: take the folder (its lock, :mod:`~dss14_env.core.folderlock`, until
         :func:`release_output_dir`) and start the new run's manifest (:data:`MANIFEST`) there
-    :param dry_run: check only: remove nothing, claim nothing (the folder is created)
+    :param dry_run: check only: remove nothing, claim nothing, create nothing
     :param command: the command the run belongs to (``bench``, ``campaign``, ...): a folder
         whose manifest names another is refused, ``overwrite`` or not
     :return: the folder, created, writable, holding none of the command's files
@@ -256,8 +264,10 @@ def prepare_output_dir(path: str | os.PathLike, owned: Iterable[str], overwrite:
         results without ``overwrite``, or files of the user's where the command writes (never
         removed)
     """
-    p = _check_writable(path, option)
+    p = _check_writable(path, option, create=not dry_run)
     owned = tuple(owned)
+    if dry_run and not p.exists():
+        return p
     take = claim and not dry_run
     held = folder_locked(p)
     if take:
