@@ -145,12 +145,12 @@ def test_every_keyword_in_its_range_by_the_rules_works_many(kw: dict, vector_env
     _check(kw, vector_env, seed, by_the_rules=True)
 
 
-@pytest.mark.parametrize("seed", range(4))
-def test_the_shortest_period_at_the_strongest_wind_on_drawn_plants(seed: int) -> None:
-    import gymnasium as gym
-
-    env = gym.make("DSS14-HoldFront-v0", dt=DT_RANGE[1], wind_speed_kmh=WIND_SPEED_MAX_KMH,
-                   randomize_params=True)
+@pytest.mark.parametrize("seed", [1, 287, 29964])
+def test_the_longest_period_at_the_strongest_wind_on_drawn_plants(seed: int) -> None:
+    """Seeds 287 and 29964 draw the plants whose 4-direction noise factor drops the most at
+    dt = 0.1 s (1.4e-8 and 1.3e-8 of the variance, the largest of 4000 draws): refused before.
+    """
+    env = DSS14Env(dt=DT_RANGE[1], wind_speed_kmh=WIND_SPEED_MAX_KMH, randomize_params=True)
     obs, _ = env.reset(seed=seed)
     assert np.isfinite(obs).all()
     obs, reward, *_ = env.step(env.action_space.sample())
