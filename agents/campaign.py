@@ -65,7 +65,7 @@ from dss14_env.agents.policy import load_policy
 from dss14_env.agents.results import SCENARIO_COLUMNS, column_summary, column_values
 from dss14_env.agents.train import evaluation_ranks, last_checkpoint, train, validation_tasks
 from dss14_env.core.outdir import (
-    atomic_write_bytes,
+    atomic_save_figure,
     atomic_write_text,
     manifest_kept,
     prepare_output_dir,
@@ -81,6 +81,8 @@ from dss14_env.core.text import counted
 
 #: distance between the training seeds of two seed indices
 SEED_STRIDE = 1000
+#: the command a campaign's (and a sweep's) folder belongs to (its manifest's)
+COMMAND = "train --seeds"
 #: what a campaign or a sweep (:mod:`dss14_env.agents.sweep`) owns in its folder: either one
 #: replaces the other's files (with ``overwrite``), so the results of the two never mix
 CAMPAIGN_FILES = ("seed_*", "summary.json", "summary.md", "curves_*.png", "config.yaml", "sweep.json",
@@ -183,7 +185,7 @@ def _continue_campaign(cfg: TrainConfig, out: str | Path, seeds: Sequence[int]) 
     """
     folder = Path(out)
     check_saved_config(cfg, folder)
-    reopen_output_dir(folder, owned_files(folder), "--out")
+    reopen_output_dir(folder, owned_files(folder), "--out", command=COMMAND)
     remove_run_files(folder, ("summary.json", "summary.md", "curves_*.png"))
     finished = set()
     for k in seeds:
@@ -251,7 +253,8 @@ def open_campaign(cfg: TrainConfig, out: str | Path, seeds: Sequence[int], overw
     """
     if resume:
         return _continue_campaign(cfg, out, seeds)
-    folder = prepare_output_dir(out, owned_files(out) if owned is None else owned, overwrite, "--out")
+    folder = prepare_output_dir(out, owned_files(out) if owned is None else owned, overwrite, "--out",
+                                command=COMMAND)
     atomic_write_text(folder / "config.yaml", f"# shared configuration of the campaign (from "
                       f"{cfg.source}); run k trains with seed {cfg.seed} + {SEED_STRIDE} k\n"
                       + yaml.safe_dump(cfg.to_dict(), sort_keys=False))
@@ -557,8 +560,6 @@ def write_curves(folder: Path, runs: Sequence[Path], tasks: Sequence[EvalTask],
         (:func:`~dss14_env.agents.campaign_report.validation_references`); None: no lines
     :return: the files written (none when a run has no validation history: ``eval_freq`` 0)
     """
-    import io
-
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -594,10 +595,8 @@ def write_curves(folder: Path, runs: Sequence[Path], tasks: Sequence[EvalTask],
             ax.grid(alpha=0.3)
             ax.legend(fontsize=8)
         fig.suptitle(f"{t.name}: learning curves")
-        buf = io.BytesIO()
-        fig.savefig(buf, format="png", dpi=100)
         path = folder / f"curves_{t.name}.png"
-        atomic_write_bytes(path, buf.getvalue())
+        atomic_save_figure(fig, path, dpi=100)
         written.append(path)
     return written
 

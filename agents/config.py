@@ -585,8 +585,9 @@ def shipped_training_configs_by_algo() -> dict[str, list[str]]:
 
 
 def check_training_config_name(path: str | Path) -> None:
-    """Refuse, in one line, a ``--config`` that is neither a file nor a shipped training
-    configuration (a shipped model, env, wind or controllers configuration is named as such).
+    """Refuse, in one line, a ``--config`` that is neither a file nor a shipped configuration
+    (a shipped model, env, wind or controllers configuration is refused as such when read:
+    :func:`~dss14_env.core.schema.check_config_kind`).
 
     :raises ConfigError: listing the shipped training configurations
     """
@@ -597,10 +598,9 @@ def check_training_config_name(path: str | Path) -> None:
     training = shipped_training_configs()
     if stem in training and (len(p.parts) <= 1 or p.parts[0] == "configs"):
         return
+    if stem in shipped_configs():  # a shipped configuration of another kind: read_config names it
+        return
     names = ", ".join(training)
-    if stem in shipped_configs():
-        raise ConfigError(f"{path}: a shipped {stem} configuration, not a training one; the shipped "
-                          f"training configurations: {names}")
     raise ConfigError(f"{path}: configuration file not found (neither a file nor a shipped training "
                       f"configuration: {names})")
 
@@ -668,7 +668,7 @@ def load_config(path: str | Path | None = None, env_module: str | None = None) -
     """
     if path is not None:
         check_training_config_name(path)
-    data, source = read_config(path if path is not None else "ppo")
+    data, source = read_config(path if path is not None else "ppo", kind="training")
     return check_file_imports(TrainConfig.from_dict(data, source=source), env_module)
 
 

@@ -291,6 +291,15 @@ def _wrap_batched(venv: Any, cfg: TrainConfig, plan: EnvPlan, env_config: Any,
     return venv if plan.interface is None else InterfaceVecEnv(venv, plan.interface, env_config)
 
 
+def monitor_files(cfg: TrainConfig, plan: EnvPlan, monitor_dir: Path) -> list[Path]:
+    """The files the training VecEnv's monitors write in ``monitor_dir``
+    (:func:`make_train_vec_env`): ``monitor.csv`` batched, else ``<i>.monitor.csv`` per copy.
+    """
+    if cfg.mixture or vec_env_kind(cfg, plan) == "batched":
+        return [monitor_dir / "monitor.csv"]
+    return [monitor_dir / f"{i}.monitor.csv" for i in range(cfg.n_envs)]
+
+
 def make_train_vec_env(cfg: TrainConfig, plan: EnvPlan, env_config: Any,
                        monitor_dir: Path | None) -> Any:
     """The training VecEnv (before normalisation); sub-environment ``i`` seeded ``seed + i``.

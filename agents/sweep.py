@@ -36,6 +36,7 @@ from typing import Any
 import yaml
 
 from dss14_env.agents.campaign import (
+    COMMAND,
     SEED_STRIDE,
     campaign_tasks,
     check_saved_config,
@@ -91,11 +92,11 @@ def _open(cfg: TrainConfig, points: Sequence[SweepPoint], out: str | Path, seeds
     if resume:
         folder = Path(out)
         check_saved_config(cfg, folder)
-        reopen_output_dir(folder, owned_files(folder), "--out")
+        reopen_output_dir(folder, owned_files(folder), "--out", command=COMMAND)
         remove_run_files(folder, ("sweep.json", "sweep.md"))
     else:
         mine = tuple(glob.escape(p.label) for p in points)  # this sweep's points, and any before
-        folder = prepare_output_dir(out, owned_files(out) + mine, overwrite, "--out")
+        folder = prepare_output_dir(out, owned_files(out) + mine, overwrite, "--out", command=COMMAND)
         atomic_write_text(folder / "config.yaml", f"# sweep (from {cfg.source}): one campaign per "
                           f"point of the grid in <label>/; run k of every point trains with seed "
                           f"{cfg.seed} + {SEED_STRIDE} k\n"

@@ -40,8 +40,15 @@ import numpy as np
 import yaml
 
 from dss14_env.agents.algos import algo_class, algo_kwargs, is_recurrent, policy_kwargs
-from dss14_env.agents.config import TrainConfig, as_config, is_own_module, load_config
-from dss14_env.agents.envs import EnvPlan, check_env, make_train_vec_env, resolve_env, vec_env_kind
+from dss14_env.agents.config import MAX_TIMESTEPS, TrainConfig, as_config, is_own_module, load_config
+from dss14_env.agents.envs import (
+    EnvPlan,
+    check_env,
+    make_train_vec_env,
+    monitor_files,
+    resolve_env,
+    vec_env_kind,
+)
 from dss14_env.agents.evaluation import (
     DEFAULT_SCENARIOS,
     DSS14_TASKS,
@@ -79,12 +86,15 @@ from dss14_env.core.outdir import (
     atomic_write_text,
     manifest_kept,
     prepare_output_dir,
+    record_files,
     reopen_output_dir,
     update_manifest,
 )
 from dss14_env.core.stop import Stopped, StopRequests, signal_name
 
 #: what a training run owns in its folder (removed by ``overwrite``)
+#: the command a run folder belongs to (its manifest's)
+COMMAND = "train"
 RUN_FILES = (CONFIG, WEIGHTS, STATS, OPTIMIZER, COUNTERS, REPLAY, "return_normalization.npz",
              "checkpoints", "eval", "tb",
              "monitor", "train_summary.json", "model.zip", "vecnormalize.pkl")
@@ -116,6 +126,48 @@ class TrainingInterrupted(Stopped):
 
 
 # ------------------------------------------------------------------------------ resume sources
+#: the largest counters file read, bytes (the tool writes some 100)
+MAX_COUNTERS_BYTES = 4096
+#: a run id as :func:`~dss14_env.agents.storage.new_run_id` makes it
+_RUN_ID_RE = re.compile(r"^[0-9a-f]{1,64}$")
+
+
+def read_counters(path: Path) -> tuple[int, str]:
+    """A checkpoint's ``counters.json``, checked like a configuration: ``num_timesteps`` an
+    integer in [1, :data:`~dss14_env.agents.config.MAX_TIMESTEPS`] (and, in ``checkpoints/``,
+    the step count in the folder's name ``<N>_steps``), ``run_id`` a run id, ``episode_num`` an integer >= 0.
+
+    :return: ``(num_timesteps, run_id)``
+    :raises PolicyFileError: one line naming the file and the field
+    """
+    try:
+        if path.stat().st_size > MAX_COUNTERS_BYTES:
+            raise ValueError(f"more than {MAX_COUNTERS_BYTES} bytes")
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise PolicyFileError(f"{path}: not a readable counters file ({exc})") from None
+    if not isinstance(data, dict):
+        raise PolicyFileError(f"{path}: not a readable counters file (not a mapping)")
+
+    def count(key: str, lo: int, required: bool = True) -> int:
+        v = data.get(key, None if required else lo)
+        if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= MAX_TIMESTEPS:
+            raise PolicyFileError(f"{path}: field '{key}': must be an integer in [{lo}, "
+                                  f"{MAX_TIMESTEPS}], got {v!r}")
+        return v
+
+    steps = count("num_timesteps", 1)
+    count("episode_num", 0, required=False)
+    run_id = data.get("run_id")
+    if not isinstance(run_id, str) or not _RUN_ID_RE.match(run_id):
+        raise PolicyFileError(f"{path}: field 'run_id': must be a run id (hex digits), got {run_id!r}")
+    named = _CKPT_RE.match(path.parent.name) if path.parent.parent.name == "checkpoints" else None
+    if named and int(named["steps"]) != steps:
+        raise PolicyFileError(f"{path}: field 'num_timesteps': {steps}, the folder's name says "
+                              f"{named['steps']}; a checkpoint holds the counters of its own step")
+    return steps, run_id
+
+
 class _Resume:
     """What a run resumes from: a checkpoint folder (safe) or a foreign SB3 zip (opt-in)."""
 
@@ -135,13 +187,7 @@ class _Resume:
             for f in (OPTIMIZER, COUNTERS):
                 if not (folder / f).is_file():
                     raise PolicyFileError(f"{folder}: not a training checkpoint ({f} is missing)")
-            try:
-                counters = json.loads((folder / COUNTERS).read_text())
-                self.steps = int(counters["num_timesteps"])
-                self.run_id = str(counters["run_id"])
-            except (ValueError, KeyError, TypeError) as exc:
-                raise PolicyFileError(f"{folder / COUNTERS}: not a readable counters file "
-                                      f"({type(exc).__name__}: {exc})") from None
+            self.steps, self.run_id = read_counters(folder / COUNTERS)
             self.fingerprint, self.state = load_weights(folder / WEIGHTS)
             self.optim, self.tensors = load_optimizers(folder / OPTIMIZER)
             self.stats = self._checked_stats(folder)
@@ -527,13 +573,32 @@ def _eval_callback(evaluator: _Evaluator, every: int, start: int) -> Any:
 
 def _callbacks(cfg: TrainConfig, plan: EnvPlan, run: Path, run_id: str, config_text: str,
                venv: Any, start: int, ckpts: list[Path]) -> list[Any]:
-    out: list[Any] = []
+    out: list[Any] = [_tensorboard_folder_callback(run)]
     if cfg.checkpoint_freq > 0:
         out.append(_checkpoint_callback(cfg, run, run_id, config_text, venv, start, ckpts))
     if cfg.eval_freq > 0:
         ev = _Evaluator(cfg, plan, run, run_id, config_text, venv, start)
         out.append(_eval_callback(ev, cfg.eval_freq, start))
     return out
+
+
+def _tensorboard_folder_callback(run: Path) -> Any:
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class TensorBoardFolder(BaseCallback):
+        """Lists the run's TensorBoard folder (``tb/<ALGO>_<n>``, which stable-baselines3 makes
+        for the run) in the run's manifest when training starts.
+        """
+
+        def _on_training_start(self) -> None:
+            folder = self.logger.get_dir()
+            if folder is not None and Path(folder).parent.resolve() == (run / "tb").resolve():
+                record_files([Path(folder)], folders=True)
+
+        def _on_step(self) -> bool:
+            return True
+
+    return TensorBoardFolder()
 
 
 def _load_history(path: Path, start: int) -> dict[str, list]:
@@ -588,9 +653,9 @@ def prepare_run(cfg: TrainConfig, run_dir: str | Path | None, resume: str | Path
     else:
         run = _new_run_dir(cfg.algo)
     if src is not None and run.resolve() == src.run_folder.resolve():
-        reopen_output_dir(run, RUN_FILES, option="--out")  # continue the run in place
+        reopen_output_dir(run, RUN_FILES, option="--out", command=COMMAND)  # continue the run in place
     else:
-        prepare_output_dir(run, owned=RUN_FILES, overwrite=overwrite, option="--out")
+        prepare_output_dir(run, owned=RUN_FILES, overwrite=overwrite, option="--out", command=COMMAND)
     return run, src
 
 
@@ -696,6 +761,7 @@ def _train_in(cfg: TrainConfig, run: Path, src: _Resume | None, plan: EnvPlan, o
 
     torch.set_num_threads(cfg.torch_threads)
     monitor = run / "monitor" / (f"resume_{max(src.steps, 0)}_steps" if src is not None else "")
+    record_files(monitor_files(cfg, plan, monitor))  # listed in the manifest before they exist
     venv = make_train_vec_env(cfg, plan, env_config, monitor)
     venv = VecNormalize(venv, norm_obs=cfg.normalize_obs, norm_reward=cfg.normalize_reward,
                         gamma=cfg.gamma)
@@ -830,7 +896,7 @@ def load_run_config(run: str | Path) -> TrainConfig:
     return load_config(Path(run) / CONFIG)
 
 
-__all__ = ["RUN_FILES", "TrainingInterrupted", "config_for_command", "import_user_module",
+__all__ = ["RUN_FILES", "TrainingInterrupted", "config_for_command", "import_user_module", "read_counters",
            "last_checkpoint", "later_checkpoints", "load_run_config", "prepare_run", "resume_source",
            "resume_config_path", "save_checkpoint", "selection_key", "selection_score", "train",
            "validation_tasks"]

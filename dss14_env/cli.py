@@ -3,8 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
+import os
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -25,7 +29,7 @@ def _reproduce(args: argparse.Namespace) -> int:
 
     t0 = time.perf_counter()
     cfg = load_model_config(args.config) if args.config else None  # bad config: before any work
-    prepare_output_dir(args.out, OWNED_FILES, overwrite=args.overwrite)
+    prepare_output_dir(args.out, OWNED_FILES, overwrite=args.overwrite, command="reproduce")
     with manifest_kept(args.out):
         model = build_model(cfg) if cfg is not None else default_model()
         res = reproduce(args.out, model, figures=not args.no_figures, progress=args.progress)
@@ -104,7 +108,7 @@ def campaign_resume_command(args: argparse.Namespace) -> str:
 
 
 def _train(args: argparse.Namespace) -> int:
-    from dss14_env.agents.campaign import kept_work, owned_files, parse_seeds, train_seeds
+    from dss14_env.agents.campaign import COMMAND, kept_work, owned_files, parse_seeds, train_seeds
     from dss14_env.agents.sweep import train_sweep
     from dss14_env.agents.train import TrainingInterrupted, config_for_command, train
     from dss14_env.core.outdir import prepare_output_dir
@@ -128,7 +132,8 @@ def _train(args: argparse.Namespace) -> int:
         require_ray()
         probe_address(args.address)
         if not resume_campaign:  # checked only: nothing removed before the runs are checked
-            prepare_output_dir(args.out, owned_files(args.out), args.overwrite, dry_run=True)
+            prepare_output_dir(args.out, owned_files(args.out), args.overwrite, dry_run=True,
+                               command=COMMAND)
     if args.train_seeds is None:
         try:
             run = train(cfg, run_dir=args.out, resume=resume, overwrite=args.overwrite,
@@ -189,9 +194,12 @@ def _policy_option(path: str | None) -> str | None:
 def _bench(args: argparse.Namespace) -> int:
     import shlex
 
-    from dss14_env.bench.bench import bench, build_plan, prepare_out
+    from dss14_env.bench.bench import COMMAND, OWNED_FILES, bench, build_plan, prepare_out
     from dss14_env.bench.plan import parse_episodes
+    from dss14_env.core.outdir import prepare_output_dir
 
+    # the folder first: checked before any policy is loaded (seconds), nothing made or removed
+    prepare_output_dir(args.out, OWNED_FILES, args.overwrite, dry_run=True, command=COMMAND)
     args.ppo_model = _policy_option(args.ppo_model)
     cmd = "dss14 " + shlex.join(args.argv)
     seeds = parse_episodes(args.episodes) if args.episodes is not None else args.seeds
@@ -221,6 +229,7 @@ def _campaign(args: argparse.Namespace) -> int:
 
     from dss14_env.bench import campaign as C
     from dss14_env.bench.campaign_report import parse_requirements
+    from dss14_env.core.outdir import prepare_output_dir
     from dss14_env.core.parallel import check_ray_options, make_executor, probe_address, require_ray
 
     refuse_renamed(args)
@@ -233,6 +242,8 @@ def _campaign(args: argparse.Namespace) -> int:
                                ("directions", C.parse_directions(args.directions))) if v is not None}
     spec = C.CampaignSpec(**given, condition_on_pi=not args.unconditioned)
     reqs = parse_requirements(args.requirements)
+    if not (Path(args.out) / "campaign.json").is_file():  # a new campaign's folder: before any policy loads
+        prepare_output_dir(args.out, C.OWNED, args.overwrite, dry_run=True, command=C.COMMAND)
     C.check_policy(spec)  # before any work: a policy that cannot act on the environment
     use_ray = args.ray or args.address is not None or args.num_cpus is not None
     if use_ray:  # before any work: bad Ray options, or no Ray (then how to install it)
@@ -502,10 +513,13 @@ def run_command(args: argparse.Namespace) -> int:
     be written, a full disk) exit with status 2, an interruption with 130 (Ctrl-C) or 143
     (SIGTERM); a bug still shows its traceback.
     """
+    from dss14_env.core.outdir import check_folder_name
     from dss14_env.core.stop import exit_status, signal_name, signal_of, terminate_as_interrupt
 
     try:
-        with terminate_as_interrupt():
+        if getattr(args, "out", None) is not None:
+            check_folder_name(args.out)  # before a path of it ('' becomes '.') is made
+        with terminate_as_interrupt(), report_stream():
             return args.func(args)
     except (ValueError, KeyError, RuntimeError, OSError) as exc:
         print(f"dss14 {args.command}: error: {_one_line(exc)}", file=sys.stderr)
@@ -514,6 +528,72 @@ def run_command(args: argparse.Namespace) -> int:
         print(f"dss14 {args.command}: stopped ({signal_name(signal_of(exc))}){_again(args)}",
               file=sys.stderr)
         return exit_status(exc)
+
+
+class _Report(io.TextIOBase):
+    """The command's standard output: a reader gone away (``| head``) ends the report, not the
+    command, and a character the stream's encoding lacks is written as a backslash escape, so that the
+    exit status says how the work went, not how its report was read.
+    """
+
+    def __init__(self, inner: Any) -> None:
+        super().__init__()
+        self.inner = inner
+        self.gone = False
+
+    @property
+    def encoding(self) -> str:  # noqa: D102 - the stream's
+        return getattr(self.inner, "encoding", None) or "utf-8"
+
+    def write(self, s: str) -> int:  # noqa: D102 - io.TextIOBase's
+        if self.gone:
+            return len(s)
+        try:
+            self.inner.write(s)
+        except UnicodeEncodeError:
+            self._guarded(lambda: self.inner.write(s.encode(self.encoding, "backslashreplace")
+                                                   .decode(self.encoding)))
+        except BrokenPipeError:
+            self._reader_gone()
+        return len(s)
+
+    def flush(self) -> None:  # noqa: D102 - io.TextIOBase's
+        if not self.gone:
+            self._guarded(self.inner.flush)
+
+    def isatty(self) -> bool:  # noqa: D102 - the stream's
+        return bool(getattr(self.inner, "isatty", lambda: False)())
+
+    def _guarded(self, fn: Any) -> None:
+        try:
+            fn()
+        except BrokenPipeError:
+            self._reader_gone()
+
+    def _reader_gone(self) -> None:
+        """Nothing more is shown; what the stream still buffers goes nowhere (else Python's
+        own flush at exit would fail on the closed pipe).
+        """
+        self.gone = True
+        try:
+            fd = self.inner.fileno()
+        except (OSError, ValueError, AttributeError):
+            return
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, fd)
+        os.close(devnull)
+
+
+@contextlib.contextmanager
+def report_stream() -> Iterator[None]:
+    """Context manager: ``sys.stdout`` is a :class:`_Report` for the block."""
+    inner = sys.stdout
+    sys.stdout = report = _Report(inner)
+    try:
+        yield
+        report.flush()
+    finally:
+        sys.stdout = inner
 
 
 def _again(args: argparse.Namespace) -> str:

@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 from scipy import signal
 
-from dss14_env.core.outdir import atomic_write_text
+from dss14_env.core.outdir import atomic_save_figure, atomic_write_text
 from dss14_env.core.progress import Progress
 from dss14_env.core.results import ErrorStats
 from dss14_env.core.schema import default_config_path
@@ -837,7 +837,7 @@ def draw_wind_figures(loads: WindLoads, records: dict, dt: float, out: Path) -> 
     fig = wind_error_histories(records, dt)
     fig.suptitle("Encoder servo errors, PI kp 1 ki 0.3, 50 km/h Davenport gusts (Table 4)")
     fig.tight_layout()
-    fig.savefig(out / "wind_servo_errors.png", dpi=90)
+    atomic_save_figure(fig, out / "wind_servo_errors.png", dpi=90)
     return ["wind_gust_psd.png", "wind_servo_errors.png"]
 
 
@@ -873,7 +873,7 @@ def draw_figures(m: DSS14Model, out: Path) -> list[str]:
     def save(fig, name, title):
         fig.suptitle(title)
         fig.tight_layout()
-        fig.savefig(out / name, dpi=90)
+        atomic_save_figure(fig, out / name, dpi=90)
         files.append(name)
 
     f = np.geomspace(1e-3, 100, 600)

@@ -25,7 +25,7 @@ from dss14_env.agents.policy import DEFAULT_POLICY, PolicyController, evaluate, 
 from dss14_env.agents.storage import load_stats, load_weights
 from dss14_env.agents.train import RUN_FILES, train
 from dss14_env.cli import main
-from dss14_env.core.outdir import prepare_output_dir, update_manifest
+from dss14_env.core.outdir import atomic_write_text, prepare_output_dir, update_manifest
 from dss14_env.core.schema import ConfigError
 
 UNIT_PENDULUM = "PendulumUnitAction-v0"  # Pendulum with actions rescaled to [-1, 1], like DSS14-v0
@@ -148,9 +148,9 @@ def test_new_run_refuses_a_run_folder_unless_overwrite(pendulum_run: Path, tmp_p
         train(tiny(), run_dir=pendulum_run)
     # an interrupted run (config and a checkpoint, no final policy) is refused as well
     partial = tmp_path / "partial"
-    prepare_output_dir(partial, RUN_FILES)  # the run claimed the folder (its manifest) ...
+    prepare_output_dir(partial, RUN_FILES, command="train")  # the run claimed the folder ...
     (partial / "checkpoints" / "256_steps").mkdir(parents=True)
-    (partial / "config.yaml").write_text("env_id: Pendulum-v1\n")
+    atomic_write_text(partial / "config.yaml", "env_id: Pendulum-v1\n")
     update_manifest(partial)  # ... and was killed after its first checkpoint
     (partial / "notes.txt").write_text("mine")
     assert main(["train", "ppo", "--config", "ppo_smoke", "--out", str(partial)]) == 2

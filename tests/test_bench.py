@@ -22,7 +22,7 @@ from dss14_env.bench import plan as P
 from dss14_env.bench import report as R
 from dss14_env.bench.run import sweep_points
 from dss14_env.bench.threads import blas_threads
-from dss14_env.core.outdir import MANIFEST, prepare_output_dir, update_manifest
+from dss14_env.core.outdir import MANIFEST, atomic_write_text, prepare_output_dir, update_manifest
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_RESULTS = ROOT / "docs" / "results" / "bench_default.json"
@@ -217,9 +217,9 @@ def test_unwritable_out_fails_before_any_work(tmp_path, capsys, no_work, monkeyp
 
 def test_a_used_folder_is_refused_unless_overwrite(tmp_path, capsys, monkeypatch) -> None:
     out = tmp_path / "out"
-    prepare_output_dir(out, B.OWNED_FILES)  # an earlier bench: its files in its manifest
+    prepare_output_dir(out, B.OWNED_FILES, command=B.COMMAND)  # an earlier bench: its files listed
     for name in ("results.json", "results.md", F.FIGURES[1]):
-        (out / name).write_text("old")
+        atomic_write_text(out / name, "old")
     update_manifest(out)
     for name in ("mine.png", "notes.txt"):  # the user's, written after
         (out / name).write_text("old")

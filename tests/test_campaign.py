@@ -101,6 +101,8 @@ def fresh(tmp_path_factory) -> dict:
     ({"directions": ("up",)}, "--directions: 'front', 'side' or degrees"),
     ({"directions": (400.0,)}, "--directions"),
     ({"directions": ("side", "side")}, "--directions: a direction is repeated"),
+    ({"directions": ("front", 0.0)}, "--directions: a direction is repeated: .* are 0, 0 degrees"),
+    ({"directions": ("side", 90.0)}, "--directions: a direction is repeated: .* are 90, 90 degrees"),
     ({"ppo_model": "x"}, "--ppo-model: given, but 'ppo' is not"),
 ])
 def test_bad_options_are_named(changes, message) -> None:

@@ -60,12 +60,17 @@ def test_reproduce_refuses_a_file_as_out_before_any_work(tmp_path, capsys) -> No
 
 def test_reproduce_refuses_earlier_results_without_overwrite(tmp_path, capsys) -> None:
     from dss14_env.cli import main
-    from dss14_env.core.outdir import prepare_output_dir, update_manifest
+    from dss14_env.core.outdir import (
+        atomic_write_bytes,
+        atomic_write_text,
+        prepare_output_dir,
+        update_manifest,
+    )
     from dss14_env.reproduce import OWNED_FILES
 
-    prepare_output_dir(tmp_path, OWNED_FILES)  # an earlier run: its files in its manifest
-    (tmp_path / "metrics.json").write_text("{}")
-    (tmp_path / "fig03_board_r_to_i.png").write_bytes(b"old")
+    prepare_output_dir(tmp_path, OWNED_FILES, command="reproduce")  # an earlier run: its files listed
+    atomic_write_text(tmp_path / "metrics.json", "{}")
+    atomic_write_bytes(tmp_path / "fig03_board_r_to_i.png", b"old")
     update_manifest(tmp_path)
     assert main(["reproduce", "--out", str(tmp_path), "--no-figures"]) == 2
     assert "--overwrite" in capsys.readouterr().err

@@ -46,6 +46,8 @@ from dss14_env.core.outdir import manifest_kept, prepare_output_dir
 
 #: what the bench owns in its output folder (removed by ``--overwrite``, nothing else)
 OWNED_FILES: tuple[str, ...] = RESULT_FILES + FIGURES
+#: the command its output folders belong to (their manifest's)
+COMMAND = "bench"
 
 
 def prepare_out(plan: BenchPlan) -> None:
@@ -53,7 +55,8 @@ def prepare_out(plan: BenchPlan) -> None:
     written, or earlier results without ``overwrite`` raise
     :class:`dss14_env.core.outdir.OutputDirError` (one line naming the path).
     """
-    prepare_output_dir(plan.out, OWNED_FILES, overwrite=plan.overwrite, option="--out")
+    prepare_output_dir(plan.out, OWNED_FILES, overwrite=plan.overwrite, option="--out",
+                       command=COMMAND)
 
 
 def bench(plan: BenchPlan, progress: bool = True) -> dict[str, Any]:

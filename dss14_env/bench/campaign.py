@@ -55,6 +55,7 @@ import numpy as np
 from dss14_env.bench import campaign_report as report
 from dss14_env.bench import runner
 from dss14_env.bench.campaign_spec import (  # noqa: F401 - the options, re-exported
+    COMMAND,
     DEFAULT_CHUNK_SIZE,
     DEFAULT_CONTROLLERS,
     DEFAULT_DIRECTIONS,
@@ -267,10 +268,10 @@ def open_campaign(spec: CampaignSpec, out: str | os.PathLike, resume: bool = Fal
             raise CampaignOptionError(f"--resume: {out} holds a campaign with other options ("
                                       f"{'; '.join(spec_differences(old, spec))}); pass the same "
                                       f"options, --overwrite to replace it, or choose another folder")
-        reopen_output_dir(out, OWNED)  # still a writable folder; its manifest kept
+        reopen_output_dir(out, OWNED, command=COMMAND)  # still a writable folder; its manifest kept
         (out / "chunks").mkdir(exist_ok=True)
         return out, finished_chunks(out, spec)
-    prepare_output_dir(out, OWNED, overwrite=overwrite)
+    prepare_output_dir(out, OWNED, overwrite=overwrite, command=COMMAND)
     (out / "chunks").mkdir(exist_ok=True)
     atomic_write_text(cj, json.dumps({"format": FORMAT, "spec": spec.as_dict(),
                                       "fingerprint": spec.fingerprint()}, indent=1) + "\n")

@@ -40,6 +40,7 @@ from dss14_env.bench import catalog
 from dss14_env.bench.campaign_spec import CampaignSpec
 from dss14_env.bench.plan import control_period
 from dss14_env.bench.report import fmt, package_versions
+from dss14_env.core.outdir import atomic_save_figure
 from dss14_env.core.results import ERRORS, POINTING, SERVO, episode_error
 from dss14_env.core.stats import bootstrap_ci
 from dss14_env.core.text import counted
@@ -422,7 +423,7 @@ def draw_cdfs(results: Mapping[str, Any], out: str | Path) -> list[str]:
         axs[0].set_ylabel(f"share of {spec.plants} plants ≤ x")
         axs[-1].legend(loc="lower right", fontsize=7)
         name = cdf_figure_name(speed)
-        fig.savefig(Path(out) / name, dpi=90)
+        atomic_save_figure(fig, Path(out) / name, dpi=90)
         written.append(name)
     return written
 

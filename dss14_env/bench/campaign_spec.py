@@ -37,6 +37,8 @@ WARMUP_S = 5.0
 DEFAULT_CHUNK_SIZE = 5
 #: files and folders a campaign writes into its output folder
 OWNED = ("campaign.json", "chunks", "results.json", "results.md", "cdf_*.png")
+#: the command its output folders belong to (their manifest's)
+COMMAND = "campaign"
 #: version of the chunk and campaign file layout
 FORMAT = 1
 
@@ -196,6 +198,21 @@ def check_policy(spec: CampaignSpec) -> None:
             raise CampaignOptionError(f"{opt}: {problem}")
 
 
+def _check_directions(directions: Sequence[str | float]) -> None:
+    """Refuse an empty, unknown or repeated ``--directions``."""
+    if not directions:
+        raise CampaignOptionError("--directions: give at least one direction")
+    for d in directions:
+        ok = d in WIND_DIRECTIONS if isinstance(d, str) else (
+            not isinstance(d, bool) and isinstance(d, (int, float)) and math.isfinite(d) and 0 <= d < 360)
+        if not ok:
+            raise CampaignOptionError(f"--directions: 'front', 'side' or degrees in [0, 360), got {d!r}")
+    degrees = [math.degrees(WIND_DIRECTIONS[d]) if isinstance(d, str) else float(d) for d in directions]
+    if len(set(degrees)) != len(degrees):  # 'front' and 0 are one direction
+        raise CampaignOptionError(f"--directions: a direction is repeated: {list(directions)} "
+                                  f"are {', '.join(f'{x:g}' for x in degrees)} degrees")
+
+
 def check_spec(spec: CampaignSpec) -> None:
     """Raise :class:`CampaignOptionError` naming the first bad option."""
     _check_controllers(spec.controllers)
@@ -204,15 +221,7 @@ def check_spec(spec: CampaignSpec) -> None:
     _positive_int(spec.steps, "--steps")
     _positive_int(spec.chunk_size, "--chunk-size")
     parse_wind_speeds(spec.wind_speeds_kmh, CampaignOptionError, hint="")
-    if not spec.directions:
-        raise CampaignOptionError("--directions: give at least one direction")
-    for d in spec.directions:
-        ok = d in WIND_DIRECTIONS if isinstance(d, str) else (
-            not isinstance(d, bool) and isinstance(d, (int, float)) and math.isfinite(d) and 0 <= d < 360)
-        if not ok:
-            raise CampaignOptionError(f"--directions: 'front', 'side' or degrees in [0, 360), got {d!r}")
-    if len(set(spec.directions)) != len(spec.directions):
-        raise CampaignOptionError(f"--directions: a direction is repeated: {list(spec.directions)}")
+    _check_directions(spec.directions)
     if not isinstance(spec.condition_on_pi, bool):
         raise CampaignOptionError(f"condition_on_pi: must be true or false, got {spec.condition_on_pi!r}")
     w = spec.warmup_s
@@ -225,6 +234,9 @@ def check_spec(spec: CampaignSpec) -> None:
     opt_row = catalog.POLICY_OPTION_ROW
     if spec.ppo_model is not None and opt_row not in spec.controllers:
         raise CampaignOptionError(f"--ppo-model: given, but {opt_row!r} is not among --controllers")
+    clash = None if spec.ppo_model is None else catalog.policy_name_problem(spec.ppo_model)
+    if clash is not None:
+        raise CampaignOptionError(f"--ppo-model: {clash}")
     if len(set(spec.names)) != len(spec.names):
         raise CampaignOptionError(f"--ppo-model: the policy's name is a controller's already: "
                                   f"{list(spec.names)}")

@@ -370,9 +370,9 @@ def controller_rows(names: Sequence[str] | None, ppo_model: str | Path | None = 
         row, option = catalog.CONTROLLERS[name], f"--controllers {name}"
         if name == opt_row and ppo_model is not None:
             row, option = catalog.policy_row(ppo_model), "--ppo-model"
-            if row.name in chosen:
-                raise BenchOptionError(f"--ppo-model: the policy's name {row.name!r} is a "
-                                       f"controller's already; rename its folder")
+            clash = catalog.policy_name_problem(ppo_model)
+            if clash is not None:
+                raise BenchOptionError(f"--ppo-model: {clash}")
         problem = row.policy_problem()
         if problem is None:
             rows.append(row)

@@ -509,11 +509,49 @@ def _load_yaml(text: str, source: str) -> Any:
         loader.dispose()
 
 
-def read_config(name_or_path: str | Path) -> tuple[dict[str, Any], str]:
+#: the kinds of configuration file: the top-level fields only that kind has (what tells one
+#: kind from another) and its shipped example
+CONFIG_KINDS: dict[str, tuple[frozenset[str], str]] = {
+    "model": (frozenset({"board", "hydraulics", "structure", "gearbox", "calibration", "reduction",
+                         "position_loop", "recalibrate_wind"}), "configs/model.yaml"),
+    "wind": (frozenset({"loads", "table4"}), "configs/wind.yaml"),
+    "controllers": (frozenset({"design", "lqg", "mpc", "pointing"}), "configs/controllers.yaml"),
+    "training": (frozenset({"algo", "env_id", "total_timesteps", "net_arch", "n_steps", "n_envs",
+                            "learning_rate", "batch_size", "sweep", "mixture"}), "configs/ppo.yaml"),
+    "environment": (frozenset({"dt", "scenario", "wind_speed_kmh", "wind_direction", "encoders",
+                               "reward", "randomize_params", "params", "max_error_deg"}),
+                    "configs/env.yaml"),
+}
+
+
+def check_config_kind(data: Mapping[str, Any], source: str, kind: str) -> None:
+    """Refuse a configuration of another kind than ``kind`` (:data:`CONFIG_KINDS`): a file
+    that has fields of another kind and none of its own.
+
+    :raises ConfigError: one line naming the file, the kind it is and the kind wanted
+    """
+    keys = set(map(str, data))
+    if keys & CONFIG_KINDS[kind][0]:
+        return
+    found = max(CONFIG_KINDS, key=lambda k: len(keys & CONFIG_KINDS[k][0]))
+    if keys & CONFIG_KINDS[found][0]:
+        shown = ", ".join(sorted(keys & CONFIG_KINDS[found][0])[:3])
+        raise ConfigError(f"{source}: is {_a(found)} configuration (fields {shown}), not {_a(kind)} "
+                          f"configuration; give {_a(kind)} configuration (like {CONFIG_KINDS[kind][1]})")
+
+
+def _a(word: str) -> str:
+    return f"{'an' if word[0] in 'aeiou' else 'a'} {word}"
+
+
+def read_config(name_or_path: str | Path, kind: str | None = None) -> tuple[dict[str, Any], str]:
     """Read a YAML configuration (a path or a shipped name, :func:`config_path`).
 
     Parsed with ``yaml.safe_load``'s loader (no Python objects are ever built from a file),
     refusing a key repeated in one mapping (:class:`UniqueKeySafeLoader`).
+
+    :param kind: the kind of configuration wanted (:data:`CONFIG_KINDS`; None: any): a file of
+        another kind is refused as such (:func:`check_config_kind`)
 
     :return: ``(mapping, source)``: the top-level mapping (empty for an empty file) and the
         file's path as a string, for messages
@@ -545,4 +583,6 @@ def read_config(name_or_path: str | Path) -> tuple[dict[str, Any], str]:
     if not isinstance(data, Mapping):
         raise ConfigError(f"{source}: top level must be a mapping of fields, got "
                           f"{type(data).__name__}")
+    if kind is not None:
+        check_config_kind(data, source, kind)
     return dict(data), source

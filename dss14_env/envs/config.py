@@ -315,7 +315,7 @@ def load_env_config(config: str | Path | Mapping[str, Any] | EnvConfig | None = 
         base = load_section(EnvConfig, data, source, defaults=False).checked(source)
         base = base._with_sources({}, data, source)
         if isinstance(config, (str, Path)):
-            data, source = read_config(config)
+            data, source = read_config(config, kind="environment")
             base = base.updated(data, source)
         elif config is not None:
             base = base.updated(config, "config mapping")

@@ -277,6 +277,20 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
     travel limit; the dynamics and the pointing outputs stay those of the model's elevation,
     and only the travel margins and the quantisation phase follow the start.
 
+    ## Keywords together
+
+    Each keyword has its range (``configs/env.yaml``); inside them every combination works,
+    but for these rules between keywords, each refused with one line naming the keyword and
+    the rule: ``start_az_deg`` and ``start_az_range_deg`` lie within ``az_wrap_centre_deg`` +-
+    ``az_wrap_half_range_deg``; ``start_el_deg`` and ``start_el_range_deg`` within
+    ``el_limits_deg``; the track's largest rate (``track_rate_max_deg_s`` + amplitude x 2 pi /
+    shortest period) within ``rate_limit_deg_s`` and its largest acceleration within
+    ``accel_limit_deg_s2``; ``slew_rate_deg_s`` <= ``rate_limit_deg_s`` and
+    ``slew_accel_deg_s2`` <= ``accel_limit_deg_s2`` (all when the environment is made); and
+    ``start_el_deg: model`` needs the model's elevation +-0.01 deg inside ``el_limits_deg``
+    (at the reset, whose options may change either key).  A hypothesis test draws every
+    keyword in its range together (``tests/test_env_keyword_ranges.py``).
+
     ## Episode end
 
     ``terminated`` when the true servo error exceeds ``max_error_deg`` (1 deg) on either axis
