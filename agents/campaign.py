@@ -71,6 +71,7 @@ from dss14_env.core.outdir import (
     update_manifest,
 )
 from dss14_env.core.parallel import Executor, SerialExecutor, pinned_threads
+from dss14_env.core.schema import load_yaml
 from dss14_env.core.seeds import parse_seed_list
 from dss14_env.core.stats import iqm_ci
 from dss14_env.core.text import counted
@@ -141,7 +142,7 @@ def _aggregate(values: list[float]) -> dict[str, Any]:
 
 
 def _as_yaml_data(cfg: TrainConfig) -> Any:
-    return yaml.safe_load(yaml.safe_dump(cfg.to_dict(), sort_keys=False))
+    return load_yaml(yaml.safe_dump(cfg.to_dict(), sort_keys=False), cfg.source)
 
 
 def finished_run(cfg: TrainConfig, run: Path) -> bool:
@@ -151,8 +152,8 @@ def finished_run(cfg: TrainConfig, run: Path) -> bool:
     """
     try:
         ts = json.loads((run / "train_summary.json").read_text())
-        saved = yaml.safe_load((run / "config.yaml").read_text())
-    except (OSError, ValueError, yaml.YAMLError):
+        saved = load_yaml((run / "config.yaml").read_text(), str(run / "config.yaml"))
+    except (OSError, ValueError):
         return False
     return saved == _as_yaml_data(cfg) and int(ts.get("num_timesteps", -1)) >= cfg.total_timesteps
 
@@ -163,8 +164,8 @@ def check_saved_config(cfg: TrainConfig, folder: Path) -> None:
     :raises ValueError: no readable ``config.yaml``, or another configuration (``--resume``)
     """
     try:
-        saved = yaml.safe_load((folder / "config.yaml").read_text())
-    except (OSError, yaml.YAMLError):
+        saved = load_yaml((folder / "config.yaml").read_text(), str(folder / "config.yaml"))
+    except (OSError, ValueError):
         raise ValueError(f"--resume: {folder} holds no campaign to continue (no readable "
                          f"config.yaml)") from None
     if saved != _as_yaml_data(cfg):

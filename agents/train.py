@@ -37,7 +37,7 @@ import numpy as np
 import yaml
 
 from dss14_env.agents.algos import algo_class, algo_kwargs, is_recurrent, policy_kwargs
-from dss14_env.agents.config import TrainConfig, as_config, is_own_module, load_config
+from dss14_env.agents.config import TrainConfig, as_config, is_known_env_module, load_config
 from dss14_env.agents.envs import EnvPlan, check_env, make_train_vec_env, resolve_env, vec_env_kind
 from dss14_env.agents.evaluation import (
     DEFAULT_SCENARIOS,
@@ -542,7 +542,7 @@ def _resume_command(cfg: TrainConfig, run: Path, ckpt: Path | None) -> str:
     """
     cmd = ["dss14", "train", cfg.algo, "--config", str(run / CONFIG)]
     cmd += ["--resume", str(ckpt)] if ckpt is not None else ["--overwrite"]
-    if cfg.env_module is not None and not is_own_module(cfg.env_module):
+    if cfg.env_module is not None and not is_known_env_module(cfg.env_module):
         cmd += ["--env-module", cfg.env_module]
     return shlex.join([*cmd, "--out", str(run)])
 
