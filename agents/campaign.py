@@ -61,6 +61,7 @@ from dss14_env.agents.evaluation import DEFAULT_SCENARIOS, TEST_SEEDS, TEST_STEP
 from dss14_env.agents.policy import load_policy
 from dss14_env.agents.results import SCENARIO_COLUMNS, column_summary, column_values
 from dss14_env.agents.train import evaluation_ranks, train, validation_tasks
+from dss14_env.core.arrays import read_arrays
 from dss14_env.core.outdir import (
     atomic_write_bytes,
     atomic_write_text,
@@ -381,11 +382,11 @@ def selected_evaluation(history: str | Path) -> tuple[int, tuple[bool, float]] |
     -- the highest rank, as the training's evaluator keeps it (:func:`evaluation_ranks`); None
     without scores.
     """
-    with np.load(history, allow_pickle=False) as d:
-        if "selection_score" not in d.files or not d["selection_score"].size:
-            return None
-        ranks = evaluation_ranks(d["selection_score"].tolist(), d["selection_qualified"].tolist()
-                                 if "selection_qualified" in d.files else None)
+    d = read_arrays(history)
+    if "selection_score" not in d or not d["selection_score"].size:
+        return None
+    ranks = evaluation_ranks(d["selection_score"].tolist(), d["selection_qualified"].tolist()
+                             if "selection_qualified" in d else None)
     i = max(range(len(ranks)), key=lambda k: ranks[k])  # the first of equal ranks, as kept
     return i, ranks[i]
 
@@ -430,9 +431,9 @@ def learning_curves(runs: Sequence[Path], task: str) -> dict[str, Any]:
     entries = {"three_sigma": "three_sigma_mdeg", "pointing": "pointing_three_sigma_mdeg"}
     data = []
     for r in runs:
-        with np.load(r / "eval" / "evaluations.npz", allow_pickle=False) as d:
-            errs = {k: d[f"{v}_{task}"] for k, v in entries.items() if f"{v}_{task}" in d.files}
-            data.append((d["timesteps"].astype(int), np.asarray(d[f"returns_{task}"]), errs))
+        d = read_arrays(r / "eval" / "evaluations.npz")
+        errs = {k: d[f"{v}_{task}"] for k, v in entries.items() if f"{v}_{task}" in d}
+        data.append((d["timesteps"].astype(int), np.asarray(d[f"returns_{task}"]), errs))
     common = sorted(set.intersection(*(set(t.tolist()) for t, _, _ in data))) if data else []
     steps = np.array(common, int)
     out = {"steps": steps, "returns": np.full((len(data), steps.size), np.nan)}

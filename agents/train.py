@@ -69,6 +69,7 @@ from dss14_env.agents.storage import (
     save_replay_buffer,
     write_policy_folder,
 )
+from dss14_env.core.arrays import read_arrays
 from dss14_env.core.outdir import (
     atomic_folder,
     atomic_write_bytes,
@@ -519,11 +520,11 @@ def _load_history(path: Path, start: int) -> dict[str, list]:
     h: dict[str, list] = {"timesteps": [], "results": [], "ep_lengths": []}
     if start <= 0 or not path.is_file():
         return h
-    with np.load(path, allow_pickle=False) as d:
-        keep = d["timesteps"] <= start
-        for k in d.files:
-            h[k] = [x for x in d[k][keep]]
-        h["timesteps"] = [int(t) for t in h["timesteps"]]
+    d = read_arrays(path)
+    keep = d["timesteps"] <= start
+    for k in d:
+        h[k] = [x for x in d[k][keep]]
+    h["timesteps"] = [int(t) for t in h["timesteps"]]
     return h
 
 

@@ -5,18 +5,23 @@ read, and every refusal is one line naming the file.
 
 from __future__ import annotations
 
+import io
 import shutil
 import sys
 import types
+import zipfile
 from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
+from numpy.lib import format as npy_format
 
-from dss14_env.agents.campaign import check_saved_config
+from dss14_env.agents.campaign import check_saved_config, selected_evaluation
 from dss14_env.agents.config import KNOWN_ENV_MODULES, load_config
 from dss14_env.agents.policy import load_policy, shipped_policies, shipped_policy
+from dss14_env.agents.storage import PolicyFileError, load_replay_buffer
+from dss14_env.core.arrays import ArrayFileError, read_arrays
 from dss14_env.core.schema import ConfigError, load_yaml, read_config
 
 
@@ -126,3 +131,108 @@ def test_the_shipped_configurations_read_as_before() -> None:
     for path in sorted(Path(str(shipped_policy("ppo_plain"))).parents[1].glob("policies/*/config.yaml")):
         assert load_yaml(path.read_text(), str(path)) == yaml.safe_load(path.read_text())
     assert np.isfinite(read_config("model")[0]["hydraulics"]["beta"]["value"])
+
+
+# ------------------------------------------------------------------ arrays measured before read
+def _npy_header(shape: tuple[int, ...], dtype: str = "<f8") -> bytes:
+    buf = io.BytesIO()
+    npy_format.write_array_header_1_0(buf, {"descr": dtype, "fortran_order": False, "shape": shape})
+    return buf.getvalue()
+
+
+@pytest.fixture
+def no_data_read(monkeypatch) -> None:
+    """Any read of array data fails the test: a refusal must come from the headers alone."""
+    def refused(*_: object, **__: object) -> None:
+        raise AssertionError("array data was read before the headers were measured")
+
+    monkeypatch.setattr(np, "load", refused)
+
+
+def test_a_compressed_statistics_bomb_is_refused_from_its_headers(tmp_path: Path, no_data_read) -> None:
+    folder = _policy_copy(tmp_path)
+    stats = folder / "normalization.npz"
+    with zipfile.ZipFile(stats, "w", zipfile.ZIP_DEFLATED) as zf:
+        with zf.open("obs_mean.npy", "w") as fh:
+            fh.write(_npy_header((4 << 20,)))
+            fh.write(bytes(8 << 20) * 4)
+    assert stats.stat().st_size < 200_000  # 32 MiB of zeros in a small file
+    with pytest.raises(PolicyFileError, match=rf"^{stats}: its headers claim 4194304 elements"):
+        load_policy(folder)
+
+
+@pytest.mark.parametrize("suffix", [".npz", ".npy"])
+def test_a_header_claiming_93_gib_is_one_line(tmp_path: Path, suffix: str, no_data_read) -> None:
+    path = tmp_path / f"huge{suffix}"
+    if suffix == ".npy":
+        path.write_bytes(_npy_header((12_500_000_000,)))
+    else:
+        with zipfile.ZipFile(path, "w") as zf:
+            zf.writestr("obs_mean.npy", _npy_header((12_500_000_000,)))
+    with pytest.raises(ArrayFileError, match=rf"^{path}: its headers claim 12500000000 elements "
+                                             rf"\(100000000000 bytes\)"):
+        read_arrays(path)
+
+
+def test_statistics_and_evaluations_read_as_written(tmp_path: Path) -> None:
+    a = {"x": np.arange(5.0), "n": np.int64(3), "s": np.array("text")}
+    np.savez(tmp_path / "a.npz", **a)
+    got = read_arrays(tmp_path / "a.npz")
+    assert set(got) == set(a) and all(np.array_equal(got[k], a[k]) for k in a)
+    np.save(tmp_path / "b.npy", np.eye(3))
+    assert np.array_equal(read_arrays(tmp_path / "b.npy")[""], np.eye(3))
+    with pytest.raises(ArrayFileError, match=rf"^{tmp_path / 'a.npz'}: its headers claim 7 elements"):
+        read_arrays(tmp_path / "a.npz", max_elements=6)
+    (tmp_path / "bad.npz").write_bytes(b"PK\x03\x04 not a zip")
+    with pytest.raises(ArrayFileError, match=r"bad.npz: not a readable array file"):
+        read_arrays(tmp_path / "bad.npz")
+
+
+def test_an_evaluation_history_bomb_is_refused(tmp_path: Path, no_data_read) -> None:
+    path = tmp_path / "evaluations.npz"
+    with zipfile.ZipFile(path, "w") as zf:
+        zf.writestr("selection_score.npy", _npy_header((375_000_000,)))
+    with pytest.raises(ArrayFileError, match=rf"^{path}: its headers claim 375000000 elements"):
+        selected_evaluation(path)
+
+
+def test_a_replay_buffer_larger_than_the_buffer_is_refused_from_its_headers(tmp_path: Path,
+                                                                           no_data_read) -> None:
+    buffer = types.SimpleNamespace(buffer_size=4, observations=np.zeros((4, 1, 3), np.float32),
+                                   actions=np.zeros((4, 1, 2), np.float32), pos=0, full=False)
+    path = tmp_path / "replay_buffer.npz"
+    with zipfile.ZipFile(path, "w") as zf:
+        zf.writestr("observations.npy", _npy_header((1000, 1, 3), "<f4"))
+    with pytest.raises(PolicyFileError, match=rf"^{path}: its headers claim 3000 elements"):
+        load_replay_buffer(path, buffer)
+
+
+# ------------------------------------------------------------------ policies that score nothing
+def _edit_stats(folder: Path, **changes) -> None:
+    with np.load(folder / "normalization.npz", allow_pickle=False) as d:
+        a = {k: d[k] for k in d.files}
+    a.update({k: np.asarray(v) for k, v in changes.items()})
+    np.savez(folder / "normalization.npz", **a)
+
+
+@pytest.mark.parametrize("changes, field", [
+    ({"clip_obs": np.nan}, "clip_obs"), ({"epsilon": -1e-8}, "epsilon"), ({"epsilon": np.inf}, "epsilon"),
+    ({"clip_obs": [1.0, 2.0]}, "clip_obs"), ({"obs_count": -1.0}, "obs_count"),
+])
+def test_statistics_that_make_every_observation_nan_are_refused(tmp_path: Path, changes, field) -> None:
+    folder = _policy_copy(tmp_path)
+    _edit_stats(folder, **changes)
+    with pytest.raises(PolicyFileError, match=rf"normalization.npz: field '{field}' must be one finite"):
+        load_policy(folder)
+
+
+def test_nan_weights_are_refused_at_load(tmp_path: Path) -> None:
+    import torch
+
+    folder = _policy_copy(tmp_path)
+    data = torch.load(folder / "policy.pt", weights_only=True)
+    name = next(k for k, v in data["state_dict"].items() if v.is_floating_point())
+    data["state_dict"][name][0] = float("nan")
+    torch.save(data, folder / "policy.pt")
+    with pytest.raises(PolicyFileError, match=rf"policy.pt: weight '{name}' holds NaN"):
+        load_policy(folder)
