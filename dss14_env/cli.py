@@ -93,7 +93,7 @@ def _train(args: argparse.Namespace) -> int:
     from dss14_env.agents.sweep import train_sweep
     from dss14_env.agents.train import TrainingInterrupted, config_for_command, train
     from dss14_env.core.outdir import prepare_output_dir
-    from dss14_env.core.parallel import check_ray_options, make_executor, probe_address, require_ray
+    from dss14_env.core.parallel import make_executor, ray_preflight
 
     use_ray = args.ray or args.address is not None or args.num_cpus is not None
     resume, resume_campaign = _train_resume(args)
@@ -106,9 +106,7 @@ def _train(args: argparse.Namespace) -> int:
         if args.seeds is None or args.out is None:
             raise ValueError("--ray runs the runs of --seeds as Ray tasks: give --seeds and --out")
         parse_seeds(args.seeds)
-        check_ray_options(args.address, args.num_cpus)
-        require_ray()
-        probe_address(args.address)
+        ray_preflight(args.address, args.num_cpus)
         if not resume_campaign:  # checked only: nothing removed before the runs are checked
             prepare_output_dir(args.out, owned_files(args.out), args.overwrite, dry_run=True)
     if args.seeds is None:
@@ -205,7 +203,7 @@ def _campaign(args: argparse.Namespace) -> int:
 
     from dss14_env.bench import campaign as C
     from dss14_env.bench.campaign_report import parse_requirements
-    from dss14_env.core.parallel import check_ray_options, make_executor, probe_address, require_ray
+    from dss14_env.core.parallel import make_executor, ray_preflight
 
     args.ppo_model = _policy_option(args.ppo_model)
     given = {k: v for k, v in (("controllers", args.controllers), ("plants", args.plants),
@@ -217,15 +215,13 @@ def _campaign(args: argparse.Namespace) -> int:
     reqs = parse_requirements(args.requirements)
     C.check_policy(spec)  # before any work: a policy that cannot act on the environment
     use_ray = args.ray or args.address is not None or args.num_cpus is not None
-    if use_ray:  # before any work: bad Ray options, or no Ray (then how to install it)
-        check_ray_options(args.address, args.num_cpus)
-        require_ray()
-        probe_address(args.address)
+    # before any work: bad Ray options, no Ray (then how to install it), no cluster answering
+    target = ray_preflight(args.address, args.num_cpus) if use_ray else None
 
     def executor():
         return make_executor(use_ray, address=args.address, num_cpus=args.num_cpus)
 
-    where = "Ray " + (f"at {args.address}" if args.address else "(local)") if use_ray else "in-process"
+    where = target.describe() if target is not None else "in-process"
     print(f"campaign: {spec.plants} plants x {len(spec.conditions)} wind conditions x "
           f"{len(spec.names)} controllers = {spec.n_episodes} episodes of {spec.steps} steps, "
           f"{counted(len(spec.chunks()), 'chunk')}, {where}", flush=True)
