@@ -47,6 +47,7 @@ from typing import Any
 import numpy as np
 
 from dss14_env.agents.evaluation import DEFAULT_SCENARIOS, SCENARIO_TASKS
+from dss14_env.core.counts import MAX_THREADS
 from dss14_env.core.schema import (
     ConfigError,
     Spec,
@@ -79,7 +80,8 @@ MAX_SEED = 2**31 - 1
 #: 4096 inputs is 64 MiB of weights; beyond, torch fails to allocate or runs for hours
 MAX_LAYER, MAX_LAYERS = 4096, 16
 #: most sub-environments, steps of a rollout, threads and timesteps a configuration may ask for
-MAX_ENVS, MAX_ROLLOUT, MAX_THREADS, MAX_TIMESTEPS = 1024, 10_000_000, 256, 10**10
+#: (threads: the one bound of every command, dss14_env.core.counts.MAX_THREADS)
+MAX_ENVS, MAX_ROLLOUT, MAX_TIMESTEPS = 1024, 10_000_000, 10**10
 _INT = Spec("1", "integer", lo=0, hi=MAX_SEED)
 #: the modules that register this package's environment ids, the only modules a configuration
 #: file may name in ``env_module``: a fixed table, each name matched whole (another module of
@@ -184,7 +186,7 @@ class RecurrentPPOSettings(PPOSettings):
 class SACSettings(CommonSettings):
     """SAC's keys (SB3's defaults for the network: [256, 256] ReLU, log std -3)."""
 
-    n_envs: int = _int(1, 1)
+    n_envs: int = _int(1, 1, hi=MAX_ENVS)
     net_arch: Any = spec(None, kind="any", default_factory=lambda: [256, 256])
     activation_fn: str = spec(None, kind="str", choices=ACTIVATIONS, default="relu")
     log_std_init: float = _num(-3.0, lo=-20.0, hi=5.0)

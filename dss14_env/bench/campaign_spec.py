@@ -17,11 +17,10 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-import numpy as np
-
 from dss14_env.bench import catalog
 from dss14_env.bench.catalog import ControllerRow
 from dss14_env.bench.plan import check_names, control_period
+from dss14_env.core.counts import MAX_EPISODE_STEPS, MAX_FIRST_PLANT, MAX_PLANTS, check_count
 from dss14_env.core.units import DEG, WIND_DIRECTIONS
 
 #: the controllers of a campaign by default (the catalog's campaign rows)
@@ -172,10 +171,8 @@ class CampaignSpec:
         return hashlib.sha256(text.encode()).hexdigest()
 
 
-def _positive_int(v: Any, option: str, lo: int = 1) -> int:
-    if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
-        raise CampaignOptionError(f"{option}: must be an integer >= {lo}, got {v!r}")
-    return int(v)
+def _positive_int(v: Any, option: str, lo: int = 1, hi: int = MAX_PLANTS) -> int:
+    return check_count(v, option, lo, hi, CampaignOptionError)
 
 
 def _check_controllers(names: Sequence[str]) -> None:
@@ -202,8 +199,8 @@ def check_spec(spec: CampaignSpec) -> None:
 
     _check_controllers(spec.controllers)
     _positive_int(spec.plants, "--plants")
-    _positive_int(spec.first_plant, "--first-plant", 0)
-    _positive_int(spec.steps, "--steps")
+    _positive_int(spec.first_plant, "--first-plant", 0, MAX_FIRST_PLANT)
+    _positive_int(spec.steps, "--steps", 1, MAX_EPISODE_STEPS)
     _positive_int(spec.chunk_size, "--chunk-size")
     if not spec.wind_speeds_kmh:
         raise CampaignOptionError("--wind-speeds: give at least one speed in km/h")

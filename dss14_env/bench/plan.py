@@ -27,6 +27,7 @@ import numpy as np
 
 from dss14_env.bench import catalog
 from dss14_env.bench.catalog import SCENARIO_ROWS, Budget, ControllerRow, Scenario
+from dss14_env.core.counts import MAX_EPISODE_STEPS, MAX_EPISODES, MAX_THREADS, check_count
 from dss14_env.core.seeds import parse_seed_list
 
 #: per scenario, the default run's budget and the ``--quick`` one (the catalog's rows)
@@ -226,9 +227,7 @@ def parse_episodes(value: int | str | None) -> list[int] | None:
         n = int(str(value), 10)
     except ValueError:
         raise BenchOptionError(f"--episodes: {value!r} is not an integer") from None
-    if n < 1:
-        raise BenchOptionError(f"--episodes: a count of episodes, >= 1, got {n}")
-    return list(range(n))
+    return list(range(check_count(n, "--episodes", 1, MAX_EPISODES, BenchOptionError)))
 
 
 def _is_int(x: Any) -> bool:
@@ -277,12 +276,8 @@ def parse_wind_speeds(values: Sequence[str | float] | None) -> list[float] | Non
     return sorted(speeds)
 
 
-def _count(value: Any, option: str, low: int, what: str) -> int | None:
-    if value is None:
-        return None
-    if not _is_int(value) or value < low:
-        raise BenchOptionError(f"{option}: {what} is an integer >= {low}, got {value!r}")
-    return int(value)
+def _count(value: Any, option: str, low: int, high: int) -> int | None:
+    return None if value is None else check_count(value, option, low, high, BenchOptionError)
 
 
 def _budget(scenario: str, quick: bool) -> Budget:
@@ -406,10 +401,10 @@ def build_plan(controllers: Sequence[str] | None = None, scenarios: Sequence[str
     scen = _names(scenarios, catalog.scenario_names(), "--scenarios", "scenario")
     seed_list = _seed_option(seeds)
     speeds = parse_wind_speeds(wind_speeds)
-    steps = _count(steps, "--steps", 1, "the episode length")
-    sweep_n = _count(sweep_seeds, "--sweep-seeds", 1, "the number of episodes per sweep point")
-    seq = _count(sequential_episodes, "--sequential-episodes", 0, "the number of episodes")
-    threads = _count(threads, "--threads", 1, "the number of BLAS threads")
+    steps = _count(steps, "--steps", 1, MAX_EPISODE_STEPS)
+    sweep_n = _count(sweep_seeds, "--sweep-seeds", 1, MAX_EPISODES)
+    seq = _count(sequential_episodes, "--sequential-episodes", 0, MAX_EPISODES)
+    threads = _count(threads, "--threads", 1, MAX_THREADS)
     if threads is not None and threads > (os.cpu_count() or 1):
         raise BenchOptionError(f"--threads: {threads} BLAS threads, this machine has "
                                f"{os.cpu_count() or 1} CPUs")
