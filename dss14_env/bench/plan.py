@@ -404,10 +404,11 @@ def build_plan(controllers: Sequence[str] | None = None, scenarios: Sequence[str
     steps = _count(steps, "--steps", 1, MAX_EPISODE_STEPS)
     sweep_n = _count(sweep_seeds, "--sweep-seeds", 1, MAX_EPISODES)
     seq = _count(sequential_episodes, "--sequential-episodes", 0, MAX_EPISODES)
-    threads = _count(threads, "--threads", 1, MAX_THREADS)
+    threads = _count(threads, "--threads", 1, 2**63 - 1)
     if threads is not None and threads > (os.cpu_count() or 1):
         raise BenchOptionError(f"--threads: {threads} BLAS threads, this machine has "
                                f"{os.cpu_count() or 1} CPUs")
+    threads = _count(threads, "--threads", 1, MAX_THREADS)
     scen = list(catalog.scenario_names("bench")) if scen is None else scen
     env_kwargs = {"randomize_params": True} if randomize else {}
     dt = control_period(env_kwargs)
