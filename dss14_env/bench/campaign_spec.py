@@ -19,7 +19,7 @@ from typing import Any
 
 from dss14_env.bench import catalog
 from dss14_env.bench.catalog import ControllerRow
-from dss14_env.bench.plan import check_names, control_period
+from dss14_env.bench.plan import MIN_SCORED_S, check_names, control_period, least_steps
 from dss14_env.core.counts import MAX_EPISODE_STEPS, MAX_FIRST_PLANT, MAX_PLANTS, check_count
 from dss14_env.core.units import DEG, WIND_DIRECTIONS
 
@@ -227,9 +227,10 @@ def check_spec(spec: CampaignSpec) -> None:
     if isinstance(w, bool) or not isinstance(w, (int, float)) or not (math.isfinite(w) and w >= 0):
         raise CampaignOptionError(f"warmup_s: must be a finite number >= 0, got {w!r}")
     dt = control_period()
-    if w >= spec.steps * dt:
-        raise CampaignOptionError(f"--steps: {spec.steps} steps ({dt:g} s each) leave nothing after "
-                                  f"the {w:g}-s warm-up")
+    if spec.steps < least_steps(w, dt):
+        raise CampaignOptionError(f"--steps: {spec.steps} steps ({dt:g} s each) leave less than "
+                                  f"{MIN_SCORED_S:g} s after the {w:g}-s warm-up; give --steps "
+                                  f"{least_steps(w, dt)} or more")
     opt_row = catalog.POLICY_OPTION_ROW
     if spec.ppo_model is not None and opt_row not in spec.controllers:
         raise CampaignOptionError(f"--ppo-model: given, but {opt_row!r} is not among --controllers")

@@ -328,6 +328,13 @@ def controller_rows(names: Sequence[str] | None, ppo_model: str | Path | None = 
 MIN_SCORED_S = 1.0
 
 
+def least_steps(warmup_s: float, dt: float) -> int:
+    """The shortest episode, control periods, that scores :data:`MIN_SCORED_S` after a warm-up
+    of ``warmup_s`` (the one rule of the bench and the campaign: nothing scored is an error).
+    """
+    return int(math.ceil((warmup_s + MIN_SCORED_S) / dt - 1e-9))
+
+
 def _check_steps(steps: int | None, scenarios: Sequence[str], sweep: bool, dt: float) -> None:
     """Refuse ``--steps`` that leaves less than :data:`MIN_SCORED_S` after a scenario's warm-up
     (every cell of the tables would be empty).
@@ -338,7 +345,7 @@ def _check_steps(steps: int | None, scenarios: Sequence[str], sweep: bool, dt: f
     if sweep and any(s in scenarios for s, _ in SWEEP_DIRECTIONS.values()):
         warm.append((SWEEP_WARMUP_S, "the wind sweep"))
     w, name = max(warm)
-    need = int(math.ceil((w + MIN_SCORED_S) / dt - 1e-9))
+    need = least_steps(w, dt)
     if steps < need:
         raise BenchOptionError(f"--steps: {steps} control periods ({steps * dt:g} s) leave less "
                                f"than {MIN_SCORED_S:g} s after the {w:g}-s warm-up of {name}; "
@@ -453,5 +460,5 @@ def sweep_name(direction: str, speed_kmh: float) -> str:
 __all__ = ["BenchOptionError", "BenchPlan", "Budget", "DEFAULT_BUDGETS", "DEFAULT_CONTROLLERS",
            "DEFAULT_SCENARIOS", "DEFAULT_SWEEP", "DEFAULT_WIND_SPEEDS_KMH", "LOADED_AXES",
            "QUICK_BUDGETS", "QUICK_SWEEP", "ScenarioRun", "SWEEP_DIRECTIONS", "build_plan",
-           "check_names", "control_period", "controller_rows", "parse_episodes", "parse_seeds",
-           "parse_wind_speeds", "sweep_name", "sweep_scenario"]
+           "MIN_SCORED_S", "check_names", "control_period", "controller_rows", "least_steps",
+           "parse_episodes", "parse_seeds", "parse_wind_speeds", "sweep_name", "sweep_scenario"]
