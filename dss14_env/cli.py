@@ -10,7 +10,7 @@ from typing import Any
 
 from dss14_env.agents.config import shipped_training_configs_by_algo
 from dss14_env.bench import catalog
-from dss14_env.core.text import counted
+from dss14_env.core.text import counted, tolerant_output
 
 
 def _reproduce(args: argparse.Namespace) -> int:
@@ -292,6 +292,7 @@ def _add_campaign_parser(sub: Any) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``dss14`` console script."""
+    tolerant_output()
     parser = argparse.ArgumentParser(prog="dss14", description="DSS-14 antenna servo model and tools")
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("reproduce", help="redraw the report's figures and check its numbers")
