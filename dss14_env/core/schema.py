@@ -531,8 +531,9 @@ def load_yaml(text: str, source: str) -> Any:
     :raises ConfigError: ``<source>: ...`` for a YAML error (with line and column), a recursive
         alias, an expansion past :data:`MAX_YAML_NODES` or nesting too deep
     """
-    loader = UniqueKeySafeLoader(text)
+    loader = None
     try:
+        loader = UniqueKeySafeLoader(text)
         node = loader.get_single_node()
         if node is None:
             return None
@@ -541,12 +542,13 @@ def load_yaml(text: str, source: str) -> Any:
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         at = f" (line {mark.line + 1}, column {mark.column + 1})" if mark is not None else ""
-        problem = getattr(exc, "problem", None) or str(exc)
+        problem = " ".join(str(getattr(exc, "problem", None) or exc).split())
         raise ConfigError(f"{source}: not valid YAML{at}: {problem}") from None
     except RecursionError:
         raise ConfigError(f"{source}: the YAML is nested too deeply") from None
     finally:
-        loader.dispose()
+        if loader is not None:
+            loader.dispose()
 
 
 def read_config(name_or_path: str | Path) -> tuple[dict[str, Any], str]:
