@@ -11,6 +11,7 @@ from pathlib import Path
 import pytest
 
 from dss14_env import cli
+from dss14_env.bench.bench import unscored_controllers
 from dss14_env.core.results import ErrorStats
 
 
@@ -31,3 +32,26 @@ def test_a_run_that_would_score_one_sample_is_refused(tmp_path: Path, capsys, ar
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "--steps: 251" in err and "warm-up" in err, err
     assert not out.exists()
+
+
+def test_a_bench_whose_controller_scores_nothing_is_an_error(tmp_path: Path, capsys, monkeypatch) -> None:
+    """Every episode's 3σ not estimable (as for a policy that terminates every episode): the
+    results are written, and the command says that nothing was scored instead of exiting 0.
+    """
+    monkeypatch.setattr(ErrorStats, "of", classmethod(lambda cls, x: cls(*[math.nan] * 4)))
+    out = tmp_path / "out"
+    assert cli.main(["bench", "--quick", "--controllers", "pi_kp1", "--scenarios", "hold_front",
+                     "--no-sweep", "--episodes", "2", "--no-figures", "--no-progress",
+                     "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "pi_kp1: scored nothing in any scenario" in err, err
+    assert (out / "results.json").is_file()
+
+
+def test_a_scoring_controller_is_not_unscored() -> None:
+    cell = {"servo_error_mdeg": {"az": {"three_sigma": {"value": math.nan}},
+                                 "el": {"three_sigma": {"value": 0.5}}}}
+    none = {"servo_error_mdeg": {"az": {"three_sigma": {"value": None}},
+                                 "el": {"three_sigma": {"value": math.nan}}}}
+    results = {"summary": {"a": {"s1": none, "s2": cell}, "b": {"s1": none}}}
+    assert unscored_controllers(results) == ["b"]
