@@ -80,7 +80,7 @@ def test_a_bad_ray_address_variable_is_named(no_cluster: Path, monkeypatch) -> N
 
 
 def test_num_cpus_is_bounded_and_only_for_a_local_ray(no_cluster: Path, monkeypatch) -> None:
-    with pytest.raises(ValueError, match=r"^--num-cpus: at most \d+"):
+    with pytest.raises(ValueError, match=r"^--num-cpus: must be an integer >= 1 and <= \d+"):
         check_ray_options(None, 100_000)
     monkeypatch.setenv("RAY_ADDRESS", "10.0.0.3:6379")
     with pytest.raises(ValueError, match=r"^--num-cpus: sizes a local Ray; RAY_ADDRESS=10.0.0.3:6379"):

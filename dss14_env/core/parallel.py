@@ -39,6 +39,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
+from dss14_env.core.counts import MAX_THREADS, check_count
+
 #: the command that installs the optional Ray dependency (the ``ray`` extra of the package)
 RAY_INSTALL = 'pip install -e ".[ray]"  (from a source checkout) or  pip install "dss14-env[ray]"'
 #: environment variables that size the thread pools of BLAS, OpenMP and torch in a worker
@@ -81,9 +83,7 @@ class pinned_threads:
     """
 
     def __init__(self, n: int = 1, torch: bool | None = None) -> None:
-        if isinstance(n, bool) or not isinstance(n, int) or n < 1:
-            raise ValueError(f"threads: must be an integer >= 1, got {n!r}")
-        self.n = n
+        self.n = check_count(n, "threads", 1, MAX_THREADS)
         self.torch = torch
         self._limiter: Any = None
         self._torch_threads: int | None = None
@@ -195,15 +195,11 @@ def check_ray_options(address: str | None = None, num_cpus: int | None = None,
     if target.address is not None:
         split_address(target.address, target.named_by)
     if num_cpus is not None:
-        if isinstance(num_cpus, bool) or not isinstance(num_cpus, int) or num_cpus < 1:
-            raise ValueError(f"--num-cpus: must be an integer >= 1, got {num_cpus!r}")
-        if num_cpus > MAX_NUM_CPUS:
-            raise ValueError(f"--num-cpus: at most {MAX_NUM_CPUS} (the CPUs of a local Ray), got {num_cpus}")
+        check_count(num_cpus, "--num-cpus", 1, MAX_NUM_CPUS)
         if target.address is not None:
             raise ValueError(f"--num-cpus: sizes a local Ray; {target.named_by} names a cluster, "
                              f"which has its own CPUs")
-    if isinstance(cpus_per_task, bool) or not isinstance(cpus_per_task, int) or cpus_per_task < 1:
-        raise ValueError(f"cpus_per_task: must be an integer >= 1, got {cpus_per_task!r}")
+    check_count(cpus_per_task, "cpus_per_task", 1, MAX_NUM_CPUS)
 
 
 #: seconds a cluster address has to answer before it is called unreachable
