@@ -114,3 +114,29 @@ def test_wrapper_actions_of_any_kind(envs, env_id: str, action) -> None:
     assert np.all(np.isfinite(obs)) and np.isfinite(reward)
     if terminated or truncated:
         env.reset(seed=2)
+
+
+reset_args = st.fixed_dictionaries({}, optional={
+    "seed": st.one_of(st.none(), st.integers(-5, 2**70), st.booleans(), st.floats(), st.text(max_size=2)),
+    "options": st.one_of(st.none(), st.text(max_size=2), st.dictionaries(
+        st.sampled_from(["wind_speed_kmh", "wind_direction", "scenario", "bogus", "params"]),
+        st.one_of(st.floats(), st.integers(-10, 10**9), st.text(max_size=3), st.none()), max_size=2)),
+})
+
+
+@pytest.mark.parametrize("env_id", WRAPPER_IDS)
+@given(args=reset_args)
+def test_wrapper_resets_of_any_kind(envs, env_id: str, args: dict) -> None:
+    """A reset is refused (ValueError naming the input) or gives a finite observation; either
+    way the environment resets and steps afterwards.
+    """
+    env = envs[env_id]
+    try:
+        obs, _ = env.reset(**args)
+    except ValueError as exc:
+        assert "\n" not in str(exc)
+    else:
+        assert np.all(np.isfinite(obs))
+    env.reset(seed=3)
+    obs, reward, *_ = env.step(np.array([0.1, -0.1]))
+    assert np.all(np.isfinite(obs)) and np.isfinite(reward)
