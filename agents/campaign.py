@@ -64,6 +64,7 @@ from dss14_env.agents.evaluation import DEFAULT_SCENARIOS, TEST_SEEDS, TEST_STEP
 from dss14_env.agents.policy import load_policy
 from dss14_env.agents.results import SCENARIO_COLUMNS, column_summary, column_values
 from dss14_env.agents.train import evaluation_ranks, last_checkpoint, train, validation_tasks
+from dss14_env.core.arrays import read_arrays
 from dss14_env.core.outdir import (
     atomic_save_figure,
     atomic_write_text,
@@ -75,6 +76,7 @@ from dss14_env.core.outdir import (
 )
 from dss14_env.core.parallel import Executor, SerialExecutor, pinned_threads
 from dss14_env.core.progress import eta_seconds, format_duration
+from dss14_env.core.schema import load_yaml
 from dss14_env.core.seeds import parse_seed_list
 from dss14_env.core.stats import iqm_ci
 from dss14_env.core.text import counted
@@ -148,7 +150,7 @@ def _aggregate(values: list[float]) -> dict[str, Any]:
 
 
 def _as_yaml_data(cfg: TrainConfig) -> Any:
-    return yaml.safe_load(yaml.safe_dump(cfg.to_dict(), sort_keys=False))
+    return load_yaml(yaml.safe_dump(cfg.to_dict(), sort_keys=False), cfg.source)
 
 
 def finished_run(cfg: TrainConfig, run: Path) -> bool:
@@ -158,8 +160,8 @@ def finished_run(cfg: TrainConfig, run: Path) -> bool:
     """
     try:
         ts = json.loads((run / "train_summary.json").read_text())
-        saved = yaml.safe_load((run / "config.yaml").read_text())
-    except (OSError, ValueError, yaml.YAMLError):
+        saved = load_yaml((run / "config.yaml").read_text(), str(run / "config.yaml"))
+    except (OSError, ValueError):
         return False
     return saved == _as_yaml_data(cfg) and int(ts.get("num_timesteps", -1)) >= cfg.total_timesteps
 
@@ -170,8 +172,8 @@ def check_saved_config(cfg: TrainConfig, folder: Path) -> None:
     :raises ValueError: no readable ``config.yaml``, or another configuration (``--resume``)
     """
     try:
-        saved = yaml.safe_load((folder / "config.yaml").read_text())
-    except (OSError, yaml.YAMLError):
+        saved = load_yaml((folder / "config.yaml").read_text(), str(folder / "config.yaml"))
+    except (OSError, ValueError):
         raise ValueError(f"--resume: {folder} holds no campaign to continue (no readable "
                          f"config.yaml)") from None
     if saved != _as_yaml_data(cfg):
@@ -459,11 +461,11 @@ def selected_evaluation(history: str | Path) -> tuple[int, tuple[bool, float]] |
     -- the highest rank, as the training's evaluator keeps it (:func:`evaluation_ranks`); None
     without scores.
     """
-    with np.load(history, allow_pickle=False) as d:
-        if "selection_score" not in d.files or not d["selection_score"].size:
-            return None
-        ranks = evaluation_ranks(d["selection_score"].tolist(), d["selection_qualified"].tolist()
-                                 if "selection_qualified" in d.files else None)
+    d = read_arrays(history)
+    if "selection_score" not in d or not d["selection_score"].size:
+        return None
+    ranks = evaluation_ranks(d["selection_score"].tolist(), d["selection_qualified"].tolist()
+                             if "selection_qualified" in d else None)
     i = max(range(len(ranks)), key=lambda k: ranks[k])  # the first of equal ranks, as kept
     return i, ranks[i]
 
@@ -508,9 +510,9 @@ def learning_curves(runs: Sequence[Path], task: str) -> dict[str, Any]:
     entries = {"three_sigma": "three_sigma_mdeg", "pointing": "pointing_three_sigma_mdeg"}
     data = []
     for r in runs:
-        with np.load(r / "eval" / "evaluations.npz", allow_pickle=False) as d:
-            errs = {k: d[f"{v}_{task}"] for k, v in entries.items() if f"{v}_{task}" in d.files}
-            data.append((d["timesteps"].astype(int), np.asarray(d[f"returns_{task}"]), errs))
+        d = read_arrays(r / "eval" / "evaluations.npz")
+        errs = {k: d[f"{v}_{task}"] for k, v in entries.items() if f"{v}_{task}" in d}
+        data.append((d["timesteps"].astype(int), np.asarray(d[f"returns_{task}"]), errs))
     common = sorted(set.intersection(*(set(t.tolist()) for t, _, _ in data))) if data else []
     steps = np.array(common, int)
     out = {"steps": steps, "returns": np.full((len(data), steps.size), np.nan)}

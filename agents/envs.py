@@ -68,7 +68,7 @@ def make_wrapped_env(env_id: str, base_id: str = DEFAULT_BASE_ID, **kwargs: Any)
     import dss14_env  # noqa: F401  (registers the base environments)
 
     spec, env_kwargs = spec_from_kwargs(kwargs, WRAPPER_IDS[env_id])
-    return InterfaceWrapper(gym.make(base_id, **env_kwargs), spec)
+    return InterfaceWrapper(gym.make(base_id, disable_env_checker=True, **env_kwargs), spec)
 
 
 def make_plain_env(base_id: str = DEFAULT_BASE_ID, **kwargs: Any) -> InterfaceWrapper:

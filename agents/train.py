@@ -40,7 +40,7 @@ import numpy as np
 import yaml
 
 from dss14_env.agents.algos import algo_class, algo_kwargs, is_recurrent, policy_kwargs
-from dss14_env.agents.config import MAX_TIMESTEPS, TrainConfig, as_config, is_own_module, load_config
+from dss14_env.agents.config import MAX_TIMESTEPS, TrainConfig, as_config, is_known_env_module, load_config
 from dss14_env.agents.envs import (
     EnvPlan,
     check_env,
@@ -80,6 +80,7 @@ from dss14_env.agents.storage import (
     write_policy_folder,
 )
 from dss14_env.agents.train_control import progress_callback, stop_callback
+from dss14_env.core.arrays import read_arrays
 from dss14_env.core.outdir import (
     atomic_folder,
     atomic_write_bytes,
@@ -606,11 +607,11 @@ def _load_history(path: Path, start: int) -> dict[str, list]:
     h: dict[str, list] = {"timesteps": [], "results": [], "ep_lengths": []}
     if start <= 0 or not path.is_file():
         return h
-    with np.load(path, allow_pickle=False) as d:
-        keep = d["timesteps"] <= start
-        for k in d.files:
-            h[k] = [x for x in d[k][keep]]
-        h["timesteps"] = [int(t) for t in h["timesteps"]]
+    d = read_arrays(path)
+    keep = d["timesteps"] <= start
+    for k in d:
+        h[k] = [x for x in d[k][keep]]
+    h["timesteps"] = [int(t) for t in h["timesteps"]]
     return h
 
 
@@ -629,7 +630,7 @@ def _resume_command(cfg: TrainConfig, run: Path, ckpt: Path | None) -> str:
     """
     cmd = ["dss14", "train", cfg.algo, "--config", str(run / CONFIG)]
     cmd += ["--resume", str(ckpt)] if ckpt is not None else ["--overwrite"]
-    if cfg.env_module is not None and not is_own_module(cfg.env_module):
+    if cfg.env_module is not None and not is_known_env_module(cfg.env_module):
         cmd += ["--env-module", cfg.env_module]
     return shlex.join([*cmd, "--out", str(run)])
 

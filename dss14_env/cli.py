@@ -16,7 +16,7 @@ from dss14_env.agents.config import shipped_training_configs_by_algo
 from dss14_env.bench import catalog
 from dss14_env.bench.plan import QUICK_WIND_SPEEDS_KMH
 from dss14_env.core.progress import LINE_EVERY_S
-from dss14_env.core.text import counted
+from dss14_env.core.text import counted, tolerant_output
 from dss14_env.model.variants import DRIVE_VARIANTS
 
 
@@ -112,7 +112,7 @@ def _train(args: argparse.Namespace) -> int:
     from dss14_env.agents.sweep import train_sweep
     from dss14_env.agents.train import TrainingInterrupted, config_for_command, train
     from dss14_env.core.outdir import prepare_output_dir
-    from dss14_env.core.parallel import check_ray_options, make_executor, probe_address, require_ray
+    from dss14_env.core.parallel import make_executor, ray_preflight
     from dss14_env.core.stop import exit_status, signal_name, signal_of
 
     refuse_renamed(args)
@@ -128,9 +128,7 @@ def _train(args: argparse.Namespace) -> int:
             raise ValueError("--ray runs the runs of --train-seeds as Ray tasks: give --train-seeds "
                              "and --out")
         parse_seeds(args.train_seeds)
-        check_ray_options(args.address, args.num_cpus)
-        require_ray()
-        probe_address(args.address)
+        ray_preflight(args.address, args.num_cpus)
         if not resume_campaign:  # checked only: nothing removed before the runs are checked
             prepare_output_dir(args.out, owned_files(args.out), args.overwrite, dry_run=True,
                                command=COMMAND)
@@ -230,7 +228,7 @@ def _campaign(args: argparse.Namespace) -> int:
     from dss14_env.bench import campaign as C
     from dss14_env.bench.campaign_report import parse_requirements
     from dss14_env.core.outdir import prepare_output_dir
-    from dss14_env.core.parallel import check_ray_options, make_executor, probe_address, require_ray
+    from dss14_env.core.parallel import make_executor, ray_preflight
 
     refuse_renamed(args)
     args.ppo_model = _policy_option(args.ppo_model)
@@ -246,15 +244,13 @@ def _campaign(args: argparse.Namespace) -> int:
         prepare_output_dir(args.out, C.OWNED, args.overwrite, dry_run=True, command=C.COMMAND)
     C.check_policy(spec)  # before any work: a policy that cannot act on the environment
     use_ray = args.ray or args.address is not None or args.num_cpus is not None
-    if use_ray:  # before any work: bad Ray options, or no Ray (then how to install it)
-        check_ray_options(args.address, args.num_cpus)
-        require_ray()
-        probe_address(args.address)
+    # before any work: bad Ray options, no Ray (then how to install it), no cluster answering
+    target = ray_preflight(args.address, args.num_cpus) if use_ray else None
 
     def executor():
         return make_executor(use_ray, address=args.address, num_cpus=args.num_cpus)
 
-    where = "Ray " + (f"at {args.address}" if args.address else "(local)") if use_ray else "in-process"
+    where = target.describe() if target is not None else "in-process"
     print(f"campaign: {counted(spec.plants, 'plant')} x {counted(len(spec.conditions), 'wind condition')} "
           f"x {counted(len(spec.names), 'controller')} = {counted(spec.n_episodes, 'episode')} of "
           f"{spec.steps} steps, "
@@ -375,6 +371,7 @@ def _import_plugins(argv: list[str] | None) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``dss14`` console script."""
+    tolerant_output()
     _import_plugins(argv)
     args = build_parser().parse_args(argv)
     args.argv = list(argv) if argv is not None else sys.argv[1:]

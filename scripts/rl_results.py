@@ -38,6 +38,7 @@ import numpy as np
 
 from dss14_env.agents.campaign import selected_evaluation
 from dss14_env.agents.results import HOLDS, POINTING_AXES, build_results, has_pointing, rl_tables
+from dss14_env.core.arrays import read_arrays
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -187,8 +188,7 @@ def _selected_at(run: Path) -> int | None:
     sel = selected_evaluation(path)
     if sel is None or not np.isfinite(sel[1][1]):
         return None  # no evaluation kept a policy: the final one is scored
-    with np.load(path, allow_pickle=False) as d:
-        return int(d["timesteps"][sel[0]])
+    return int(read_arrays(path)["timesteps"][sel[0]])
 
 
 def _best_validation(run: Path) -> tuple[bool, float]:

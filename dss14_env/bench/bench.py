@@ -16,6 +16,7 @@ output files and how to read them.
 
 from __future__ import annotations
 
+import math
 import time
 from typing import Any
 
@@ -59,6 +60,24 @@ def prepare_out(plan: BenchPlan) -> None:
                        command=COMMAND)
 
 
+class NothingScoredError(RuntimeError):
+    """A controller of the bench scored nothing: its results are written, its figures are all
+    not estimable (one line naming it).
+    """
+
+
+def unscored_controllers(results: dict[str, Any]) -> list[str]:
+    """The controllers of a bench's results none of whose servo 3σ (any scenario, any axis) is
+    a finite number.
+    """
+    def finite(v: Any) -> bool:
+        return isinstance(v, (int, float)) and math.isfinite(v)
+
+    return [name for name, cells in results["summary"].items()
+            if not any(finite(axis["three_sigma"]["value"]) for cell in cells.values()
+                       for axis in cell["servo_error_mdeg"].values())]
+
+
 def bench(plan: BenchPlan, progress: bool = True) -> dict[str, Any]:
     """Run a plan and write its outputs into ``plan.out``.
 
@@ -67,6 +86,8 @@ def bench(plan: BenchPlan, progress: bool = True) -> dict[str, Any]:
 
     :param plan: the plan (:func:`build_plan`; its ``threads`` sets the BLAS threads)
     :param progress: show the progress bar
+    :raises NothingScoredError: after writing the results, when a controller scored nothing
+        (:func:`unscored_controllers`)
     :return: ``results`` (results.json's content), ``pointing_table`` (the headline, the dish's
         true pointing error, Markdown), ``main_table`` (the servo error, Markdown), ``markdown``
         (results.md), ``files`` (paths written), ``figures`` (names), ``wall_time_s``, and
@@ -94,13 +115,19 @@ def _bench_in(plan: BenchPlan, progress: bool) -> dict[str, Any]:
     results["bench"]["cpu_time_s"] = time.process_time() - c0
     results["bench"]["figures"] = figures
     pj, pm = write_results(results, plan.out)
+    unscored = unscored_controllers(results)
+    if unscored:
+        raise NothingScoredError(f"{', '.join(unscored)}: scored nothing in any scenario (every "
+                                 f"episode terminated, failed or left no 3σ to estimate); "
+                                 f"{pm} shows what happened")
     return {"results": results, "pointing_table": pointing_table(results), "main_table": main_table(results),
             "markdown": results_markdown(results), "files": [pj, pm] + [plan.out / f for f in figures],
             "figures": figures, "wall_time_s": wall, "ran": ran}
 
 
 __all__ = ["BenchOptionError", "BenchPlan", "DEFAULT_CONTROLLERS", "DEFAULT_SCENARIOS",
-           "FIGURES", "OWNED_FILES", "bench", "build_plan", "parse_seeds",
+           "FIGURES", "NothingScoredError", "OWNED_FILES", "bench", "unscored_controllers", "build_plan",
+           "parse_seeds",
            "parse_wind_speeds", "prepare_out",
            # re-exported for the campaign (dss14_env.bench.campaign, campaign_report)
            "fmt", "package_versions"]

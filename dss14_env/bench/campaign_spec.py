@@ -17,11 +17,10 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-import numpy as np
-
 from dss14_env.bench import catalog
 from dss14_env.bench.catalog import ControllerRow
-from dss14_env.bench.plan import check_names, control_period, parse_wind_speeds
+from dss14_env.bench.plan import MIN_SCORED_S, check_names, control_period, least_steps, parse_wind_speeds
+from dss14_env.core.counts import MAX_EPISODE_STEPS, MAX_FIRST_PLANT, MAX_PLANTS, check_count
 from dss14_env.core.units import DEG, WIND_DIRECTIONS
 
 #: the controllers of a campaign by default (the catalog's campaign rows)
@@ -174,10 +173,8 @@ class CampaignSpec:
         return hashlib.sha256(text.encode()).hexdigest()
 
 
-def _positive_int(v: Any, option: str, lo: int = 1) -> int:
-    if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
-        raise CampaignOptionError(f"{option}: must be an integer >= {lo}, got {v!r}")
-    return int(v)
+def _positive_int(v: Any, option: str, lo: int = 1, hi: int = MAX_PLANTS) -> int:
+    return check_count(v, option, lo, hi, CampaignOptionError)
 
 
 def _check_controllers(names: Sequence[str]) -> None:
@@ -217,8 +214,8 @@ def check_spec(spec: CampaignSpec) -> None:
     """Raise :class:`CampaignOptionError` naming the first bad option."""
     _check_controllers(spec.controllers)
     _positive_int(spec.plants, "--plants")
-    _positive_int(spec.first_plant, "--first-plant", 0)
-    _positive_int(spec.steps, "--steps")
+    _positive_int(spec.first_plant, "--first-plant", 0, MAX_FIRST_PLANT)
+    _positive_int(spec.steps, "--steps", 1, MAX_EPISODE_STEPS)
     _positive_int(spec.chunk_size, "--chunk-size")
     parse_wind_speeds(spec.wind_speeds_kmh, CampaignOptionError, hint="")
     _check_directions(spec.directions)
@@ -228,9 +225,10 @@ def check_spec(spec: CampaignSpec) -> None:
     if isinstance(w, bool) or not isinstance(w, (int, float)) or not (math.isfinite(w) and w >= 0):
         raise CampaignOptionError(f"warmup_s: must be a finite number >= 0, got {w!r}")
     dt = control_period()
-    if w >= spec.steps * dt:
-        raise CampaignOptionError(f"--steps: {spec.steps} steps ({dt:g} s each) leave nothing after "
-                                  f"the {w:g}-s warm-up")
+    if spec.steps < least_steps(w, dt):
+        raise CampaignOptionError(f"--steps: {spec.steps} steps ({dt:g} s each) leave less than "
+                                  f"{MIN_SCORED_S:g} s after the {w:g}-s warm-up; give --steps "
+                                  f"{least_steps(w, dt)} or more")
     opt_row = catalog.POLICY_OPTION_ROW
     if spec.ppo_model is not None and opt_row not in spec.controllers:
         raise CampaignOptionError(f"--ppo-model: given, but {opt_row!r} is not among --controllers")

@@ -26,6 +26,7 @@ import numpy as np
 
 from dss14_env.bench import catalog
 from dss14_env.bench.catalog import Budget, ControllerRow, LiveMapping, Scenario
+from dss14_env.core.counts import MAX_EPISODE_STEPS, MAX_EPISODES, MAX_THREADS, check_count
 from dss14_env.core.seeds import parse_seed_list
 from dss14_env.core.text import counted
 from dss14_env.model.variants import DRIVE_VARIANTS
@@ -259,9 +260,7 @@ def parse_episodes(value: int | str | None) -> list[int] | None:
         n = int(str(value), 10)
     except ValueError:
         raise BenchOptionError(f"--episodes: {value!r} is not an integer") from None
-    if n < 1:
-        raise BenchOptionError(f"--episodes: a count of episodes, >= 1, got {n}")
-    return list(range(n))
+    return list(range(check_count(n, "--episodes", 1, MAX_EPISODES, BenchOptionError)))
 
 
 def _is_int(x: Any) -> bool:
@@ -332,12 +331,8 @@ def parse_wind_speeds(values: Sequence[str | float] | None, error: type[ValueErr
     return sorted(speeds)
 
 
-def _count(value: Any, option: str, low: int, what: str) -> int | None:
-    if value is None:
-        return None
-    if not _is_int(value) or value < low:
-        raise BenchOptionError(f"{option}: {what} is an integer >= {low}, got {value!r}")
-    return int(value)
+def _count(value: Any, option: str, low: int, high: int) -> int | None:
+    return None if value is None else check_count(value, option, low, high, BenchOptionError)
 
 
 def _budget(scenario: str, quick: bool) -> Budget:
@@ -388,6 +383,13 @@ def controller_rows(names: Sequence[str] | None, ppo_model: str | Path | None = 
 MIN_SCORED_S = 1.0
 
 
+def least_steps(warmup_s: float, dt: float) -> int:
+    """The shortest episode, control periods, that scores :data:`MIN_SCORED_S` after a warm-up
+    of ``warmup_s`` (the one rule of the bench and the campaign: nothing scored is an error).
+    """
+    return int(math.ceil((warmup_s + MIN_SCORED_S) / dt - 1e-9))
+
+
 def _check_steps(steps: int | None, scenarios: Sequence[str], sweep: bool, dt: float) -> None:
     """Refuse ``--steps`` that leaves less than :data:`MIN_SCORED_S` after a scenario's warm-up
     (every cell of the tables would be empty).
@@ -398,7 +400,7 @@ def _check_steps(steps: int | None, scenarios: Sequence[str], sweep: bool, dt: f
     if sweep and any(s in scenarios for s, _ in SWEEP_DIRECTIONS.values()):
         warm.append((SWEEP_WARMUP_S, "the wind sweep"))
     w, name = max(warm)
-    need = int(math.ceil((w + MIN_SCORED_S) / dt - 1e-9))
+    need = least_steps(w, dt)
     if steps < need:
         raise BenchOptionError(f"--steps: {steps} control periods ({steps * dt:g} s) leave less "
                                f"than {MIN_SCORED_S:g} s after the {w:g}-s warm-up of {name}; "
@@ -481,13 +483,14 @@ def build_plan(controllers: Sequence[str] | None = None, scenarios: Sequence[str
         _names(variants, tuple(DRIVE_VARIANTS), "--variants", "drive variant") if variants else [])
     seed_list = _seed_option(seeds)
     speeds = parse_wind_speeds(wind_speeds)
-    steps = _count(steps, "--steps", 1, "the episode length")
-    sweep_n = _count(sweep_seeds, "--sweep-seeds", 1, "the number of episodes per sweep point")
-    seq = _count(sequential_episodes, "--sequential-episodes", 0, "the number of episodes")
-    threads = _count(threads, "--threads", 1, "the number of BLAS threads")
+    steps = _count(steps, "--steps", 1, MAX_EPISODE_STEPS)
+    sweep_n = _count(sweep_seeds, "--sweep-seeds", 1, MAX_EPISODES)
+    seq = _count(sequential_episodes, "--sequential-episodes", 0, MAX_EPISODES)
+    threads = _count(threads, "--threads", 1, 2**63 - 1)
     if threads is not None and threads > (os.cpu_count() or 1):
         raise BenchOptionError(f"--threads: {threads} BLAS threads, this machine has "
                                f"{os.cpu_count() or 1} CPUs")
+    threads = _count(threads, "--threads", 1, MAX_THREADS)
     scen = list(catalog.scenario_names("bench")) if scen is None else scen
     env_kwargs = {"randomize_params": True} if randomize else {}
     dt = control_period(env_kwargs)
@@ -541,5 +544,6 @@ def sweep_name(direction: str, speed_kmh: float) -> str:
 __all__ = ["BenchOptionError", "BenchPlan", "Budget", "DEFAULT_BUDGETS", "DEFAULT_CONTROLLERS",
            "DEFAULT_SCENARIOS", "DEFAULT_SWEEP", "DEFAULT_VARIANTS", "VARIANT_CONTROLLERS", "LOADED_AXES",
            "QUICK_BUDGETS", "QUICK_SWEEP", "ScenarioRun", "SWEEP_DIRECTIONS", "build_plan",
-           "check_names", "control_period", "controller_rows", "parse_episodes", "parse_seeds",
-           "default_wind_speeds", "parse_wind_speeds", "sweep_name", "sweep_scenario"]
+           "MIN_SCORED_S", "check_names", "control_period", "controller_rows", "least_steps",
+           "parse_episodes", "parse_seeds", "default_wind_speeds", "parse_wind_speeds", "sweep_name",
+           "sweep_scenario"]

@@ -133,6 +133,9 @@ def check_snapshot(env: Any, state: Any, names: tuple[str, ...], riders: tuple =
     if len(state.riders) != len(riders):
         raise ValueError(f"state must hold the states of the {len(riders)} object(s) attached to this "
                          f"environment, got {len(state.riders)}")
+    for rider, rider_state in zip(riders, state.riders, strict=True):
+        if hasattr(rider, "check_state"):  # a rider that knows its own snapshots (a policy interface)
+            rider.check_state(rider_state)
 
 
 def restore(env: Any, state: EnvState, shared: tuple = (), riders: tuple = ()) -> dict[str, Any]:
@@ -628,7 +631,8 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         ``rider.get_state()`` and :meth:`set_state` calls ``rider.set_state(...)`` with it.  A
         wrapper that keeps state of its own (a base controller, an observation history) attaches
         it, so that ``env.unwrapped.get_state()`` / ``set_state`` restore what the wrapper shows
-        next, bit for bit.
+        next, bit for bit.  A rider with a ``check_state(state)`` method has its part of a
+        snapshot checked before anything changes (a snapshot of another wrapper is refused).
         """
         self._riders.append(rider)
 
