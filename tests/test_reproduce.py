@@ -243,31 +243,39 @@ KP1 = ((1.0, 1.0), (0.3, 0.3))  # [R]'s first gain set: kp 1 1/s, ki 0.3 1/s^2
 @pytest.mark.parametrize("axis", AXES)
 def test_highest_gain_pi_loop_keeps_45_deg_and_no_more(metrics: dict, axis: str, enc: str) -> None:
     """[R]'s conclusion (drive encoders 0.1 Hz; encoders close to the axes 0.7-1.0 Hz): the
-    rows of the PI at the highest gain with >= 45 deg margin.  Checked here on loops built
-    independently: at the reported gains the closed loop is stable, |T| at the reported
-    crossover is 1 / (2 sin(45 deg / 2)), |T| at the reported -3 dB bandwidth is 3 dB below
-    DC, and 3 % more gain leaves less than 45 deg (dense grid, no interpolation)."""
+    rows of the PI at the highest gain with >= 45 deg margin and a stable closed loop.  Checked
+    here on loops built independently: at the reported gains the closed loop is stable, |T| at
+    the reported crossover is 1 / (2 sin(PM / 2)) for the reported margin PM >= 45 deg, |T| at
+    the reported -3 dB bandwidth is 3 dB below DC, and 3 % more gain leaves less than 45 deg or
+    an unstable closed loop (dense grid, no interpolation).  On the stiffer shipped drive the
+    boundary can be the closed loop's stability (a lightly damped resonance) while the margin at
+    the first crossover is still above 45 deg, so the margin is not pinned to 45 deg."""
     k, tag = AXES.index(axis), f"{enc}_{axis}"
     g = val(metrics, f"pi_pm45_gain_factor_{tag}")
     fc, bw = val(metrics, f"pi_pm45_crossover_hz_{tag}"), val(metrics, f"pi_pm45_bandwidth_hz_{tag}")
-    assert 45.0 <= val(metrics, f"pi_pm45_phase_margin_deg_{tag}") < 45.5
+    pm = val(metrics, f"pi_pm45_phase_margin_deg_{tag}")
+    assert pm >= 45.0
     assert g > 1.0 and fc > val(metrics, f"pi_crossover_hz_{axis}_kp1")  # [R]'s gains keep > 45 deg
     m = default_model()
     out, c_in, r_in = ENCODER_OUTPUTS[enc][k], ("c_a", "c_e")[k], ("r_a", "r_e")[k]
     sc = [1.0 / COS_E if enc == "axis" else 1.0, 1.0]  # axis encoder az: xel / cos(E)
-    f = [g if i == k else 1.0 for i in range(2)]
-    pl = rep.position_loop(m.rate_loop, tuple(f[i] * KP1[0][i] * sc[i] for i in range(2)),
-                           tuple(f[i] * KP1[1][i] * sc[i] for i in range(2)), ENCODER_OUTPUTS[enc])
+
+    def loop(factor: float):
+        f = [factor if i == k else 1.0 for i in range(2)]
+        return rep.position_loop(m.rate_loop, tuple(f[i] * KP1[0][i] * sc[i] for i in range(2)),
+                                 tuple(f[i] * KP1[1][i] * sc[i] for i in range(2)), ENCODER_OUTPUTS[enc])
+
+    pl = loop(g)
     assert rep.spectral_abscissa(pl) < 0.0
     t = np.abs(freqresp(pl, [1e-4, fc, bw], out, c_in))
-    assert t[1] == pytest.approx(1.0 / (2.0 * math.sin(math.radians(22.5))), rel=0.02)
+    assert t[1] == pytest.approx(1.0 / (2.0 * math.sin(math.radians(pm / 2))), rel=0.02)
     assert t[2] / t[0] == pytest.approx(10 ** (-3 / 20), rel=0.01)
     fd = np.geomspace(0.02, 3.0, 40000)
     L = 1.03 * g * (KP1[0][k] + KP1[1][k] / (2j * np.pi * fd)) * freqresp(m.rate_loop, fd, out, r_in) * sc[k]
     i = int(np.argmax(np.abs(L) < 1.0))
     ph = np.degrees(np.unwrap(np.angle(L)))
     ph -= 360.0 * np.ceil(ph[0] / 360.0)
-    assert 180.0 + ph[i] < 45.0
+    assert 180.0 + ph[i] < 45.0 or rep.spectral_abscissa(loop(1.03 * g)) >= 0.0
 
 
 @pytest.mark.parametrize("gs", GAINS)
