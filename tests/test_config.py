@@ -45,7 +45,8 @@ def test_default_config_loads(cfg: ModelConfig) -> None:
     assert isinstance(cfg.structure.n_ribs, int)
 
 
-# (getter, expected SI value written out by hand from the report's printed number and unit)
+# (getter, expected SI value written out by hand from the printed number and unit: [R]'s, or for mu
+# and k_a2 the shipped drive's, docs/model.md section 7)
 SI_CASES: dict[str, tuple[Callable[[ModelConfig], float], float]] = {
     "d_motor 25.2 cm^3/rad": (lambda c: c.hydraulics.d_motor, 25.2e-6),
     "beta 1.29e6 kPa": (lambda c: c.hydraulics.beta, 1.29e9),
