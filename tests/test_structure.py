@@ -272,11 +272,16 @@ def test_az_inertia_from_config(model: DSS14Model, full: ModalModel) -> None:
 @pytest.mark.parametrize("f_hz", [1e-4, 3e-4])
 def test_pinion_torque_to_az_rate_low_frequency(model: DSS14Model, reduced: ModalModel,
                                                 f_hz: float) -> None:
-    """Rigid body: J_az s theta' = N_p T_a (a force T/r_a at lever R_a = N_p r_a)."""
+    """Rigid body: J_az s theta' = N_p T_a (a force T/r_a at lever R_a = N_p r_a), corrected
+    for the az-el product of inertia.
+
+    The uncoupled value N_p / (J_az w) is off by the factor 1 / (1 - j^2 / (J_az J_el)); with the
+    product of inertia recalibrated for Fig. 22 that factor exceeds 1e-3, so only the coupled
+    value is asserted tightly.
+    """
     n_p = model.cfg.gearbox.n_p
     j_az = _j_axis_by_hand(model, "az")
     h = freqresp(reduced.to_ss(), [f_hz], "enc_rate_az", "T_a")[0]
-    assert abs(h) == pytest.approx(n_p / (j_az * 2 * np.pi * f_hz), rel=1e-3)
     assert np.angle(h) == pytest.approx(-np.pi / 2, abs=1e-3)  # an integrator
     # exact rigid-body value with the calibrated az-el product of inertia j:
     # [[J_az, j], [j, J_el]] s w = [N_p T, 0]
@@ -289,10 +294,15 @@ def test_pinion_torque_to_az_rate_low_frequency(model: DSS14Model, reduced: Moda
 @pytest.mark.parametrize("f_hz", [1e-4, 1e-3])
 def test_pinion_torque_to_el_rate_low_frequency(model: DSS14Model, reduced: ModalModel,
                                                 f_hz: float) -> None:
+    """Rigid body, el: [[J_az, j], [j, J_el]] s w = [0, N_p T_e] (as for az above)."""
     n_p = model.cfg.gearbox.n_p
     j_el = _j_axis_by_hand(model, "el")
+    j_az = _j_axis_by_hand(model, "az")
+    jx = model.calibration.j_az_el
     h = freqresp(reduced.to_ss(), [f_hz], "enc_rate_el", "T_e")[0]
-    assert abs(h) == pytest.approx(n_p / (j_el * 2 * np.pi * f_hz), rel=1e-3)
+    assert np.angle(h) == pytest.approx(-np.pi / 2, abs=1e-3)  # an integrator
+    exact = n_p * j_az / (j_az * j_el - jx ** 2) / (2 * np.pi * f_hz)
+    assert abs(h) == pytest.approx(exact, rel=1e-5)
 
 
 # ------------------------------------------------------------------ Fig. 15
@@ -318,8 +328,13 @@ def test_regression_calibrated_fig15_az_resonances_reduced_model(reduced: ModalM
 
 
 def test_fig15_el_no_resonance_below_3hz(reduced: ModalModel, grid: np.ndarray) -> None:
+    """Fig. 15(a) shows no el resonance below 3 Hz: no peak of more than 3 dB prominence (the
+    definition the reproduce table uses, docs/model.md section 7).  The az-el product of inertia
+    that Fig. 22's cross-coupling needs shows the 1.2 Hz az mode in el as a ripple of about 2.6 dB
+    on the shipped drive, under that threshold (a stiffer drive would cross it, docs/model.md).
+    """
     mag = np.abs(freqresp(reduced.to_ss(), grid, "enc_rate_el", "T_e"))
-    assert _peaks(grid, mag, 0.1).size == 0
+    assert _peaks(grid, mag, 3.0).size == 0
 
 
 def test_regression_calibrated_fig15_az_resonances_full_model(full: ModalModel, grid: np.ndarray) -> None:
