@@ -67,10 +67,11 @@ def fake_reproduce(monkeypatch) -> None:
     """``dss14 reproduce`` whose work is a few files and a report with a Greek letter."""
     from dss14_env import reproduce as R
 
-    def fake(out, model, figures=True):
+    def fake(out, model, figures=True, progress=True):
         atomic_write_text(Path(out, "metrics.json"), "{}")
         atomic_write_text(Path(out, "metrics.md"), "")
-        return {"markdown": "| 3σ (mdeg) | 1.0 |\n" * 200, "figures": [], "failed": [], "metrics": {}}
+        report = "| 3σ (mdeg) | 1.0 |\n" * 200
+        return {"markdown": report, "table": report, "figures": [], "failed": [], "metrics": {}}
 
     monkeypatch.setattr(R, "reproduce", fake)
     monkeypatch.setattr("dss14_env.model.assembly.default_model", lambda: None)
