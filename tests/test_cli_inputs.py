@@ -110,6 +110,31 @@ def test_an_ascii_report_escapes_what_it_cannot_show(fake_reproduce, tmp_path, m
     assert b"| 3\\u03c3 (mdeg) | 1.0 |" in buf.getvalue()
 
 
+def test_an_ascii_error_stream_escapes_what_it_cannot_show(tmp_path, monkeypatch) -> None:
+    buf = io.BytesIO()
+    monkeypatch.setattr("sys.stderr", io.TextIOWrapper(buf, encoding="ascii"))
+    f = tmp_path / "σ_file"
+    f.write_text("x")
+    assert cli.main(["bench", "--quick", "--out", str(f)]) == 2
+    import sys
+
+    sys.stderr.flush()
+    assert b"\\u03c3_file: is a file" in buf.getvalue()
+
+
+def test_a_report_whose_stream_was_closed_is_closed(monkeypatch) -> None:
+    """A library that kept the command's stream (and asks it at exit) finds it closed, not an error."""
+    import sys
+
+    inner = io.StringIO()
+    monkeypatch.setattr("sys.stdout", inner)
+    with cli.report_stream():
+        report = sys.stdout
+    inner.close()
+    assert report.closed and not report.isatty()
+    report.flush()
+
+
 # ------------------------------------------------------------------ the folder before the policies
 @pytest.mark.parametrize("command", [["bench", "--quick"], ["campaign", "--controllers", "pi_kp1", "ppo"]])
 def test_a_bad_out_is_refused_before_any_policy_loads(command, tmp_path, monkeypatch, capsys) -> None:
