@@ -16,7 +16,7 @@ from dss14_env.agents.config import shipped_training_configs_by_algo
 from dss14_env.bench import catalog
 from dss14_env.bench.plan import QUICK_WIND_SPEEDS_KMH
 from dss14_env.core.progress import LINE_EVERY_S
-from dss14_env.core.text import counted, tolerant_output
+from dss14_env.core.text import counted
 from dss14_env.model.variants import DRIVE_VARIANTS
 
 
@@ -371,11 +371,11 @@ def _import_plugins(argv: list[str] | None) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``dss14`` console script."""
-    tolerant_output()
-    _import_plugins(argv)
-    args = build_parser().parse_args(argv)
-    args.argv = list(argv) if argv is not None else sys.argv[1:]
-    return run_command(args)
+    with report_stream():  # every line it writes, its errors included
+        _import_plugins(argv)
+        args = build_parser().parse_args(argv)
+        args.argv = list(argv) if argv is not None else sys.argv[1:]
+        return run_command(args)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -516,7 +516,7 @@ def run_command(args: argparse.Namespace) -> int:
     try:
         if getattr(args, "out", None) is not None:
             check_folder_name(args.out)  # before a path of it ('' becomes '.') is made
-        with terminate_as_interrupt(), report_stream():
+        with terminate_as_interrupt():
             return args.func(args)
     except (ValueError, KeyError, RuntimeError, OSError) as exc:
         print(f"dss14 {args.command}: error: {_one_line(exc)}", file=sys.stderr)
@@ -528,9 +528,10 @@ def run_command(args: argparse.Namespace) -> int:
 
 
 class _Report(io.TextIOBase):
-    """The command's standard output: a reader gone away (``| head``) ends the report, not the
-    command, and a character the stream's encoding lacks is written as a backslash escape, so that the
-    exit status says how the work went, not how its report was read.
+    r"""The command's standard output or error: a reader gone away (``| head``) ends the report, not
+    the command, and a character the stream's encoding lacks is written as a backslash escape
+    (``\u03c3`` for σ under ``PYTHONIOENCODING=ascii``), so that the exit status says how the work
+    went, not how its report was read.
     """
 
     def __init__(self, inner: Any) -> None:
@@ -555,11 +556,18 @@ class _Report(io.TextIOBase):
         return len(s)
 
     def flush(self) -> None:  # noqa: D102 - io.TextIOBase's
-        if not self.gone:
+        if not (self.gone or self.closed):
             self._guarded(self.inner.flush)
 
+    @property
+    def closed(self) -> bool:  # noqa: D102 - the stream's
+        return bool(getattr(self.inner, "closed", False))
+
     def isatty(self) -> bool:  # noqa: D102 - the stream's
-        return bool(getattr(self.inner, "isatty", lambda: False)())
+        return not self.closed and bool(getattr(self.inner, "isatty", lambda: False)())
+
+    def fileno(self) -> int:  # noqa: D102 - the stream's
+        return self.inner.fileno()
 
     def _guarded(self, fn: Any) -> None:
         try:
@@ -583,14 +591,15 @@ class _Report(io.TextIOBase):
 
 @contextlib.contextmanager
 def report_stream() -> Iterator[None]:
-    """Context manager: ``sys.stdout`` is a :class:`_Report` for the block."""
-    inner = sys.stdout
-    sys.stdout = report = _Report(inner)
+    """Context manager: ``sys.stdout`` and ``sys.stderr`` are each a :class:`_Report` for the block."""
+    out, err = sys.stdout, sys.stderr
+    sys.stdout, sys.stderr = _Report(out), _Report(err)
     try:
         yield
-        report.flush()
     finally:
-        sys.stdout = inner
+        for report in (sys.stdout, sys.stderr):
+            report.flush()
+        sys.stdout, sys.stderr = out, err
 
 
 def _again(args: argparse.Namespace) -> str:

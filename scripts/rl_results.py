@@ -384,9 +384,9 @@ def render(results_path: Path, check: bool) -> int:
     stale = []
     for doc, names in DOCUMENTS.items():
         text = doc.read_text()
-        found = {n for n in find_blocks(text) if n.startswith("rl-")}
-        if found != set(names):
-            print(f"{doc}: generated blocks {sorted(found)}, expected {sorted(names)}", file=sys.stderr)
+        missing = set(names) - set(find_blocks(text))  # other blocks are other scripts' (rl-rescore)
+        if missing:
+            print(f"{doc}: generated blocks {sorted(missing)} missing", file=sys.stderr)
             return 2
         new = fill_blocks(text, {n: blocks[n] for n in names})
         if new != text:

@@ -135,6 +135,8 @@ def test_a_registered_controller_and_scenario_run_through_dss14_bench(plugin, ca
     assert "hold_side_70" not in P.build_plan(sweep=False).scenarios  # bench=False: not a default
     assert gym.spec("DSS14-HoldSide70-v0").kwargs["wind_speed_kmh"] == 70.0
     assert C.CampaignSpec(controllers=("still",), plants=1, steps=100, warmup_s=1.0).names == ("still",)
+    catalog.unregister("hold_side_70")  # its preset's id goes with it: the manual lists every id left
+    assert "hold_side_70" not in catalog.SCENARIOS and "DSS14-HoldSide70-v0" not in gym.registry
 
 
 def test_registration_refuses_bad_rows_in_one_line(plugin) -> None:

@@ -67,10 +67,11 @@ def fake_reproduce(monkeypatch) -> None:
     """``dss14 reproduce`` whose work is a few files and a report with a Greek letter."""
     from dss14_env import reproduce as R
 
-    def fake(out, model, figures=True):
+    def fake(out, model, figures=True, progress=True):
         atomic_write_text(Path(out, "metrics.json"), "{}")
         atomic_write_text(Path(out, "metrics.md"), "")
-        return {"markdown": "| 3σ (mdeg) | 1.0 |\n" * 200, "figures": [], "failed": [], "metrics": {}}
+        report = "| 3σ (mdeg) | 1.0 |\n" * 200
+        return {"markdown": report, "table": report, "figures": [], "failed": [], "metrics": {}}
 
     monkeypatch.setattr(R, "reproduce", fake)
     monkeypatch.setattr("dss14_env.model.assembly.default_model", lambda: None)
@@ -107,6 +108,31 @@ def test_an_ascii_report_escapes_what_it_cannot_show(fake_reproduce, tmp_path, m
 
     sys.stdout.flush()
     assert b"| 3\\u03c3 (mdeg) | 1.0 |" in buf.getvalue()
+
+
+def test_an_ascii_error_stream_escapes_what_it_cannot_show(tmp_path, monkeypatch) -> None:
+    buf = io.BytesIO()
+    monkeypatch.setattr("sys.stderr", io.TextIOWrapper(buf, encoding="ascii"))
+    f = tmp_path / "σ_file"
+    f.write_text("x")
+    assert cli.main(["bench", "--quick", "--out", str(f)]) == 2
+    import sys
+
+    sys.stderr.flush()
+    assert b"\\u03c3_file: is a file" in buf.getvalue()
+
+
+def test_a_report_whose_stream_was_closed_is_closed(monkeypatch) -> None:
+    """A library that kept the command's stream (and asks it at exit) finds it closed, not an error."""
+    import sys
+
+    inner = io.StringIO()
+    monkeypatch.setattr("sys.stdout", inner)
+    with cli.report_stream():
+        report = sys.stdout
+    inner.close()
+    assert report.closed and not report.isatty()
+    report.flush()
 
 
 # ------------------------------------------------------------------ the folder before the policies

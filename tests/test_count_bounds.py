@@ -60,6 +60,8 @@ def test_a_seed_range_is_measured_before_it_is_built() -> None:
 def test_every_number_of_the_environment_has_finite_bounds() -> None:
     for f in dataclasses.fields(EnvConfig):
         s = field_spec(f)
+        if s is not None and s.kind in ("pair", "list") and s.items is not None:
+            s = s.items  # the elements' spec (e.g. the names of sensors)
         if s is not None and s.kind in ("number", "integer", "pair", "list"):
             bounds = (s.lo, s.hi)
             assert None not in bounds and all(math.isfinite(b) for b in bounds), f.name

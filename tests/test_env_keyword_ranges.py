@@ -19,7 +19,7 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from dss14_env.core.schema import field_spec
-from dss14_env.envs.config import DT_RANGE, WIND_SPEED_MAX_KMH, EnvConfig
+from dss14_env.envs.config import DT_RANGE, SENSOR_CHOICES, WIND_SPEED_MAX_KMH, EnvConfig
 from dss14_env.envs.env import DSS14Env
 from dss14_env.envs.vector import DSS14VectorEnv
 
@@ -28,7 +28,8 @@ SPECS = {f.name: field_spec(f) for f in dataclasses.fields(EnvConfig) if field_s
 #: the cross-keyword rules the documentation states (EnvConfig.checked), by the words of their
 #: messages: a refusal must be one of them
 DOCUMENTED_RULES = ("must lie within", "must keep the track's", "must be <= rate_limit_deg_s",
-                    "must be <= accel_limit_deg_s2", "'model' starts at the model's elevation")
+                    "must be <= accel_limit_deg_s2", "'model' starts at the model's elevation",
+                    "must list 'encoders' first", "whole multiple", "Nyquist frequency")
 #: the structure model's elevation, deg (``start_el_deg: model`` starts within 0.01 deg of it)
 MODEL_EL_DEG = 45.0
 #: where a keyword picks the plant: the ends and the middle of its range
@@ -53,6 +54,8 @@ def in_range(name: str) -> st.SearchStrategy:
         return st.booleans()
     if spec.kind == "str":
         return st.sampled_from(spec.choices)
+    if spec.kind == "list" and spec.items is not None and spec.items.kind == "str":
+        return st.lists(st.sampled_from(spec.items.choices), min_size=spec.min_length, max_size=3)
     if spec.kind == "mapping":
         return st.none()
     lo = spec.lo if spec.lo is not None else -OPEN_HI
@@ -102,6 +105,15 @@ def every_keyword_by_the_rules(draw) -> dict:
     w = 2.0 * math.pi / kw["track_period_range_s"][0]
     amp = min((rate - kw["track_rate_max_deg_s"]) / w, accel / w ** 2, SPECS["track_amp_max_deg"].hi)
     kw["track_amp_max_deg"] = _within(draw, 0.0, amp * (1 - 1e-9))
+    others = [s for s in SENSOR_CHOICES if s != "encoders"]
+    kw["sensors"] = ["encoders", *draw(st.lists(st.sampled_from(others), unique=True))]
+    dt, most = kw["dt"], int(SPECS["monopulse_update_s"].hi / kw["dt"] * (1 - 1e-9))
+    n_u = draw(st.integers(1, most))
+    kw["monopulse_update_s"] = None if n_u == 1 and draw(st.booleans()) else n_u * dt
+    kw["monopulse_latency_s"] = draw(st.integers(0, most)) * dt
+    nyquist = min(0.5 / (n_u * dt), SPECS["monopulse_bandwidth_hz"].hi)
+    kw["monopulse_bandwidth_hz"] = draw(st.one_of(st.none(), st.just(nyquist),
+                                                  st.floats(SPECS["monopulse_bandwidth_hz"].lo, nyquist)))
     return kw
 
 

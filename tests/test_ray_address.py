@@ -95,7 +95,7 @@ def test_commands_refuse_an_unreachable_ray_address_variable_before_work(
     monkeypatch.setenv("RAY_ADDRESS", address)
     out = tmp_path / "out"
     argv = (["campaign", "--plants", "2", "--steps", "300", "--controllers", "pi_kp1"]
-            if command == "campaign" else ["train", "ppo", "--config", "ppo_smoke", "--seeds", "0"])
+            if command == "campaign" else ["train", "ppo", "--config", "ppo_smoke", "--train-seeds", "0"])
     assert cli.main([*argv, "--ray", "--out", str(out)]) == 2
     _one_line(capsys, f"RAY_ADDRESS={address}", "no Ray cluster can be reached")
     assert not out.exists()

@@ -72,6 +72,19 @@ def test_disabled_progress_writes_nothing() -> None:
     assert out.getvalue() == ""
 
 
+def _read_all(fd: int) -> str:
+    """Everything written to a terminal's other end so far (one read may return only a part)."""
+    import select
+
+    chunks = []
+    while select.select([fd], [], [], 0.5)[0]:
+        chunk = os.read(fd, 65536)
+        if not chunk:
+            break
+        chunks.append(chunk)
+    return b"".join(chunks).decode()
+
+
 def test_a_terminal_gets_a_bar() -> None:
     import fcntl
     import pty
@@ -85,7 +98,7 @@ def test_a_terminal_gets_a_bar() -> None:
             with Progress(50, "seed_0", unit="steps", stream=stream) as p:  # tty detected
                 p.update(25)
             stream.flush()
-            text = os.read(master, 65536).decode()
+            text = _read_all(master)
     finally:
         os.close(master)
     assert "seed_0" in text and "25/50" in text and "\r" in text and "starting" not in text

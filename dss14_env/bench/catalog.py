@@ -32,7 +32,7 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
-from dss14_env.envs.presets import PRESETS, Preset, register_preset
+from dss14_env.envs.presets import PRESETS, Preset, register_preset, unregister_preset
 
 
 @dataclass(frozen=True)
@@ -355,6 +355,8 @@ SCENARIO_ROWS: tuple[ScenarioRow, ...] = (
 
 #: the registered scenario rows by name: :data:`SCENARIO_ROWS` and those of :func:`register_scenario`
 _SCENARIO_REGISTRY: dict[str, ScenarioRow] = {r.name: r for r in SCENARIO_ROWS}
+#: the Gymnasium id each registered scenario's own preset added (removed with the scenario)
+_SCENARIO_IDS: dict[str, str] = {}
 #: scenario rows by name (a read-only view of the registered rows)
 SCENARIOS: Mapping[str, ScenarioRow] = MappingProxyType(_SCENARIO_REGISTRY)
 
@@ -486,16 +488,16 @@ def register_scenario(row: ScenarioRow) -> ScenarioRow:
         load_env_config(**dict(sc.env))
     except ValueError as exc:
         raise ValueError(f"{what}: {exc}") from None
-    if isinstance(row.preset, Preset):
-        register_preset(row.preset)
+    if isinstance(row.preset, Preset) and register_preset(row.preset):
+        _SCENARIO_IDS[row.name] = row.preset.env_id
     _SCENARIO_REGISTRY[row.name] = row
     return row
 
 
 def unregister(name: str) -> None:
     """Remove a controller or scenario that :func:`register_controller` or
-    :func:`register_scenario` added (a shipped row stays; a preset's Gymnasium id stays
-    registered).
+    :func:`register_scenario` added, with the Gymnasium id its own preset added (a shipped row
+    stays).
 
     :raises ValueError: a shipped row's name, or a name not registered
     """
@@ -505,6 +507,8 @@ def unregister(name: str) -> None:
     for registry in (_CONTROLLER_REGISTRY, _SCENARIO_REGISTRY):
         if name in registry:
             del registry[name]
+            if name in _SCENARIO_IDS:
+                unregister_preset(_SCENARIO_IDS.pop(name))
             return
     raise ValueError(f"{name!r} is not a registered controller or scenario")
 

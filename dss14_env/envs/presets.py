@@ -146,14 +146,32 @@ def registered_ids_table() -> str:
 DISABLE_ENV_CHECKER = True
 
 
-def register_preset(p: Preset) -> None:
-    """Register one preset's id with Gymnasium (idempotent; builds nothing)."""
+def register_preset(p: Preset) -> bool:
+    """Register one preset's id with Gymnasium (idempotent; builds nothing).
+
+    :return: whether this call registered it (False: it was registered already)
+    """
     from gymnasium.envs.registration import register, registry
 
-    if p.env_id not in registry:
-        register(id=p.env_id, entry_point=ENTRY_POINT, vector_entry_point=VECTOR_ENTRY_POINT,
-                 max_episode_steps=p.max_episode_steps, kwargs=dict(p.kwargs),
-                 disable_env_checker=DISABLE_ENV_CHECKER)
+    if p.env_id in registry:
+        return False
+    register(id=p.env_id, entry_point=ENTRY_POINT, vector_entry_point=VECTOR_ENTRY_POINT,
+             max_episode_steps=p.max_episode_steps, kwargs=dict(p.kwargs),
+             disable_env_checker=DISABLE_ENV_CHECKER)
+    return True
+
+
+def unregister_preset(env_id: str) -> None:
+    """Remove an id :func:`register_preset` registered from Gymnasium's registry (a shipped
+    preset's id stays).
+
+    :raises ValueError: a shipped preset's id
+    """
+    from gymnasium.envs.registration import registry
+
+    if env_id in {p.env_id for p in PRESETS.values()}:
+        raise ValueError(f"{env_id!r} is a shipped preset's id; only added ids can be removed")
+    registry.pop(env_id, None)
 
 
 def register_presets() -> None:
