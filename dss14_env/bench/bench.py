@@ -33,6 +33,7 @@ from dss14_env.bench.report import (
     RESULT_FILES,
     assemble_results,
     fmt,
+    headline_table,
     load_average,
     main_table,
     package_versions,
@@ -64,8 +65,9 @@ def bench(plan: BenchPlan, progress: bool = True) -> dict[str, Any]:
 
     :param plan: the plan (:func:`build_plan`; its ``threads`` sets the BLAS threads)
     :param progress: show the progress bar
-    :return: ``results`` (results.json's content), ``pointing_table`` (the headline, the dish's
-        true pointing error, Markdown), ``main_table`` (the servo error, Markdown), ``markdown``
+    :return: ``results`` (results.json's content), ``headline`` (the compact headline table
+        with its legend, :func:`~dss14_env.bench.report.headline_table`), ``pointing_table``
+        (the dish's true pointing error, Markdown), ``main_table`` (the servo error, Markdown), ``markdown``
         (results.md), ``files`` (paths written), ``figures`` (names), ``wall_time_s``, and
         ``ran`` (:func:`dss14_env.bench.run.run_plan`'s output, with the time histories)
     """
@@ -91,7 +93,8 @@ def _bench_in(plan: BenchPlan, progress: bool) -> dict[str, Any]:
     results["bench"]["cpu_time_s"] = time.process_time() - c0
     results["bench"]["figures"] = figures
     pj, pm = write_results(results, plan.out)
-    return {"results": results, "pointing_table": pointing_table(results), "main_table": main_table(results),
+    return {"results": results, "headline": headline_table(results, str(pm)),
+            "pointing_table": pointing_table(results), "main_table": main_table(results),
             "markdown": results_markdown(results), "files": [pj, pm] + [plan.out / f for f in figures],
             "figures": figures, "wall_time_s": wall, "ran": ran}
 
