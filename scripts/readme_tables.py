@@ -5,8 +5,7 @@ and the catalog (:mod:`dss14_env.bench.catalog`):
 
 * every region between ``<!-- NAME:start -->`` and ``<!-- NAME:end -->`` of :data:`REGIONS` in
   README.md and docs/bench.md: the compact headline table
-  (:func:`dss14_env.bench.report.headline_table`), the pointing tables, the controller and
-  scenario tables;
+  (:func:`dss14_env.bench.report.headline_table`), the controller and scenario tables;
 * the whole of ``docs/results/bench_default.md``, the default run's full tables: the run's
   results.md (:func:`dss14_env.bench.report.results_markdown`)::
 
@@ -27,7 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from dss14_env.bench.catalog import controllers_table, scenarios_table
-from dss14_env.bench.report import headline_table, pointing_summary, results_markdown
+from dss14_env.bench.report import headline_table, results_markdown
 from dss14_env.core.text import fill_blocks, find_blocks
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -36,7 +35,6 @@ FULL_TABLES = "docs/results/bench_default.md"
 #: the generated regions by name: their renderer (given the default results)
 REGIONS: dict[str, Callable[[Any], str]] = {
     "bench-headline": lambda r: headline_table(r, FULL_TABLES),
-    "bench-pointing": pointing_summary,
     "catalog-controllers": lambda _: controllers_table(),
     "catalog-scenarios": lambda _: scenarios_table(),
 }

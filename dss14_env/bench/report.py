@@ -780,16 +780,6 @@ def headline_table(results: Mapping[str, Any], full_tables: str = FULL_TABLES) -
     return _table(header, rows) + "\n\n" + legend + "\n"
 
 
-def pointing_summary(results: Mapping[str, Any]) -> str:
-    """The headline alone (docs/bench.md): the pointing table and its ratios to the reference."""
-    parts = [pointing_table(results), ""]
-    pr = pointing_ratio_table(results)
-    if pr:
-        parts += ["Over the report's PI on the same seeds (paired 95 % CI; n.s.: the interval "
-                  "contains 1):", "", pr, ""]
-    return "\n".join(parts)
-
-
 def write_results(results: Mapping[str, Any], out: str | Path) -> tuple[Path, Path]:
     """Write results.json and results.md into ``out`` (an existing folder), atomically.
 
@@ -805,7 +795,7 @@ def write_results(results: Mapping[str, Any], out: str | Path) -> tuple[Path, Pa
 __all__ = ["LEGEND", "RESULT_FILES", "assemble_results", "command_table", "episode_columns",
            "episode_rows", "error_table", "fmt", "fmt_ci", "fmt_ratio", "headline_table", "loaded_axes",
            "main_table",
-           "package_versions", "pointing_ratio_table", "pointing_summary", "pointing_table",
+           "package_versions", "pointing_ratio_table", "pointing_table",
            "three_sigma_table",
            "precision_table", "ratio_table", "results_json", "results_markdown",
            "step_table", "sweep_tables", "wind_sweep_curves", "write_results"]
