@@ -21,13 +21,17 @@ AGENT_ENV_IDS = {
 def register_agent_envs() -> None:
     """Register :data:`AGENT_ENV_IDS` with Gymnasium (idempotent; builds nothing).
 
-    The base environment's ``TimeLimit`` truncates, so the ids have no episode limit of their own.
+    The base environment's ``TimeLimit`` truncates, so the ids have no episode limit of their own;
+    like the base ids, they are registered without gymnasium's passive checker
+    (:data:`dss14_env.envs.presets.DISABLE_ENV_CHECKER`).
     """
     from gymnasium.envs.registration import register, registry
 
+    from dss14_env.envs.presets import DISABLE_ENV_CHECKER
+
     for env_id, entry_point in AGENT_ENV_IDS.items():
         if env_id not in registry:
-            register(id=env_id, entry_point=entry_point)
+            register(id=env_id, entry_point=entry_point, disable_env_checker=DISABLE_ENV_CHECKER)
 
 
 register_agent_envs()

@@ -14,7 +14,7 @@ of different runs never share a seed), then scores every run's final and best
                         bootstrap interval (dss14_env.core.stats.iqm_ci), the mean, min and
                         max; the references (PI, LQG) on the same test and validation episodes
     summary.md          the test figures per training seed, their IQM and the references
-                        (dss14_env.agents.campaign_report; ``dss14 train --seeds`` prints it)
+                        (dss14_env.agents.campaign_report; ``dss14 train --train-seeds`` prints it)
     curves_<task>.png   validation 3σ (servo and pointing) and return vs environment steps: IQM
                         over training seeds with its 95 % bootstrap band, every seed's curve
                         and the references' validation 3σ as lines
@@ -24,9 +24,10 @@ The test tasks are the DSS14 scenarios of the configuration's ``test_scenarios``
 two holds; any of :data:`dss14_env.agents.evaluation.SCENARIO_TASKS`: holds, track, step, slew),
 each scored with the bench's figures on the bench's episodes.
 
-An interrupted campaign continues with ``resume=True`` (``dss14 train ... --seeds ...
+An interrupted campaign continues with ``resume=True`` (``dss14 train ... --train-seeds ...
 --resume``): the seeds whose run finished with the campaign's configuration are scored
-again, not retrained; the others are trained anew.
+again, not retrained; the others continue from their last checkpoint (Ctrl-C and SIGTERM save
+one where they stop, :func:`dss14_env.agents.train.train`), or train anew without one.
 
 The interval resamples training seeds (the independent units); with fewer than 5 seeds it is
 wide, and the project reports learned agents with at least 5.
@@ -41,6 +42,8 @@ from __future__ import annotations
 import glob
 import json
 import re
+import sys
+import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -60,9 +63,10 @@ from dss14_env.agents.envs import check_env, resolve_env
 from dss14_env.agents.evaluation import DEFAULT_SCENARIOS, TEST_SEEDS, TEST_STEPS, EvalTask, dss14_tasks
 from dss14_env.agents.policy import load_policy
 from dss14_env.agents.results import SCENARIO_COLUMNS, column_summary, column_values
-from dss14_env.agents.train import evaluation_ranks, train, validation_tasks
+from dss14_env.agents.train import evaluation_ranks, last_checkpoint, train, validation_tasks
+from dss14_env.core.arrays import read_arrays
 from dss14_env.core.outdir import (
-    atomic_write_bytes,
+    atomic_save_figure,
     atomic_write_text,
     manifest_kept,
     prepare_output_dir,
@@ -71,12 +75,16 @@ from dss14_env.core.outdir import (
     update_manifest,
 )
 from dss14_env.core.parallel import Executor, SerialExecutor, pinned_threads
+from dss14_env.core.progress import eta_seconds, format_duration
+from dss14_env.core.schema import load_yaml
 from dss14_env.core.seeds import parse_seed_list
 from dss14_env.core.stats import iqm_ci
 from dss14_env.core.text import counted
 
 #: distance between the training seeds of two seed indices
 SEED_STRIDE = 1000
+#: the command a campaign's (and a sweep's) folder belongs to (its manifest's)
+COMMAND = "train --seeds"
 #: what a campaign or a sweep (:mod:`dss14_env.agents.sweep`) owns in its folder: either one
 #: replaces the other's files (with ``overwrite``), so the results of the two never mix
 CAMPAIGN_FILES = ("seed_*", "summary.json", "summary.md", "curves_*.png", "config.yaml", "sweep.json",
@@ -86,12 +94,13 @@ BOOTSTRAP_SEED = 0
 
 
 def parse_seeds(values: Sequence[str | int]) -> list[int]:
-    """Seed indices from ``--seeds`` values: ``["0-4"]`` -> 0..4, ``["0", "3", "7"]``
+    """Seed indices from ``--train-seeds`` values: ``["0-4"]`` -> 0..4, ``["0", "3", "7"]``
     (:func:`dss14_env.core.seeds.parse_seed_list`, the grammar of ``--seeds`` in every command).
 
-    :raises ValueError: a value that is not an index or a range, a repeated index
+    :raises ValueError: a value that is not an index or a range, a repeated index (naming
+        ``--train-seeds``)
     """
-    return parse_seed_list(values)
+    return parse_seed_list(values, option="--train-seeds")
 
 
 def training_seed(config: TrainConfig, k: int) -> int:
@@ -103,12 +112,12 @@ def check_training_seeds(cfg: TrainConfig, seeds: Sequence[int]) -> None:
     """Refuse seed indices whose training seed (:func:`training_seed`) passes the largest seed
     (:data:`~dss14_env.agents.config.MAX_SEED`), before any work.
 
-    :raises ValueError: naming ``--seeds``
+    :raises ValueError: naming ``--train-seeds``
     """
     for k in seeds:
         s = training_seed(cfg, k)
         if s + cfg.n_envs - 1 > MAX_SEED:
-            raise ValueError(f"--seeds: seed index {k} trains with seed {cfg.seed} + "
+            raise ValueError(f"--train-seeds: seed index {k} trains with seed {cfg.seed} + "
                              f"{SEED_STRIDE} x {k} = {s} (and its {cfg.n_envs} sub-environments "
                              f"the next ones), past the largest seed {MAX_SEED}")
 
@@ -141,7 +150,7 @@ def _aggregate(values: list[float]) -> dict[str, Any]:
 
 
 def _as_yaml_data(cfg: TrainConfig) -> Any:
-    return yaml.safe_load(yaml.safe_dump(cfg.to_dict(), sort_keys=False))
+    return load_yaml(yaml.safe_dump(cfg.to_dict(), sort_keys=False), cfg.source)
 
 
 def finished_run(cfg: TrainConfig, run: Path) -> bool:
@@ -151,8 +160,8 @@ def finished_run(cfg: TrainConfig, run: Path) -> bool:
     """
     try:
         ts = json.loads((run / "train_summary.json").read_text())
-        saved = yaml.safe_load((run / "config.yaml").read_text())
-    except (OSError, ValueError, yaml.YAMLError):
+        saved = load_yaml((run / "config.yaml").read_text(), str(run / "config.yaml"))
+    except (OSError, ValueError):
         return False
     return saved == _as_yaml_data(cfg) and int(ts.get("num_timesteps", -1)) >= cfg.total_timesteps
 
@@ -163,8 +172,8 @@ def check_saved_config(cfg: TrainConfig, folder: Path) -> None:
     :raises ValueError: no readable ``config.yaml``, or another configuration (``--resume``)
     """
     try:
-        saved = yaml.safe_load((folder / "config.yaml").read_text())
-    except (OSError, yaml.YAMLError):
+        saved = load_yaml((folder / "config.yaml").read_text(), str(folder / "config.yaml"))
+    except (OSError, ValueError):
         raise ValueError(f"--resume: {folder} holds no campaign to continue (no readable "
                          f"config.yaml)") from None
     if saved != _as_yaml_data(cfg):
@@ -178,16 +187,43 @@ def _continue_campaign(cfg: TrainConfig, out: str | Path, seeds: Sequence[int]) 
     """
     folder = Path(out)
     check_saved_config(cfg, folder)
-    reopen_output_dir(folder, owned_files(folder), "--out")
+    reopen_output_dir(folder, owned_files(folder), "--out", command=COMMAND)
     remove_run_files(folder, ("summary.json", "summary.md", "curves_*.png"))
     finished = set()
     for k in seeds:
-        run = folder / f"seed_{k}"
-        if finished_run(cfg.replace(seed=training_seed(cfg, k)), run):
+        run, seed_cfg = folder / f"seed_{k}", cfg.replace(seed=training_seed(cfg, k))
+        if finished_run(seed_cfg, run):
             finished.add(k)
-        elif run.exists():
+        elif run.exists() and resumable_checkpoint(seed_cfg, run) is None:
             remove_run_files(folder, (run.name,))
     return folder, finished
+
+
+def resumable_checkpoint(cfg: TrainConfig, run: Path) -> Path | None:
+    """The last checkpoint of an unfinished run of ``cfg`` (its ``config.yaml`` is ``cfg``) before
+    its last step, which the run continues from; None: no such run or no such checkpoint (it
+    trains anew).
+    """
+    try:
+        saved = yaml.safe_load((run / "config.yaml").read_text())
+    except (OSError, yaml.YAMLError):
+        return None
+    return last_checkpoint(run, before=cfg.total_timesteps) if saved == _as_yaml_data(cfg) else None
+
+
+def kept_work(cfg: TrainConfig, folder: str | Path, seeds: Sequence[int]) -> str:
+    """What an interrupted campaign keeps, per seed index: ``seed_0 finished, seed_1 at 1536
+    steps (checkpoints/1536_steps), seed_2 nothing yet``.
+    """
+    parts = []
+    for k in seeds:
+        run, seed_cfg = Path(folder) / f"seed_{k}", cfg.replace(seed=training_seed(cfg, k))
+        ckpt = None if finished_run(seed_cfg, run) else resumable_checkpoint(seed_cfg, run)
+        state = ("finished" if finished_run(seed_cfg, run) else
+                 f"at {ckpt.name[:-6]} steps ({ckpt.parent.name}/{ckpt.name})" if ckpt is not None
+                 else "nothing yet")
+        parts.append(f"{run.name} {state}")
+    return ", ".join(parts)
 
 
 def owned_files(folder: str | Path) -> tuple[str, ...]:
@@ -219,7 +255,8 @@ def open_campaign(cfg: TrainConfig, out: str | Path, seeds: Sequence[int], overw
     """
     if resume:
         return _continue_campaign(cfg, out, seeds)
-    folder = prepare_output_dir(out, owned_files(out) if owned is None else owned, overwrite, "--out")
+    folder = prepare_output_dir(out, owned_files(out) if owned is None else owned, overwrite, "--out",
+                                command=COMMAND)
     atomic_write_text(folder / "config.yaml", f"# shared configuration of the campaign (from "
                       f"{cfg.source}); run k trains with seed {cfg.seed} + {SEED_STRIDE} k\n"
                       + yaml.safe_dump(cfg.to_dict(), sort_keys=False))
@@ -228,11 +265,43 @@ def open_campaign(cfg: TrainConfig, out: str | Path, seeds: Sequence[int], overw
 
 
 def seed_items(cfg: TrainConfig, folder: Path, seeds: Sequence[int], finished: set[int],
-               test_seeds: Sequence[int], test_steps: int) -> list[dict[str, Any]]:
-    """The work items of a campaign, one per seed index (:func:`train_one_seed`)."""
+               test_seeds: Sequence[int], test_steps: int,
+               progress: bool | None = None) -> list[dict[str, Any]]:
+    """The work items of a campaign, one per seed index (:func:`train_one_seed`).
+
+    :param progress: each run's steps on stderr (:func:`~dss14_env.agents.train.train`'s
+        ``progress``; None: the configuration's ``progress_bar``)
+    """
     return [{"config": cfg, "k": int(k), "folder": str(folder),
              "test_seeds": [int(s) for s in test_seeds], "test_steps": int(test_steps),
-             "finished": k in finished} for k in seeds]
+             "finished": k in finished, "progress": progress} for k in seeds]
+
+
+def say_plan(cfg: TrainConfig, folder: Path, runs: int, finished: int = 0) -> None:
+    """One line on stderr as a campaign starts: what it trains, how long a run, where."""
+    again = f" ({finished} finished earlier)" if finished else ""
+    print(f"{cfg.algo} on {cfg.env_id}: {counted(runs, 'run')}{again} of {cfg.total_timesteps} "
+          f"steps into {folder}", file=sys.stderr, flush=True)
+
+
+def run_seed_items(executor: Executor, items: Sequence[Mapping[str, Any]],
+                   labels: Sequence[str]) -> dict[int, dict[str, Any]]:
+    """Run :func:`train_one_seed` over ``items``; say on stderr as each one ends, with the
+    campaign's elapsed time and its ETA (at the rate of the items so far).
+
+    :return: item index -> the item's entry
+    """
+    t0, done = time.monotonic(), {}
+    for i, entry in executor.map_unordered(train_one_seed, items, labels=labels):
+        done[i] = entry
+        elapsed = time.monotonic() - t0
+        left = len(items) - len(done)
+        eta = eta_seconds(len(done), len(items), elapsed)
+        tail = (f", ETA {format_duration(eta)} for the other {counted(left, 'run')}"
+                if left and eta is not None else "")
+        print(f"{labels[i]}: done ({len(done)} of {len(items)}), campaign {format_duration(elapsed)} "
+              f"elapsed{tail}", file=sys.stderr, flush=True)
+    return done
 
 
 def train_one_seed(item: Mapping[str, Any]) -> dict[str, Any]:
@@ -246,9 +315,16 @@ def train_one_seed(item: Mapping[str, Any]) -> dict[str, Any]:
     """
     cfg, k = as_config(item["config"]), int(item["k"])
     tasks, test_seeds, test_steps = campaign_tasks(cfg), item["test_seeds"], item["test_steps"]
-    run = Path(item["folder"]) / f"seed_{k}"
-    if not item.get("finished", False):
-        run = train(cfg.replace(seed=training_seed(cfg, k)), run_dir=run)
+    run, seed_cfg = Path(item["folder"]) / f"seed_{k}", cfg.replace(seed=training_seed(cfg, k))
+    if item.get("finished", False):
+        print(f"{run.name}: finished earlier, scored again", file=sys.stderr, flush=True)
+    else:
+        ckpt = resumable_checkpoint(seed_cfg, run) if run.is_dir() else None
+        print(f"{run.name}: " + (f"training {seed_cfg.total_timesteps} steps" if ckpt is None else
+                                 f"continuing from {ckpt.parent.name}/{ckpt.name} to "
+                                 f"{seed_cfg.total_timesteps} steps")
+              + f" into {run} (training seed {seed_cfg.seed})", file=sys.stderr, flush=True)
+        run = train(seed_cfg, run_dir=run, resume=ckpt, progress=item.get("progress"))
     ts = json.loads((run / "train_summary.json").read_text())
     entry: dict[str, Any] = {"seed_index": k, "training_seed": training_seed(cfg, k),
                              "run": run.name, "wall_s": ts["wall_s"],
@@ -328,7 +404,8 @@ def write_summary(cfg: TrainConfig, folder: Path, seeds: Sequence[int], per_seed
 def train_seeds(config: TrainConfig | Mapping[str, Any] | str | Path, seeds: Sequence[int],
                 out: str | Path, overwrite: bool = False, test_seeds: Sequence[int] = TEST_SEEDS,
                 test_steps: int = TEST_STEPS, figures: bool = True,
-                executor: Executor | None = None, resume: bool = False) -> Path:
+                executor: Executor | None = None, resume: bool = False,
+                progress: bool | None = None) -> Path:
     """Train one run per seed index and score them (see the module doc).
 
     :param config: the shared configuration (its ``seed`` is the base seed; a sweep:
@@ -344,7 +421,10 @@ def train_seeds(config: TrainConfig | Mapping[str, Any] | str | Path, seeds: Seq
         seed runs with one BLAS thread either way); ``out`` must then be a folder every Ray node
         can write
     :param resume: continue the interrupted campaign in ``out`` (same configuration): the seeds
-        whose run finished are scored, not retrained
+        whose run finished are scored, not retrained; the others continue from their last
+        checkpoint (or train anew without one)
+    :param progress: each run's steps on stderr (None: the configuration's ``progress_bar``);
+        a line as each seed starts and ends (with the campaign's ETA) either way
     :return: the campaign folder
     :raises ValueError: a sweep configuration (before any work)
     """
@@ -358,10 +438,11 @@ def train_seeds(config: TrainConfig | Mapping[str, Any] | str | Path, seeds: Seq
     with pinned_threads(1):  # a training environment that cannot be made: before any work
         check_env(cfg)
     folder, finished = open_campaign(cfg, out, seeds, overwrite, resume)
+    say_plan(cfg, folder, len(seeds), len(finished))
     with manifest_kept(folder):
-        items = seed_items(cfg, folder, seeds, finished, test_seeds, test_steps)
+        items = seed_items(cfg, folder, seeds, finished, test_seeds, test_steps, progress)
         ex = executor if executor is not None else SerialExecutor()
-        done = dict(ex.map_unordered(train_one_seed, items, labels=[f"seed {k}" for k in seeds]))
+        done = run_seed_items(ex, items, [f"seed_{k}" for k in seeds])
         write_summary(cfg, folder, seeds, [done[i] for i in range(len(seeds))], test_seeds,
                       test_steps, figures)
     return folder
@@ -380,11 +461,11 @@ def selected_evaluation(history: str | Path) -> tuple[int, tuple[bool, float]] |
     -- the highest rank, as the training's evaluator keeps it (:func:`evaluation_ranks`); None
     without scores.
     """
-    with np.load(history, allow_pickle=False) as d:
-        if "selection_score" not in d.files or not d["selection_score"].size:
-            return None
-        ranks = evaluation_ranks(d["selection_score"].tolist(), d["selection_qualified"].tolist()
-                                 if "selection_qualified" in d.files else None)
+    d = read_arrays(history)
+    if "selection_score" not in d or not d["selection_score"].size:
+        return None
+    ranks = evaluation_ranks(d["selection_score"].tolist(), d["selection_qualified"].tolist()
+                             if "selection_qualified" in d else None)
     i = max(range(len(ranks)), key=lambda k: ranks[k])  # the first of equal ranks, as kept
     return i, ranks[i]
 
@@ -429,9 +510,9 @@ def learning_curves(runs: Sequence[Path], task: str) -> dict[str, Any]:
     entries = {"three_sigma": "three_sigma_mdeg", "pointing": "pointing_three_sigma_mdeg"}
     data = []
     for r in runs:
-        with np.load(r / "eval" / "evaluations.npz", allow_pickle=False) as d:
-            errs = {k: d[f"{v}_{task}"] for k, v in entries.items() if f"{v}_{task}" in d.files}
-            data.append((d["timesteps"].astype(int), np.asarray(d[f"returns_{task}"]), errs))
+        d = read_arrays(r / "eval" / "evaluations.npz")
+        errs = {k: d[f"{v}_{task}"] for k, v in entries.items() if f"{v}_{task}" in d}
+        data.append((d["timesteps"].astype(int), np.asarray(d[f"returns_{task}"]), errs))
     common = sorted(set.intersection(*(set(t.tolist()) for t, _, _ in data))) if data else []
     steps = np.array(common, int)
     out = {"steps": steps, "returns": np.full((len(data), steps.size), np.nan)}
@@ -481,8 +562,6 @@ def write_curves(folder: Path, runs: Sequence[Path], tasks: Sequence[EvalTask],
         (:func:`~dss14_env.agents.campaign_report.validation_references`); None: no lines
     :return: the files written (none when a run has no validation history: ``eval_freq`` 0)
     """
-    import io
-
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -518,17 +597,15 @@ def write_curves(folder: Path, runs: Sequence[Path], tasks: Sequence[EvalTask],
             ax.grid(alpha=0.3)
             ax.legend(fontsize=8)
         fig.suptitle(f"{t.name}: learning curves")
-        buf = io.BytesIO()
-        fig.savefig(buf, format="png", dpi=100)
         path = folder / f"curves_{t.name}.png"
-        atomic_write_bytes(path, buf.getvalue())
+        atomic_save_figure(fig, path, dpi=100)
         written.append(path)
     return written
 
 
 __all__ = ["CAMPAIGN_FILES", "SEED_STRIDE", "campaign_tasks", "check_saved_config",
-           "check_training_seeds", "finished_run",
-           "owned_files",
+           "check_training_seeds", "finished_run", "kept_work", "resumable_checkpoint", "run_seed_items",
+           "say_plan", "owned_files",
            "best_seed_policy", "is_campaign_folder", "learning_curves", "open_campaign", "parse_seeds",
            "seed_items", "train_one_seed", "train_seeds",
            "training_seed", "write_curves", "write_summary"]

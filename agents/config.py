@@ -15,7 +15,7 @@ A top-level ``sweep`` mapping (configuration keys -> lists of values) makes the 
 hyperparameter sweep: the grid of every combination of the values, each point the rest of the
 file with those values set (:meth:`TrainConfig.points`; a dotted key such as
 ``env_kwargs.action_scale_deg_s`` sets one entry of a mapping).  Every point is validated as a
-configuration of its own when the file is read; ``dss14 train --seeds`` trains one campaign per
+configuration of its own when the file is read; ``dss14 train --train-seeds`` trains one campaign per
 point (:mod:`dss14_env.agents.sweep`).
 
 >>> cfg = TrainConfig.from_dict({"env_id": "Pendulum-v1", "n_envs": 2, "n_steps": 64,
@@ -47,6 +47,7 @@ from typing import Any
 import numpy as np
 
 from dss14_env.agents.evaluation import DEFAULT_SCENARIOS, SCENARIO_TASKS
+from dss14_env.core.counts import MAX_THREADS
 from dss14_env.core.schema import (
     ConfigError,
     Spec,
@@ -79,11 +80,14 @@ MAX_SEED = 2**31 - 1
 #: 4096 inputs is 64 MiB of weights; beyond, torch fails to allocate or runs for hours
 MAX_LAYER, MAX_LAYERS = 4096, 16
 #: most sub-environments, steps of a rollout, threads and timesteps a configuration may ask for
-MAX_ENVS, MAX_ROLLOUT, MAX_THREADS, MAX_TIMESTEPS = 1024, 10_000_000, 256, 10**10
+#: (threads: the one bound of every command, dss14_env.core.counts.MAX_THREADS)
+MAX_ENVS, MAX_ROLLOUT, MAX_TIMESTEPS = 1024, 10_000_000, 10**10
 _INT = Spec("1", "integer", lo=0, hi=MAX_SEED)
-#: the package whose modules (and only those) a configuration file may name in ``env_module``
-OWN_PACKAGE = "dss14_env"
-#: keys a sweep cannot vary: the seeds come from ``--seeds``, the algorithm fixes the key set
+#: the modules that register this package's environment ids, the only modules a configuration
+#: file may name in ``env_module``: a fixed table, each name matched whole (another module of
+#: the package, such as one inside a policy folder placed among the shipped ones, is refused)
+KNOWN_ENV_MODULES = ("dss14_env", "dss14_env.agents", "dss14_env.agents.envs", "dss14_env.agents.residual")
+#: keys a sweep cannot vary: the seeds come from ``--train-seeds``, the algorithm fixes the key set
 NOT_SWEPT = ("algo", "seed", "sweep")
 #: most points of a sweep's grid
 MAX_SWEEP_POINTS = 1000
@@ -182,7 +186,7 @@ class RecurrentPPOSettings(PPOSettings):
 class SACSettings(CommonSettings):
     """SAC's keys (SB3's defaults for the network: [256, 256] ReLU, log std -3)."""
 
-    n_envs: int = _int(1, 1)
+    n_envs: int = _int(1, 1, hi=MAX_ENVS)
     net_arch: Any = spec(None, kind="any", default_factory=lambda: [256, 256])
     activation_fn: str = spec(None, kind="str", choices=ACTIVATIONS, default="relu")
     log_std_init: float = _num(-3.0, lo=-20.0, hi=5.0)
@@ -339,7 +343,7 @@ def _sweep_value_spec(key: str, algo: str, source: str) -> Spec | None:
     if not key or not all(key.split(".")):
         raise ConfigError(f"{source}: field 'sweep': keys must be configuration keys, got {key!r}")
     if head in NOT_SWEPT:
-        why = ("the seeds of a sweep are --seeds" if head == "seed" else
+        why = ("the seeds of a sweep are --train-seeds" if head == "seed" else
                "a sweep cannot be swept" if head == "sweep" else "a sweep keeps one algorithm")
         raise ConfigError(f"{where}: cannot be swept ({why})")
     fields = {f.name: f for f in dataclasses.fields(SETTINGS[algo])}
@@ -575,18 +579,17 @@ def shipped_training_configs() -> list[str]:
 
 def shipped_training_configs_by_algo() -> dict[str, list[str]]:
     """The shipped training configurations grouped by their ``algo`` key (read from the files)."""
-    import yaml
-
     out: dict[str, list[str]] = {}
     for name in shipped_training_configs():
-        algo = yaml.safe_load(shipped_config_path(f"{name}.yaml").read_text(encoding="utf-8")).get("algo")
+        algo = read_config(shipped_config_path(f"{name}.yaml"))[0].get("algo")
         out.setdefault(str(algo), []).append(name)
     return out
 
 
 def check_training_config_name(path: str | Path) -> None:
-    """Refuse, in one line, a ``--config`` that is neither a file nor a shipped training
-    configuration (a shipped model, env, wind or controllers configuration is named as such).
+    """Refuse, in one line, a ``--config`` that is neither a file nor a shipped configuration
+    (a shipped model, env, wind or controllers configuration is refused as such when read:
+    :func:`~dss14_env.core.schema.check_config_kind`).
 
     :raises ConfigError: listing the shipped training configurations
     """
@@ -597,19 +600,18 @@ def check_training_config_name(path: str | Path) -> None:
     training = shipped_training_configs()
     if stem in training and (len(p.parts) <= 1 or p.parts[0] == "configs"):
         return
+    if stem in shipped_configs():  # a shipped configuration of another kind: read_config names it
+        return
     names = ", ".join(training)
-    if stem in shipped_configs():
-        raise ConfigError(f"{path}: a shipped {stem} configuration, not a training one; the shipped "
-                          f"training configurations: {names}")
     raise ConfigError(f"{path}: configuration file not found (neither a file nor a shipped training "
                       f"configuration: {names})")
 
 
-def is_own_module(name: str) -> bool:
-    """Whether ``name`` is a module of this package (:data:`OWN_PACKAGE`), the only modules a
-    configuration file may name.
+def is_known_env_module(name: Any) -> bool:
+    """Whether ``name`` is one of :data:`KNOWN_ENV_MODULES`, the only modules a configuration
+    file may name.
     """
-    return name == OWN_PACKAGE or name.startswith(OWN_PACKAGE + ".")
+    return isinstance(name, str) and name in KNOWN_ENV_MODULES
 
 
 def _import_fields(values: Mapping[str, Any]) -> list[tuple[str, Any]]:
@@ -626,7 +628,7 @@ def check_file_imports(cfg: TrainConfig, env_module: str | None = None) -> Train
     """Refuse a configuration read from a file that would make the tools import a module.
 
     A file names environments only by registered ids: ``env_module`` may be null or one of
-    this package's own modules, and no id may take gymnasium's ``module:id`` form (which
+    the fixed table :data:`KNOWN_ENV_MODULES`, and no id may take gymnasium's ``module:id`` form (which
     imports ``module``).  Importing a module of the user's, which runs its code, is the user's
     explicit opt-in (``env_module`` here; ``dss14 train --env-module``), never a field of a file.
     Every point of a sweep is checked too.
@@ -639,11 +641,11 @@ def check_file_imports(cfg: TrainConfig, env_module: str | None = None) -> Train
     for c in [cfg, *(p.config for p in cfg.points())]:
         values = c.to_dict()
         mod = values.get("env_module")
-        if mod is not None and not is_own_module(mod) and mod != env_module:
+        if mod is not None and not is_known_env_module(mod) and mod != env_module:
             raise ConfigError(
                 f"{c.source}: field 'env_module': {mod!r} names a module to import, and importing "
-                f"runs its code: a file may name only null or this package's own modules "
-                f"({OWN_PACKAGE}...); if you trust it, pass --env-module {mod} (dss14 train) or "
+                f"runs its code: a file may name only null or one of "
+                f"{', '.join(KNOWN_ENV_MODULES)}; if you trust it, pass --env-module {mod} (dss14 train) or "
                 f"env_module={mod!r} (load_config, load_policy)")
         for key, v in _import_fields(values):
             if isinstance(v, str) and ":" in v:
@@ -668,7 +670,7 @@ def load_config(path: str | Path | None = None, env_module: str | None = None) -
     """
     if path is not None:
         check_training_config_name(path)
-    data, source = read_config(path if path is not None else "ppo")
+    data, source = read_config(path if path is not None else "ppo", kind="training")
     return check_file_imports(TrainConfig.from_dict(data, source=source), env_module)
 
 
@@ -686,10 +688,10 @@ def as_config(config: TrainConfig | Mapping[str, Any] | str | Path) -> TrainConf
 
 __all__ = ["ACTIVATIONS", "ALGOS", "MAX_LABEL_CHARS", "MAX_SWEEP_POINTS", "NOT_SWEPT", "SELECT_BY",
            "CommonSettings", "MAX_ENVS", "MAX_LAYER", "MAX_LAYERS", "MAX_ROLLOUT", "MAX_SEED",
-           "MAX_THREADS", "MAX_TIMESTEPS", "OWN_PACKAGE", "PPOConfig", "PPOSettings",
+           "MAX_THREADS", "MAX_TIMESTEPS", "KNOWN_ENV_MODULES", "PPOConfig", "PPOSettings",
            "RecurrentPPOSettings", "SACSettings",
            "SETTINGS", "SweepPoint", "TrainConfig", "VEC_ENVS", "as_config", "check_file_imports",
-           "check_sweep", "is_own_module",
+           "check_sweep", "is_known_env_module",
            "default_config_path", "keys_of", "load_config", "point_labels", "shipped_config_path",
            "check_training_config_name", "shipped_training_configs", "shipped_training_configs_by_algo",
            "sweep_grid"]

@@ -68,7 +68,7 @@ def make_wrapped_env(env_id: str, base_id: str = DEFAULT_BASE_ID, **kwargs: Any)
     import dss14_env  # noqa: F401  (registers the base environments)
 
     spec, env_kwargs = spec_from_kwargs(kwargs, WRAPPER_IDS[env_id])
-    return InterfaceWrapper(gym.make(base_id, **env_kwargs), spec)
+    return InterfaceWrapper(gym.make(base_id, disable_env_checker=True, **env_kwargs), spec)
 
 
 def make_plain_env(base_id: str = DEFAULT_BASE_ID, **kwargs: Any) -> InterfaceWrapper:
@@ -289,6 +289,15 @@ def _wrap_batched(venv: Any, cfg: TrainConfig, plan: EnvPlan, env_config: Any,
     if cfg.reward_log_scale is not None:
         venv = LogRewardVecEnv(venv, cfg.reward_log_scale, env_config, cfg.gamma)
     return venv if plan.interface is None else InterfaceVecEnv(venv, plan.interface, env_config)
+
+
+def monitor_files(cfg: TrainConfig, plan: EnvPlan, monitor_dir: Path) -> list[Path]:
+    """The files the training VecEnv's monitors write in ``monitor_dir``
+    (:func:`make_train_vec_env`): ``monitor.csv`` batched, else ``<i>.monitor.csv`` per copy.
+    """
+    if cfg.mixture or vec_env_kind(cfg, plan) == "batched":
+        return [monitor_dir / "monitor.csv"]
+    return [monitor_dir / f"{i}.monitor.csv" for i in range(cfg.n_envs)]
 
 
 def make_train_vec_env(cfg: TrainConfig, plan: EnvPlan, env_config: Any,

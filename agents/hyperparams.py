@@ -12,7 +12,7 @@ Keys understood here: ``n_envs``, ``n_timesteps``, ``policy`` (``MlpPolicy`` /
 ``"dict(norm_obs=True, norm_reward=False)"``), ``env_kwargs``, ``policy_kwargs`` (a mapping,
 or rl-zoo3's ``"dict(...)"`` string: ``net_arch``, ``activation_fn`` as ``nn.Tanh`` etc.,
 ``log_std_init``, the LSTM sizes) and the algorithm's hyperparameters by their SB3 names.
-Strings are parsed, never evaluated; the file is read with ``yaml.safe_load``.  The keys of a
+Strings are parsed, never evaluated; the file is read by ``read_config`` (YAML 1.2).  The keys of a
 run that rl-zoo3 does not know (seeds, evaluation, checkpoints) take this package's defaults.
 """
 

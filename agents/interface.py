@@ -67,7 +67,7 @@ from dss14_env.baselines.design import default_controllers_config
 from dss14_env.baselines.lqg import LQGController, PointingLQGController
 from dss14_env.baselines.pi import PIController
 from dss14_env.core.units import DEG, MDEG
-from dss14_env.envs.core import OBS, OBS_HIGH, OBS_SIZE
+from dss14_env.envs.core import OBS, OBS_HIGH, OBS_SIZE, as_actions
 
 #: bound of the extra observation entries (integral term, estimates), for the Box only
 FEATURE_BOUND = 1.0e3
@@ -301,13 +301,33 @@ class PolicyInterface:
     def get_state(self) -> dict[str, Any]:
         """A copy of the dynamic state (base controllers, last base action, history) that
         :meth:`set_state` restores (the environment's snapshots hold it,
-        :meth:`dss14_env.envs.env.DSS14Env.attach`).
+        :meth:`dss14_env.envs.env.DSS14Env.attach`), with the interface it belongs to.
         """
-        return copy.deepcopy({name: getattr(self, name) for name in self._STATE})
+        state = copy.deepcopy({name: getattr(self, name) for name in self._STATE})
+        return {"interface": self.spec.to_dict(), "n": self.n, **state}
+
+    def check_state(self, state: Any) -> None:
+        """That ``state`` is a :meth:`get_state` copy of an interface like this one (the same
+        :class:`InterfaceSpec` and number of rows): a snapshot of another wrapper id is refused.
+
+        :raises ValueError: one line naming what differs
+        """
+        if not isinstance(state, dict) or set(state) != {"interface", "n", *self._STATE}:
+            raise ValueError("state must hold this environment's policy interface state (from "
+                             "get_state()), got another object")
+        if state["interface"] != self.spec.to_dict() or state["n"] != self.n:
+            theirs = state["interface"] if isinstance(state["interface"], dict) else {}
+            key = next((k for k, v in self.spec.to_dict().items() if theirs.get(k) != v), "n")
+            raise ValueError(f"state must come from an environment with this policy interface: field "
+                             f"{key!r} is {theirs.get(key, state['n'])!r} in the snapshot, "
+                             f"{self.spec.to_dict().get(key, self.n)!r} here (another wrapper id?)")
 
     def set_state(self, state: dict[str, Any]) -> None:
-        """Restore a :meth:`get_state` copy (any number of times)."""
-        self.__dict__.update(copy.deepcopy(state))
+        """Restore a :meth:`get_state` copy (any number of times), checked first
+        (:meth:`check_state`).
+        """
+        self.check_state(state)
+        self.__dict__.update(copy.deepcopy({name: state[name] for name in self._STATE}))
 
     def set_context(self, env_configs: Any) -> None:
         """The context features from the environments the rows act on: one configuration for
@@ -548,7 +568,7 @@ class InterfaceWrapper(gym.Wrapper):
         return self.interface.observe(obs[None])[0], info
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
-        a = self.interface.action(np.asarray(action, np.float64).reshape(1, 2))[0]
+        a = self.interface.action(as_actions(action, (2,))[None])[0]
         obs, reward, terminated, truncated, info = self.env.step(a)
         return self.interface.observe(obs[None])[0], reward, terminated, truncated, info
 

@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from dss14_env.core.arrays import ArrayFileError, read_arrays
 from dss14_env.core.outdir import atomic_write_bytes, atomic_write_text
 
 #: the format tag of policy.pt / normalization.npz
@@ -50,6 +51,11 @@ REPLAY = "replay_buffer.npz"
 #: files a foreign SB3 policy folder has
 SB3_MODEL = "model.zip"
 SB3_STATS = "vecnormalize.pkl"
+#: the arrays of a SAC replay buffer file
+REPLAY_FIELDS = ("observations", "next_observations", "actions", "rewards", "dones", "timeouts")
+#: most elements of a normalization.npz (all its arrays together: two vectors of one per
+#: observation entry, a few scalars and the fingerprint's characters)
+MAX_STATS_ELEMENTS = 1 << 20
 TRUST_HINT = "pass trust_pickle=True (CLI --trust-pickle) only for a file you trust"
 
 
@@ -213,6 +219,11 @@ def load_weights(path: Path) -> tuple[dict[str, Any], dict]:
     for key in ("algo", "run_id", "obs_dim", "act_dim"):
         if key not in fp:
             raise PolicyFileError(f"{path}: fingerprint field {key!r} is missing")
+    for name, value in data["state_dict"].items():
+        if hasattr(value, "is_floating_point") and value.is_floating_point() and \
+                not bool(value.isfinite().all()):
+            raise PolicyFileError(f"{path}: weight {name!r} holds NaN or infinite values; a policy "
+                                  f"with such weights acts NaN and scores nothing")
     return fp, data["state_dict"]
 
 
@@ -278,14 +289,12 @@ def load_stats(path: Path) -> tuple[dict[str, Any], NormStats]:
     :raises PolicyFileError: unreadable, object arrays, missing fields, non-finite values
     """
     try:
-        with np.load(path, allow_pickle=False) as d:
-            a = {k: d[k] for k in d.files}
-    except FileNotFoundError:
-        raise PolicyFileError(f"{path}: normalisation statistics file not found") from None
-    except (ValueError, OSError, zipfile.BadZipFile, EOFError, KeyError) as exc:
-        first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
-        raise PolicyFileError(f"{path}: not a readable normalisation statistics file "
-                              f"({first[:160]})") from None
+        a = read_arrays(path, MAX_STATS_ELEMENTS, MAX_STATS_ELEMENTS * 8)
+    except ArrayFileError as exc:
+        if not Path(path).is_file():
+            raise PolicyFileError(f"{path}: normalisation statistics file not found") from None
+        raise PolicyFileError(str(exc).replace(": not a readable array file", ": not a readable "
+                                               "normalisation statistics file")) from None
     for key in ("obs_mean", "obs_var", "obs_count", "clip_obs", "epsilon", "fingerprint"):
         if key not in a:
             raise PolicyFileError(f"{path}: field {key!r} is missing")
@@ -304,9 +313,23 @@ def load_stats(path: Path) -> tuple[dict[str, Any], NormStats]:
     if "ret_mean" in a:
         ret = dict(ret_mean=np.asarray(a["ret_mean"], np.float64),
                    ret_var=np.asarray(a["ret_var"], np.float64),
-                   ret_count=float(a["ret_count"]), clip_reward=float(a["clip_reward"]))
-    return fp, NormStats(mean, var, float(a["obs_count"]), float(a["clip_obs"]),
-                         float(a["epsilon"]), **ret)
+                   ret_count=_scalar(a, "ret_count", path), clip_reward=_scalar(a, "clip_reward", path))
+        if not (np.all(np.isfinite(ret["ret_mean"])) and np.all(np.isfinite(ret["ret_var"]))):
+            raise PolicyFileError(f"{path}: field 'ret_mean'/'ret_var' must be finite")
+    return fp, NormStats(mean, var, _scalar(a, "obs_count", path, positive=False),
+                         _scalar(a, "clip_obs", path), _scalar(a, "epsilon", path), **ret)
+
+
+def _scalar(a: dict[str, np.ndarray], key: str, path: Path, positive: bool = True) -> float:
+    """The number of field ``key`` of a statistics file: one finite value, > 0 (or >= 0): a
+    NaN clip or a negative epsilon would make every normalised observation NaN.
+    """
+    v = np.asarray(a.get(key))
+    ok = v.size == 1 and v.dtype.kind in "fiu" and np.isfinite(v).all()
+    if not ok or (float(v.flat[0]) <= 0 if positive else float(v.flat[0]) < 0):
+        raise PolicyFileError(f"{path}: field {key!r} must be one finite number "
+                              f"{'> 0' if positive else '>= 0'}, got {v.ravel()[:3].tolist()}")
+    return float(v.flat[0])
 
 
 def check_fingerprints(weights: Path, wfp: dict, stats: Path, sfp: dict) -> None:
@@ -354,30 +377,31 @@ def save_replay_buffer(path: Path, buffer: Any) -> None:
     import io
 
     n = buffer.buffer_size if buffer.full else buffer.pos
-    arrays = {k: getattr(buffer, k)[:n] for k in ("observations", "next_observations", "actions",
-                                                 "rewards", "dones", "timeouts")
-              if getattr(buffer, k, None) is not None}
+    arrays = {k: getattr(buffer, k)[:n] for k in REPLAY_FIELDS if getattr(buffer, k, None) is not None}
     buf = io.BytesIO()
     np.savez(buf, pos=np.int64(buffer.pos), full=np.bool_(buffer.full), **arrays)
     atomic_write_bytes(path, buf.getvalue())
 
 
 def load_replay_buffer(path: Path, buffer: Any) -> None:
-    """Fill SAC's replay buffer from :func:`save_replay_buffer`'s file."""
+    """Fill SAC's replay buffer from :func:`save_replay_buffer`'s file (refused before reading
+    when its headers claim more than the buffer holds).
+    """
+    fields = [getattr(buffer, k) for k in REPLAY_FIELDS if getattr(buffer, k, None) is not None]
+    cap = sum(int(f.size) for f in fields) + 2
     try:
-        with np.load(path, allow_pickle=False) as d:
-            n = d["observations"].shape[0]
-            if n > buffer.buffer_size:
-                raise PolicyFileError(f"{path}: {n} transitions do not fit buffer_size "
-                                      f"{buffer.buffer_size}")
-            for k in ("observations", "next_observations", "actions", "rewards", "dones",
-                      "timeouts"):
-                if k in d.files and getattr(buffer, k, None) is not None:
-                    getattr(buffer, k)[:n] = d[k]
-            buffer.pos, buffer.full = int(d["pos"]) % buffer.buffer_size, bool(d["full"])
+        d = read_arrays(path, cap, sum(int(f.nbytes) for f in fields) + 16)
+        n = d["observations"].shape[0]
+        if n > buffer.buffer_size:
+            raise PolicyFileError(f"{path}: {n} transitions do not fit buffer_size "
+                                  f"{buffer.buffer_size}")
+        for k in REPLAY_FIELDS:
+            if k in d and getattr(buffer, k, None) is not None:
+                getattr(buffer, k)[:n] = d[k]
+        buffer.pos, buffer.full = int(d["pos"]) % buffer.buffer_size, bool(d["full"])
     except (ValueError, OSError, zipfile.BadZipFile, KeyError) as exc:
-        if isinstance(exc, PolicyFileError):
-            raise
+        if isinstance(exc, (PolicyFileError, ArrayFileError)):
+            raise PolicyFileError(str(exc)) from None
         raise PolicyFileError(f"{path}: not a readable replay buffer file ({exc})") from None
 
 

@@ -36,14 +36,16 @@ from typing import Any
 import yaml
 
 from dss14_env.agents.campaign import (
+    COMMAND,
     SEED_STRIDE,
     campaign_tasks,
     check_saved_config,
     check_training_seeds,
     open_campaign,
     owned_files,
+    run_seed_items,
+    say_plan,
     seed_items,
-    train_one_seed,
     training_seed,
     write_summary,
 )
@@ -90,11 +92,11 @@ def _open(cfg: TrainConfig, points: Sequence[SweepPoint], out: str | Path, seeds
     if resume:
         folder = Path(out)
         check_saved_config(cfg, folder)
-        reopen_output_dir(folder, owned_files(folder), "--out")
+        reopen_output_dir(folder, owned_files(folder), "--out", command=COMMAND)
         remove_run_files(folder, ("sweep.json", "sweep.md"))
     else:
         mine = tuple(glob.escape(p.label) for p in points)  # this sweep's points, and any before
-        folder = prepare_output_dir(out, owned_files(out) + mine, overwrite, "--out")
+        folder = prepare_output_dir(out, owned_files(out) + mine, overwrite, "--out", command=COMMAND)
         atomic_write_text(folder / "config.yaml", f"# sweep (from {cfg.source}): one campaign per "
                           f"point of the grid in <label>/; run k of every point trains with seed "
                           f"{cfg.seed} + {SEED_STRIDE} k\n"
@@ -176,7 +178,8 @@ def sweep_markdown(report: Mapping[str, Any]) -> str:
 def train_sweep(config: TrainConfig | Mapping[str, Any] | str | Path, seeds: Sequence[int],
                 out: str | Path, overwrite: bool = False, test_seeds: Sequence[int] = TEST_SEEDS,
                 test_steps: int = TEST_STEPS, figures: bool = True,
-                executor: Executor | None = None, resume: bool = False) -> Path:
+                executor: Executor | None = None, resume: bool = False,
+                progress: bool | None = None) -> Path:
     """Train every point of a sweep with the same seed indices and rank the points (see the
     module doc).
 
@@ -190,7 +193,9 @@ def train_sweep(config: TrainConfig | Mapping[str, Any] | str | Path, seeds: Seq
     :param executor: where the (point, seed) items run (:mod:`dss14_env.core.parallel`),
         default one after another in this process
     :param resume: continue the interrupted sweep in ``out`` (same configuration): finished
-        runs are scored, not retrained
+        runs are scored, not retrained, the others continue from their last checkpoint
+    :param progress: each run's steps on stderr (None: the configuration's ``progress_bar``);
+        a line as each run starts and ends (with the sweep's ETA) either way
     :return: the sweep folder
     :raises ValueError: no sweep in the configuration, an environment a point cannot make, an
         unusable folder (all before any training)
@@ -205,21 +210,23 @@ def train_sweep(config: TrainConfig | Mapping[str, Any] | str | Path, seeds: Seq
         check_training_seeds(p.config, seeds)
     _check_envs(points, cfg.sweep)
     folder, campaigns = _open(cfg, points, out, seeds, overwrite, resume)
+    say_plan(cfg, folder, len(points) * len(seeds), sum(len(f) for _, f in campaigns))
     with manifest_kept(folder):
         return _run_sweep(cfg, points, folder, campaigns, seeds, test_seeds, test_steps, figures,
-                          executor)
+                          executor, progress)
 
 
 def _run_sweep(cfg: TrainConfig, points: Sequence[SweepPoint], folder: Path,
                campaigns: list[tuple[Path, set[int]]], seeds: list[int], test_seeds: Sequence[int],
-               test_steps: int, figures: bool, executor: Executor | None) -> Path:
+               test_steps: int, figures: bool, executor: Executor | None,
+               progress: bool | None = None) -> Path:
     """Train and score every point's seeds in the opened sweep folder (:func:`train_sweep`)."""
     items, labels = [], []
     for p, (sub, finished) in zip(points, campaigns, strict=True):
-        items += seed_items(p.config, sub, seeds, finished, test_seeds, test_steps)
-        labels += [f"{p.label} seed {k}" for k in seeds]
+        items += seed_items(p.config, sub, seeds, finished, test_seeds, test_steps, progress)
+        labels += [f"{p.label}/seed_{k}" for k in seeds]
     ex = executor if executor is not None else SerialExecutor()
-    done = dict(ex.map_unordered(train_one_seed, items, labels=labels))
+    done = run_seed_items(ex, items, labels)
     rows = []
     for j, (p, (sub, _)) in enumerate(zip(points, campaigns, strict=True)):
         per_seed = [done[j * len(seeds) + i] for i in range(len(seeds))]

@@ -17,8 +17,10 @@
 
 A new run refuses a folder that already holds a run (finished or interrupted) unless
 ``overwrite`` (which removes exactly what training owns there); an ``--out`` that is a file
-or cannot be written fails before any work.  Ctrl-C raises :class:`TrainingInterrupted`
-naming the last checkpoint and the command that resumes from it.
+or cannot be written fails before any work.  Ctrl-C (SIGINT) or SIGTERM stops the run at the
+next environment step with a checkpoint of that step and raises :class:`TrainingInterrupted`
+naming it and the command that resumes from it.  The run's steps show on stderr as it trains
+(:mod:`dss14_env.agents.train_control`).
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ import json
 import math
 import re
 import shlex
+import signal
 import time
 from collections.abc import Mapping
 from datetime import datetime
@@ -37,8 +40,15 @@ import numpy as np
 import yaml
 
 from dss14_env.agents.algos import algo_class, algo_kwargs, is_recurrent, policy_kwargs
-from dss14_env.agents.config import TrainConfig, as_config, is_own_module, load_config
-from dss14_env.agents.envs import EnvPlan, check_env, make_train_vec_env, resolve_env, vec_env_kind
+from dss14_env.agents.config import MAX_TIMESTEPS, TrainConfig, as_config, is_known_env_module, load_config
+from dss14_env.agents.envs import (
+    EnvPlan,
+    check_env,
+    make_train_vec_env,
+    monitor_files,
+    resolve_env,
+    vec_env_kind,
+)
 from dss14_env.agents.evaluation import (
     DEFAULT_SCENARIOS,
     DSS14_TASKS,
@@ -69,44 +79,96 @@ from dss14_env.agents.storage import (
     save_replay_buffer,
     write_policy_folder,
 )
+from dss14_env.agents.train_control import progress_callback, stop_callback
+from dss14_env.core.arrays import read_arrays
 from dss14_env.core.outdir import (
     atomic_folder,
     atomic_write_bytes,
     atomic_write_text,
     manifest_kept,
     prepare_output_dir,
+    record_files,
     reopen_output_dir,
     update_manifest,
 )
+from dss14_env.core.stop import Stopped, StopRequests, signal_name
 
 #: what a training run owns in its folder (removed by ``overwrite``)
+#: the command a run folder belongs to (its manifest's)
+COMMAND = "train"
 RUN_FILES = (CONFIG, WEIGHTS, STATS, OPTIMIZER, COUNTERS, REPLAY, "return_normalization.npz",
              "checkpoints", "eval", "tb",
              "monitor", "train_summary.json", "model.zip", "vecnormalize.pkl")
 _CKPT_RE = re.compile(r"^(?P<steps>\d+)_steps$")
 
 
-class TrainingInterrupted(KeyboardInterrupt):
-    """Ctrl-C during training; :attr:`message` is one line with the resume command.
+class TrainingInterrupted(Stopped):
+    """A training stopped by Ctrl-C (SIGINT) or SIGTERM; :attr:`message` is one line naming the
+    checkpoint kept and the command that resumes from it.
 
     :param run: the run folder
     :param steps: environment steps done
-    :param checkpoint: the last checkpoint folder, or None
+    :param checkpoint: the checkpoint folder kept (saved on the stop, or the last periodic one),
+        or None
     :param command: the command that resumes from it, or None
+    :param signum: the signal that stopped it
     """
 
-    def __init__(self, run: Path, steps: int, checkpoint: Path | None, command: str | None) -> None:
+    def __init__(self, run: Path, steps: int, checkpoint: Path | None, command: str | None,
+                 signum: int = signal.SIGINT) -> None:
         self.run, self.steps, self.checkpoint, self.command = run, steps, checkpoint, command
+        head = f"training stopped ({signal_name(signum)}) at {steps} steps"
         if checkpoint is not None:
-            self.message = (f"training interrupted at {steps} steps; last checkpoint {checkpoint}; "
-                            f"resume with: {command}")
+            self.message = f"{head}; kept checkpoint {checkpoint}; resume with: {command}"
         else:
-            self.message = (f"training interrupted at {steps} steps; no checkpoint was written yet "
-                            f"(checkpoint_freq); start again with: {command}")
-        super().__init__(self.message)
+            self.message = (f"{head}; no checkpoint was written (stopped at once); start again "
+                            f"with: {command}")
+        super().__init__(signum, self.message)
 
 
 # ------------------------------------------------------------------------------ resume sources
+#: the largest counters file read, bytes (the tool writes some 100)
+MAX_COUNTERS_BYTES = 4096
+#: a run id as :func:`~dss14_env.agents.storage.new_run_id` makes it
+_RUN_ID_RE = re.compile(r"^[0-9a-f]{1,64}$")
+
+
+def read_counters(path: Path) -> tuple[int, str]:
+    """A checkpoint's ``counters.json``, checked like a configuration: ``num_timesteps`` an
+    integer in [1, :data:`~dss14_env.agents.config.MAX_TIMESTEPS`] (and, in ``checkpoints/``,
+    the step count in the folder's name ``<N>_steps``), ``run_id`` a run id, ``episode_num`` an integer >= 0.
+
+    :return: ``(num_timesteps, run_id)``
+    :raises PolicyFileError: one line naming the file and the field
+    """
+    try:
+        if path.stat().st_size > MAX_COUNTERS_BYTES:
+            raise ValueError(f"more than {MAX_COUNTERS_BYTES} bytes")
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise PolicyFileError(f"{path}: not a readable counters file ({exc})") from None
+    if not isinstance(data, dict):
+        raise PolicyFileError(f"{path}: not a readable counters file (not a mapping)")
+
+    def count(key: str, lo: int, required: bool = True) -> int:
+        v = data.get(key, None if required else lo)
+        if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= MAX_TIMESTEPS:
+            raise PolicyFileError(f"{path}: field '{key}': must be an integer in [{lo}, "
+                                  f"{MAX_TIMESTEPS}], got {v!r}")
+        return v
+
+    steps = count("num_timesteps", 1)
+    count("episode_num", 0, required=False)
+    run_id = data.get("run_id")
+    if not isinstance(run_id, str) or not _RUN_ID_RE.match(run_id):
+        raise PolicyFileError(f"{path}: field 'run_id': must be a run id (hex digits), got {run_id!r}")
+    named = _CKPT_RE.match(path.parent.name) if path.parent.parent.name == "checkpoints" else None
+    if named and int(named["steps"]) != steps:
+        raise PolicyFileError(f"{path}: field 'num_timesteps': {steps}, the folder's name says "
+                              f"{named['steps']}; a checkpoint holds the counters of its own step")
+    return steps, run_id
+
+
 class _Resume:
     """What a run resumes from: a checkpoint folder (safe) or a foreign SB3 zip (opt-in)."""
 
@@ -126,13 +188,7 @@ class _Resume:
             for f in (OPTIMIZER, COUNTERS):
                 if not (folder / f).is_file():
                     raise PolicyFileError(f"{folder}: not a training checkpoint ({f} is missing)")
-            try:
-                counters = json.loads((folder / COUNTERS).read_text())
-                self.steps = int(counters["num_timesteps"])
-                self.run_id = str(counters["run_id"])
-            except (ValueError, KeyError, TypeError) as exc:
-                raise PolicyFileError(f"{folder / COUNTERS}: not a readable counters file "
-                                      f"({type(exc).__name__}: {exc})") from None
+            self.steps, self.run_id = read_counters(folder / COUNTERS)
             self.fingerprint, self.state = load_weights(folder / WEIGHTS)
             self.optim, self.tensors = load_optimizers(folder / OPTIMIZER)
             self.stats = self._checked_stats(folder)
@@ -234,6 +290,19 @@ def save_checkpoint(folder: Path, cfg: TrainConfig, run_id: str, model: Any, ven
     atomic_write_text(folder / COUNTERS, json.dumps(
         {"num_timesteps": int(model.num_timesteps), "run_id": run_id,
          "episode_num": int(getattr(model, "_episode_num", 0))}, indent=2) + "\n")
+
+
+def _stop_checkpoint(cfg: TrainConfig, run: Path, run_id: str, model: Any, venv: Any,
+                     config_text: str) -> Path:
+    """The checkpoint of a run stopped by a signal, at its step count (``checkpoints/<N>_steps``;
+    the periodic one when it was just written at that count).
+    """
+    folder = run / "checkpoints" / f"{int(model.num_timesteps)}_steps"
+    if not (folder / COUNTERS).is_file():
+        with atomic_folder(folder) as tmp:  # the whole folder, or none of it
+            save_checkpoint(tmp, cfg, run_id, model, venv, config_text)
+        update_manifest(run)
+    return folder
 
 
 def _restore(model: Any, venv: Any, src: _Resume, cfg: TrainConfig) -> int:
@@ -505,7 +574,7 @@ def _eval_callback(evaluator: _Evaluator, every: int, start: int) -> Any:
 
 def _callbacks(cfg: TrainConfig, plan: EnvPlan, run: Path, run_id: str, config_text: str,
                venv: Any, start: int, ckpts: list[Path]) -> list[Any]:
-    out: list[Any] = []
+    out: list[Any] = [_tensorboard_folder_callback(run)]
     if cfg.checkpoint_freq > 0:
         out.append(_checkpoint_callback(cfg, run, run_id, config_text, venv, start, ckpts))
     if cfg.eval_freq > 0:
@@ -514,16 +583,35 @@ def _callbacks(cfg: TrainConfig, plan: EnvPlan, run: Path, run_id: str, config_t
     return out
 
 
+def _tensorboard_folder_callback(run: Path) -> Any:
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class TensorBoardFolder(BaseCallback):
+        """Lists the run's TensorBoard folder (``tb/<ALGO>_<n>``, which stable-baselines3 makes
+        for the run) in the run's manifest when training starts.
+        """
+
+        def _on_training_start(self) -> None:
+            folder = self.logger.get_dir()
+            if folder is not None and Path(folder).parent.resolve() == (run / "tb").resolve():
+                record_files([Path(folder)], folders=True)
+
+        def _on_step(self) -> bool:
+            return True
+
+    return TensorBoardFolder()
+
+
 def _load_history(path: Path, start: int) -> dict[str, list]:
     """The evaluation history of a run up to ``start`` steps (resume), or an empty one."""
     h: dict[str, list] = {"timesteps": [], "results": [], "ep_lengths": []}
     if start <= 0 or not path.is_file():
         return h
-    with np.load(path, allow_pickle=False) as d:
-        keep = d["timesteps"] <= start
-        for k in d.files:
-            h[k] = [x for x in d[k][keep]]
-        h["timesteps"] = [int(t) for t in h["timesteps"]]
+    d = read_arrays(path)
+    keep = d["timesteps"] <= start
+    for k in d:
+        h[k] = [x for x in d[k][keep]]
+    h["timesteps"] = [int(t) for t in h["timesteps"]]
     return h
 
 
@@ -542,7 +630,7 @@ def _resume_command(cfg: TrainConfig, run: Path, ckpt: Path | None) -> str:
     """
     cmd = ["dss14", "train", cfg.algo, "--config", str(run / CONFIG)]
     cmd += ["--resume", str(ckpt)] if ckpt is not None else ["--overwrite"]
-    if cfg.env_module is not None and not is_own_module(cfg.env_module):
+    if cfg.env_module is not None and not is_known_env_module(cfg.env_module):
         cmd += ["--env-module", cfg.env_module]
     return shlex.join([*cmd, "--out", str(run)])
 
@@ -566,9 +654,9 @@ def prepare_run(cfg: TrainConfig, run_dir: str | Path | None, resume: str | Path
     else:
         run = _new_run_dir(cfg.algo)
     if src is not None and run.resolve() == src.run_folder.resolve():
-        reopen_output_dir(run, RUN_FILES, option="--out")  # continue the run in place
+        reopen_output_dir(run, RUN_FILES, option="--out", command=COMMAND)  # continue the run in place
     else:
-        prepare_output_dir(run, owned=RUN_FILES, overwrite=overwrite, option="--out")
+        prepare_output_dir(run, owned=RUN_FILES, overwrite=overwrite, option="--out", command=COMMAND)
     return run, src
 
 
@@ -617,18 +705,22 @@ def train(config: TrainConfig | Mapping[str, Any] | str | Path, run_dir: str | P
         folder) to continue from; a foreign SB3 ``.zip`` only with ``trust_pickle``
     :param overwrite: a new run may replace the run files in ``run_dir``
     :param trust_pickle: allow a foreign (pickled) resume source
-    :param progress: show the progress bar (None: the config's ``progress_bar``); a run-time
+    :param progress: show the run's steps on stderr, a bar with its ETA on a terminal, a line
+        every tenth of the run otherwise (None: the config's ``progress_bar``); a run-time
         choice, not written into the run's config
     :return: the run folder
-    :raises ValueError: bad config (or a sweep: ``dss14 train --seeds``), unusable folder,
+    :raises ValueError: bad config (or a sweep: ``dss14 train --train-seeds``), unusable folder,
         unmakeable environment, missing or refused checkpoint, budget already reached, or an
         architecture that differs from the checkpoint's
-    :raises TrainingInterrupted: on Ctrl-C (a KeyboardInterrupt with the resume command)
+    :raises TrainingInterrupted: on Ctrl-C (SIGINT) or SIGTERM: the run stops at the next
+        environment step and saves a checkpoint there (a second signal stops at once, keeping
+        the last periodic checkpoint); a KeyboardInterrupt naming the checkpoint and the
+        command that resumes from it
     """
     cfg = as_config(config)
     if cfg.sweep:
         raise ValueError(f"{cfg.source}: field 'sweep': a sweep trains one campaign per point "
-                         f"(dss14 train --seeds ... --out DIR, or dss14_env.agents.sweep.train_sweep)")
+                         f"(dss14 train --train-seeds ... --out DIR, or dss14_env.agents.sweep.train_sweep)")
     # everything checked before the folder is claimed (nothing removed before that)
     src = resume_source(resume, trust_pickle)
     plan, obs_space, act_space, env_config = check_env(cfg)
@@ -667,12 +759,10 @@ def _train_in(cfg: TrainConfig, run: Path, src: _Resume | None, plan: EnvPlan, o
     else:
         print("note: tensorboard is not installed; training curves go to monitor/ and "
               "eval/evaluations.npz only (pip install tensorboard)")
-    if progress and not _installed("tqdm", "rich"):
-        print("note: tqdm and rich are not installed; no progress bar (pip install tqdm rich)")
-        progress = False
 
     torch.set_num_threads(cfg.torch_threads)
     monitor = run / "monitor" / (f"resume_{max(src.steps, 0)}_steps" if src is not None else "")
+    record_files(monitor_files(cfg, plan, monitor))  # listed in the manifest before they exist
     venv = make_train_vec_env(cfg, plan, env_config, monitor)
     venv = VecNormalize(venv, norm_obs=cfg.normalize_obs, norm_reward=cfg.normalize_reward,
                         gamma=cfg.gamma)
@@ -680,36 +770,44 @@ def _train_in(cfg: TrainConfig, run: Path, src: _Resume | None, plan: EnvPlan, o
     policy_name = "MlpLstmPolicy" if is_recurrent(cfg.algo) else "MlpPolicy"
     ckpts: list[Path] = []
     model = None
+    requests = StopRequests()  # a stop asked for from here on ends the training at its next step
     try:
-        model = cls(policy_name, venv, policy_kwargs=policy_kwargs(cfg), seed=cfg.seed,
-                    device="cpu", tensorboard_log=tb, verbose=cfg.verbose, **algo_kwargs(cfg))
-        start = 0
-        if src is not None:
-            start = _restore(model, venv, src, cfg)
-            if start >= cfg.total_timesteps:
-                raise ValueError(f"checkpoint {src.path} is at {start} steps, total_timesteps is "
-                                 f"{cfg.total_timesteps}: raise total_timesteps (--timesteps)")
-            model.num_timesteps = start
-            _drop_abandoned(run, src)
-            say(f"resuming {src.path} at {start} steps")
-        atomic_write_text(run / CONFIG, config_text)
-        update_manifest(run)
-        callbacks = _callbacks(cfg, plan, run, run_id, config_text, venv, start, ckpts)
-        say(f"{cfg.algo} on {cfg.env_id}: {cfg.n_envs} envs ({vec_env_kind(cfg, plan)}), "
-            f"obs {obs_space.shape}, action {act_space.shape}, {cfg.total_timesteps - start} "
-            f"steps -> {run}")
-        t0 = time.perf_counter()
-        try:
-            with threadpool_limits(limits=1):
-                model.learn(total_timesteps=cfg.total_timesteps - start, callback=callbacks,
-                            tb_log_name=cfg.algo, reset_num_timesteps=src is None,
-                            progress_bar=progress)
-        except KeyboardInterrupt:
-            last = ckpts[-1] if ckpts else last_checkpoint(run)
-            cmd = _resume_command(cfg, run, last)
-            raise TrainingInterrupted(run, int(model.num_timesteps), last, cmd) from None
-        wall = time.perf_counter() - t0
-        save_checkpoint(run, cfg, run_id, model, venv, config_text)
+        with requests:
+            model = cls(policy_name, venv, policy_kwargs=policy_kwargs(cfg), seed=cfg.seed,
+                        device="cpu", tensorboard_log=tb, verbose=cfg.verbose, **algo_kwargs(cfg))
+            start = 0
+            if src is not None:
+                start = _restore(model, venv, src, cfg)
+                if start >= cfg.total_timesteps:
+                    raise ValueError(f"checkpoint {src.path} is at {start} steps, total_timesteps is "
+                                     f"{cfg.total_timesteps}: raise total_timesteps (--timesteps)")
+                model.num_timesteps = start
+                _drop_abandoned(run, src)
+                say(f"resuming {src.path} at {start} steps")
+            atomic_write_text(run / CONFIG, config_text)
+            update_manifest(run)
+            callbacks = _callbacks(cfg, plan, run, run_id, config_text, venv, start, ckpts)
+            say(f"{cfg.algo} on {cfg.env_id}: {cfg.n_envs} envs ({vec_env_kind(cfg, plan)}), "
+                f"obs {obs_space.shape}, action {act_space.shape}, {cfg.total_timesteps - start} "
+                f"steps -> {run}")
+            t0 = time.perf_counter()
+            shown = progress_callback(cfg.total_timesteps, start, run.name, enabled=progress)
+            watch = [stop_callback(requests, shown.write), shown]
+            try:
+                with threadpool_limits(limits=1):
+                    model.learn(total_timesteps=cfg.total_timesteps - start, callback=watch + callbacks,
+                                tb_log_name=cfg.algo, reset_num_timesteps=src is None)
+            except KeyboardInterrupt as exc:  # a second signal: stopped at once, no new checkpoint
+                last = ckpts[-1] if ckpts else last_checkpoint(run)
+                raise TrainingInterrupted(run, int(model.num_timesteps), last,
+                                          _resume_command(cfg, run, last),
+                                          getattr(exc, "signum", signal.SIGINT)) from None
+            if requests.signum is not None and model.num_timesteps < cfg.total_timesteps:
+                kept = _stop_checkpoint(cfg, run, run_id, model, venv, config_text)
+                raise TrainingInterrupted(run, int(model.num_timesteps), kept,
+                                          _resume_command(cfg, run, kept), requests.signum)
+            wall = time.perf_counter() - t0
+            save_checkpoint(run, cfg, run_id, model, venv, config_text)
     finally:
         venv.close()
     summary = {
@@ -725,13 +823,18 @@ def _train_in(cfg: TrainConfig, run: Path, src: _Resume | None, plan: EnvPlan, o
     atomic_write_text(run / "train_summary.json", json.dumps(summary, indent=2) + "\n")
     say(f"{model.num_timesteps} steps in {wall:.1f} s ({summary['steps_per_s']} steps/s); "
         f"run folder {run}")
+    if requests.signum is not None:  # asked to stop as the run ended: the run is whole, and the
+        signal.raise_signal(requests.signum)  # signal goes on to the caller (a campaign stops)
     return run
 
 
-def last_checkpoint(run: Path) -> Path | None:
-    """The latest complete checkpoint folder of a run (None: none written yet)."""
+def last_checkpoint(run: Path, before: int | None = None) -> Path | None:
+    """The latest complete checkpoint folder of a run (None: none written yet), or the latest
+    of fewer than ``before`` steps.
+    """
     found = [(int(d.name[:-6]), d) for d in (run / "checkpoints").glob("*_steps")
-             if _CKPT_RE.match(d.name) and (d / COUNTERS).is_file()]
+             if _CKPT_RE.match(d.name) and (d / COUNTERS).is_file()
+             and (before is None or int(d.name[:-6]) < before)]
     return max(found)[1] if found else None
 
 
@@ -794,7 +897,7 @@ def load_run_config(run: str | Path) -> TrainConfig:
     return load_config(Path(run) / CONFIG)
 
 
-__all__ = ["RUN_FILES", "TrainingInterrupted", "config_for_command", "import_user_module",
+__all__ = ["RUN_FILES", "TrainingInterrupted", "config_for_command", "import_user_module", "read_counters",
            "last_checkpoint", "later_checkpoints", "load_run_config", "prepare_run", "resume_source",
            "resume_config_path", "save_checkpoint", "selection_key", "selection_score", "train",
            "validation_tasks"]

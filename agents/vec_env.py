@@ -43,6 +43,7 @@ from gymnasium.vector import AutoresetMode
 
 from dss14_env.agents.envs import is_dss14_id
 from dss14_env.agents.interface import InterfaceSpec, PolicyInterface, interface_observation_space
+from dss14_env.envs.core import as_actions
 from dss14_env.envs.vector import DSS14VectorEnv
 
 
@@ -317,7 +318,7 @@ class InterfaceVecEnv(_vec_env_wrapper()):
         return self.interface.observe(obs)
 
     def step_async(self, actions: np.ndarray) -> None:
-        self.venv.step_async(self.interface.action(actions))
+        self.venv.step_async(self.interface.action(as_actions(actions, (self.num_envs, 2))))
 
     def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict]]:
         obs, rew, dones, infos = self.venv.step_wait()

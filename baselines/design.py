@@ -180,7 +180,7 @@ def load_controllers_config(path: str | Path | None = None) -> ControllersConfig
     :return: the configuration in SI units
     :raises ConfigError: naming the field and the file of the first problem found
     """
-    data, source = read_config("controllers" if path is None else path)
+    data, source = read_config("controllers" if path is None else path, kind="controllers")
     registry: dict[str, Param] = {}
     kw = dict(documented=True, registry=registry, defaults=False)
     sections = {"design": DesignConfig, "lqg": LQGConfig, "mpc": MPCConfig, "pointing": PointingConfig,

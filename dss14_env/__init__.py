@@ -20,6 +20,29 @@ modules of the top room: the CLI may import everything, ``reproduce`` everything
 __version__ = "0.1.0"
 
 
+def _set_aside_a_bad_matplotlib_backend() -> None:
+    """Importing matplotlib (which the model's control-systems library does) raises when the
+    ``MPLBACKEND`` environment variable names no backend; the package draws its figures
+    off-screen on Agg (only ``render_mode="human"`` goes through pyplot), so such a value is
+    set aside with a warning instead of stopping every command.
+    """
+    import os
+    import sys
+    import warnings
+
+    name = os.environ.get("MPLBACKEND")
+    if not name:
+        return
+    try:
+        import matplotlib  # noqa: F401
+    except ValueError:
+        del os.environ["MPLBACKEND"]
+        for module in [m for m in sys.modules if m == "matplotlib" or m.startswith("matplotlib.")]:
+            del sys.modules[module]  # the half-imported package: imported afresh when needed
+        warnings.warn(f"MPLBACKEND={name!r} names no matplotlib backend; ignored (the figures are "
+                      f"drawn off-screen)", stacklevel=2)
+
+
 def _register() -> None:
     from dss14_env.agents import register_agent_envs
     from dss14_env.envs.presets import register_presets
@@ -28,4 +51,5 @@ def _register() -> None:
     register_agent_envs()
 
 
+_set_aside_a_bad_matplotlib_backend()
 _register()

@@ -32,7 +32,8 @@ from typing import Any
 import numpy as np
 from scipy import signal
 
-from dss14_env.core.outdir import atomic_write_text
+from dss14_env.core.outdir import atomic_save_figure, atomic_write_text
+from dss14_env.core.progress import Progress
 from dss14_env.core.results import ErrorStats
 from dss14_env.core.schema import default_config_path
 from dss14_env.core.text import fill_blocks, find_blocks  # noqa: F401 - the block helpers, re-exported
@@ -836,7 +837,7 @@ def draw_wind_figures(loads: WindLoads, records: dict, dt: float, out: Path) -> 
     fig = wind_error_histories(records, dt)
     fig.suptitle("Encoder servo errors, PI kp 1 ki 0.3, 50 km/h Davenport gusts (Table 4)")
     fig.tight_layout()
-    fig.savefig(out / "wind_servo_errors.png", dpi=90)
+    atomic_save_figure(fig, out / "wind_servo_errors.png", dpi=90)
     return ["wind_gust_psd.png", "wind_servo_errors.png"]
 
 
@@ -872,7 +873,7 @@ def draw_figures(m: DSS14Model, out: Path) -> list[str]:
     def save(fig, name, title):
         fig.suptitle(title)
         fig.tight_layout()
-        fig.savefig(out / name, dpi=90)
+        atomic_save_figure(fig, out / name, dpi=90)
         files.append(name)
 
     f = np.geomspace(1e-3, 100, 600)
@@ -970,34 +971,51 @@ def _config_label(cfg: ModelConfig) -> str:
     return str(cfg.path)
 
 
-def reproduce(out_dir: str | Path, model: DSS14Model | None = None, figures: bool = True) -> dict:
+def reproduce(out_dir: str | Path, model: DSS14Model | None = None, figures: bool = True,
+              progress: bool = False) -> dict:
     """Run the reproduction: metrics (json, md) and figures into ``out_dir``.
 
     :param model: a calibrated model, default the shipped one; a model other than
         :func:`dss14_env.model.default_model` gets its own wind-load calibration
-    :return: ``{"metrics", "results", "markdown", "figures", "failed"}``: the metrics rows, the
-        whole content of ``metrics.json``, the Markdown, the figure files and
-        :func:`failed_rows`
+    :param progress: its stages on stderr (:class:`~dss14_env.core.progress.Progress`)
+    :return: ``{"metrics", "results", "markdown", "figures", "failed", "table"}``: the metrics
+        rows, the whole content of ``metrics.json``, the Markdown, the figure files,
+        :func:`failed_rows` and the README's labelled table (:func:`readme_table`)
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    m = model if model is not None else default_model()
-    metrics = compute_metrics(m)
-    if m is default_model():
-        loads = default_wind_loads()
-    else:  # a user model: its own Table 4 fit; a fit that misses is written, its rows fail
-        loads = calibrate_wind_loads(m, strict=False)
-    wind_rows, records = compute_wind_metrics(m, loads)
-    metrics.update(wind_rows)
-    metrics.update(wind_evidence_rows(loads))
-    results = {"metrics": metrics, "rate_loop_poles": rate_loop_pole_table(m),
-               "viscosity_sensitivity": viscosity_sensitivity(m),
-               "wind_loads": dict(wind_load_summary(loads),
-                                  drive_sensitivity=wind_drive_sensitivity(m, loads)),
-               "calibrated": m.derived(), "config": _config_label(m.cfg)}
-    atomic_write_text(out / "metrics.json", json.dumps(results, indent=2, default=float))
-    md = results_markdown(results)
-    atomic_write_text(out / "metrics.md", md)
-    files = draw_figures(m, out) + draw_wind_figures(loads, records, WIND_SIM["dt"], out) if figures else []
+    stages = ["loop metrics", "wind loads and errors", "rate-loop poles and viscosity sensitivity",
+              "wind drive sensitivity"] + (["figures"] if figures else [])
+    with Progress(len(stages), "reproduce", unit="stages", enabled=progress) as bar:
+        def next_stage(k: int) -> None:
+            bar.set_note(f"{stages[k - 1]} done")
+            bar.update(1)
+
+        m = model if model is not None else default_model()
+        metrics = compute_metrics(m)
+        next_stage(1)
+        if m is default_model():
+            loads = default_wind_loads()
+        else:  # a user model: its own Table 4 fit; a fit that misses is written, its rows fail
+            loads = calibrate_wind_loads(m, strict=False)
+        wind_rows, records = compute_wind_metrics(m, loads)
+        metrics.update(wind_rows)
+        metrics.update(wind_evidence_rows(loads))
+        next_stage(2)
+        poles, viscosity = rate_loop_pole_table(m), viscosity_sensitivity(m)
+        next_stage(3)
+        results = {"metrics": metrics, "rate_loop_poles": poles, "viscosity_sensitivity": viscosity,
+                   "wind_loads": dict(wind_load_summary(loads),
+                                      drive_sensitivity=wind_drive_sensitivity(m, loads)),
+                   "calibrated": m.derived(), "config": _config_label(m.cfg)}
+        text = json.dumps(results, indent=2, default=float)
+        atomic_write_text(out / "metrics.json", text)
+        md = results_markdown(results)
+        atomic_write_text(out / "metrics.md", md)
+        files = []
+        if figures:
+            next_stage(4)
+            files = draw_figures(m, out) + draw_wind_figures(loads, records, WIND_SIM["dt"], out)
+        next_stage(len(stages))
     return {"metrics": metrics, "results": results, "markdown": md, "figures": files,
-            "failed": failed_rows(metrics)}
+            "failed": failed_rows(metrics), "table": readme_table(json.loads(text))}

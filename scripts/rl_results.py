@@ -8,7 +8,7 @@ Three steps, each writing what the next reads::
     #    the PI and LQG in the track, 0.1 deg step and 5 deg slew (the tracking, step and slew
     #    table's references; seconds)
     python scripts/rl_results.py scenario-references   # -> docs/results/rl_scenario_references.json
-    # 2. the training campaigns (dss14 train <algo> --config <cfg> --seeds 0-4 --out runs/<agent>),
+    # 2. the training campaigns (dss14 train <algo> --config <cfg> --train-seeds 0-4 --out runs/<agent>),
     #    then the results file and the learning-curve figures
     python scripts/rl_results.py build --runs runs  # -> docs/results/rl_results.json, rl/*.png
     #    (an agent whose campaign is not under --runs keeps its row of the committed file,
@@ -38,6 +38,7 @@ import numpy as np
 
 from dss14_env.agents.campaign import selected_evaluation
 from dss14_env.agents.results import HOLDS, POINTING_AXES, build_results, has_pointing, rl_tables
+from dss14_env.core.arrays import read_arrays
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -187,8 +188,7 @@ def _selected_at(run: Path) -> int | None:
     sel = selected_evaluation(path)
     if sel is None or not np.isfinite(sel[1][1]):
         return None  # no evaluation kept a policy: the final one is scored
-    with np.load(path, allow_pickle=False) as d:
-        return int(d["timesteps"][sel[0]])
+    return int(read_arrays(path)["timesteps"][sel[0]])
 
 
 def _best_validation(run: Path) -> tuple[bool, float]:
@@ -384,7 +384,7 @@ def render(results_path: Path, check: bool) -> int:
     stale = []
     for doc, names in DOCUMENTS.items():
         text = doc.read_text()
-        found = {n for n in find_blocks(text) if n.startswith("rl-")}
+        found = {n for n in find_blocks(text) if n in blocks}  # others' blocks are theirs
         if found != set(names):
             print(f"{doc}: generated blocks {sorted(found)}, expected {sorted(names)}", file=sys.stderr)
             return 2

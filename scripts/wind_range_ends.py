@@ -59,7 +59,7 @@ def cases(shipped: dict) -> list[tuple[str, dict[str, float]]]:
 
 def compute() -> dict:
     """Build every case's model and compute its row (a minute or two)."""
-    from dss14_env.core.schema import config_path
+    from dss14_env.core.schema import read_config
     from dss14_env.core.units import AXES
     from dss14_env.envs.plant import PlantFactory
     from dss14_env.model.analysis import dc_gain
@@ -71,7 +71,7 @@ def compute() -> dict:
         three_sigma_mdeg,
     )
 
-    shipped = yaml.safe_load(config_path("model").read_text(encoding="utf-8"))
+    shipped, _ = read_config("model")
     u = 50 / 3.6
 
     def figures(model, loads) -> tuple[list[float], list[float]]:

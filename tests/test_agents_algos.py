@@ -75,7 +75,7 @@ def test_parse_seeds(values: list[str], seeds: list[int]) -> None:
 
 @pytest.mark.parametrize("values", [["4-1"], ["a"], ["1", "1"], []])
 def test_parse_seeds_errors(values: list[str]) -> None:
-    with pytest.raises(ValueError, match="--seeds"):
+    with pytest.raises(ValueError, match="--train-seeds"):
         parse_seeds(values)
 
 
@@ -129,9 +129,9 @@ def test_cli_seeds(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     cfg = tmp_path / "c.yaml"
     cfg.write_text(yaml.safe_dump({**COMMON, **RUNS["ppo_frame_stack"], "checkpoint_freq": 0,
                                    "eval_freq": 0}))
-    assert main(["train", "ppo", "--config", str(cfg), "--seeds", "0", "--seed", "10000",
+    assert main(["train", "ppo", "--config", str(cfg), "--train-seeds", "0", "--seed", "10000",
                  "--out", str(tmp_path / "x")]) == 2
-    assert "--seeds" in capsys.readouterr().err
+    assert "--train-seeds" in capsys.readouterr().err
 
 
 def test_shipped_hyperparameters_load_for_every_entry() -> None:
@@ -198,10 +198,10 @@ def test_interrupted_campaign_continues(tmp_path: Path, capsys: pytest.CaptureFi
     other.write_text(yaml.safe_dump({**cfg, "total_timesteps": 400}))
     with pytest.raises(ValueError, match="config.yaml is another configuration"):
         train_seeds(str(other), [0, 1], out, resume=True, **kw)
-    assert main(["train", "ppo", "--config", str(path), "--seeds", "0", "--continue",
+    assert main(["train", "ppo", "--config", str(path), "--train-seeds", "0", "--resume",
                  "--overwrite", "--out", str(out)]) == 2
-    assert "--continue" in capsys.readouterr().err
-    assert main(["train", "ppo", "--config", str(path), "--seeds", "0", "--continue",
+    assert "--resume keeps the finished runs" in capsys.readouterr().err
+    assert main(["train", "ppo", "--config", str(path), "--train-seeds", "0", "--resume",
                  "--out", str(tmp_path / "empty")]) == 2
     assert "no campaign to continue" in capsys.readouterr().err
 

@@ -243,7 +243,8 @@ def test_dss14_train_seeds_prints_summary_md(tmp_path: Path, capsys: pytest.Capt
                                     "batch_size": 32, "n_epochs": 1, "net_arch": [8],
                                     "total_timesteps": 32, "eval_freq": 0, "checkpoint_freq": 0,
                                     "progress_bar": False, "verbose": 0}))
-    assert main(["train", "ppo", "--config", str(path), "--seeds", "0", "--out", str(tmp_path / "c")]) == 0
+    assert main(["train", "ppo", "--config", str(path), "--train-seeds", "0",
+                 "--out", str(tmp_path / "c")]) == 0
     out = capsys.readouterr().out
     md = (tmp_path / "c" / "summary.md").read_text()
     assert md in out and "| seed 0 (10000) |" in md and "eval return" in md

@@ -1,7 +1,7 @@
 """Hyperparameter sweeps: the ``sweep`` key of a training configuration (agents/config.py), the
 grid and its labels, bad specifications named in one line, and ``train_sweep`` / ``dss14 train
 --seeds`` with a sweep (agents/sweep.py): one campaign per point, sweep.json consistent with the
-points' summary.json, ``--continue``; a configuration without a sweep is unchanged."""
+points' summary.json, ``--resume``; a configuration without a sweep is unchanged."""
 
 from __future__ import annotations
 
@@ -122,7 +122,7 @@ BASE_VALID = {**TINY, "n_steps": 64, "n_envs": 2, "batch_size": 64}
     ({"lr": [1e-4]}, "sweep.lr", "unknown key 'lr'"),
     ({"learning_rat": [1e-4]}, "sweep.learning_rat", "did you mean 'learning_rate'"),
     ({"buffer_size": [10]}, "sweep.buffer_size", "is not a setting of algo 'ppo' (it belongs to sac)"),
-    ({"seed": [1, 2]}, "sweep.seed", "cannot be swept (the seeds of a sweep are --seeds)"),
+    ({"seed": [1, 2]}, "sweep.seed", "cannot be swept (the seeds of a sweep are --train-seeds)"),
     ({"sweep": [{"learning_rate": [1]}]}, "sweep.sweep", "cannot be swept"),
     ({"algo": ["sac"]}, "sweep.algo", "cannot be swept"),
     ({"learning_rate": []}, "sweep.learning_rate", "must be a non-empty list of values, got []"),
@@ -235,8 +235,8 @@ def test_a_sweep_refuses_single_run_commands(tmp_path: Path, capsys: pytest.Capt
         train_sweep(TINY, SEEDS, tmp_path / "c")
     assert main(["train", "ppo", "--config", str(path), "--out", str(tmp_path / "x")]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "field 'sweep': a sweep trains one campaign per point: give --seeds" \
-        in err
+    assert err.count("\n") == 1
+    assert "field 'sweep': a sweep trains one campaign per point: give --train-seeds" in err
     assert not any(p.name in ("run", "c", "x") for p in tmp_path.iterdir())
 
 

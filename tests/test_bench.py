@@ -22,7 +22,7 @@ from dss14_env.bench import plan as P
 from dss14_env.bench import report as R
 from dss14_env.bench.run import sweep_points
 from dss14_env.bench.threads import blas_threads
-from dss14_env.core.outdir import MANIFEST, prepare_output_dir, update_manifest
+from dss14_env.core.outdir import MANIFEST, atomic_write_text, prepare_output_dir, update_manifest
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_RESULTS = ROOT / "docs" / "results" / "bench_default.json"
@@ -125,7 +125,7 @@ def test_default_and_quick_plans(monkeypatch) -> None:
     monkeypatch.setattr(catalog.ControllerRow, "policy_problem", lambda self: None)  # as if shipped
     plan = P.build_plan()
     assert plan.controllers == list(P.DEFAULT_CONTROLLERS) and plan.scenarios == list(P.DEFAULT_SCENARIOS)
-    assert plan.wind_speeds_kmh == [30, 40, 50, 60, 70] and plan.threads == 1 and not plan.overwrite
+    assert plan.wind_speeds_kmh == [10, 20, 30, 40, 50, 60, 70] and plan.threads == 1 and not plan.overwrite
     for s, b in P.DEFAULT_BUDGETS.items():
         r = plan.runs[s]
         assert r.steps == round(50 * b.seconds) and r.seeds == tuple(range(b.episodes))
@@ -217,9 +217,9 @@ def test_unwritable_out_fails_before_any_work(tmp_path, capsys, no_work, monkeyp
 
 def test_a_used_folder_is_refused_unless_overwrite(tmp_path, capsys, monkeypatch) -> None:
     out = tmp_path / "out"
-    prepare_output_dir(out, B.OWNED_FILES)  # an earlier bench: its files in its manifest
+    prepare_output_dir(out, B.OWNED_FILES, command=B.COMMAND)  # an earlier bench: its files listed
     for name in ("results.json", "results.md", F.FIGURES[1]):
-        (out / name).write_text("old")
+        atomic_write_text(out / name, "old")
     update_manifest(out)
     for name in ("mine.png", "notes.txt"):  # the user's, written after
         (out / name).write_text("old")

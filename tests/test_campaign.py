@@ -92,7 +92,8 @@ def fresh(tmp_path_factory) -> dict:
     ({"plants": 0}, "--plants: must be an integer >= 1"),
     ({"plants": 2.5}, "--plants: must be an integer >= 1"),
     ({"first_plant": -1}, "--first-plant: must be an integer >= 0"),
-    ({"steps": 250}, "--steps: 250 steps .* leave nothing after the 5-s warm-up"),
+    ({"steps": 250}, "--steps: 250 steps .* leave less than 1 s after the 5-s warm-up; give --steps 300"),
+    ({"steps": 251}, "--steps: 251 steps .* leave less than 1 s after the 5-s warm-up"),
     ({"chunk_size": 0}, "--chunk-size"),
     ({"wind_speeds_kmh": (0.0,)}, r"--wind-speeds: 0.0 km/h is outside \(0, 90\] km/h, the environment"),
     ({"wind_speeds_kmh": (95.0,)}, r"--wind-speeds: 95.0 km/h is outside \(0, 90\]"),
@@ -101,6 +102,8 @@ def fresh(tmp_path_factory) -> dict:
     ({"directions": ("up",)}, "--directions: 'front', 'side' or degrees"),
     ({"directions": (400.0,)}, "--directions"),
     ({"directions": ("side", "side")}, "--directions: a direction is repeated"),
+    ({"directions": ("front", 0.0)}, "--directions: a direction is repeated: .* are 0, 0 degrees"),
+    ({"directions": ("side", 90.0)}, "--directions: a direction is repeated: .* are 90, 90 degrees"),
     ({"ppo_model": "x"}, "--ppo-model: given, but 'ppo' is not"),
 ])
 def test_bad_options_are_named(changes, message) -> None:
@@ -258,6 +261,14 @@ def test_cell_statistics_by_hand() -> None:
     assert lo < 0.2 < hi
     assert (s["terminated"], s["fallbacks"], s["episodes_with_fallbacks"], s["n_completed"]) == (1, 4, 1, 4)
     assert s["worst_plant"] == 2 and s["limit_hits"] == {"rate": 0, "accel": 5}
+
+
+def test_a_cell_of_one_completed_episode_is_not_estimable() -> None:
+    s = R.cell_statistics([_episode(0, 0.5, 1.0), _episode(1, 50.0, 900.0, terminated=True)],
+                          {"Ka": 2.0}, np.random.default_rng(0))
+    assert s["n_completed"] == 1
+    assert all(v is None for v in s["three_sigma_mdeg"].values())
+    assert all(v is None for v in s["pointing_three_sigma_mdeg"].values())
 
 
 def test_every_plant_meeting_a_requirement_is_not_a_certainty() -> None:

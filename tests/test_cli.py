@@ -36,7 +36,7 @@ def test_interrupt_is_status_130(capsys) -> None:
         raise KeyboardInterrupt
 
     assert run_command(_args(stop)) == 130
-    assert "interrupted" in capsys.readouterr().err
+    assert "stopped (SIGINT)" in capsys.readouterr().err
 
 
 def test_a_bug_keeps_its_traceback() -> None:
@@ -60,12 +60,17 @@ def test_reproduce_refuses_a_file_as_out_before_any_work(tmp_path, capsys) -> No
 
 def test_reproduce_refuses_earlier_results_without_overwrite(tmp_path, capsys) -> None:
     from dss14_env.cli import main
-    from dss14_env.core.outdir import prepare_output_dir, update_manifest
+    from dss14_env.core.outdir import (
+        atomic_write_bytes,
+        atomic_write_text,
+        prepare_output_dir,
+        update_manifest,
+    )
     from dss14_env.reproduce import OWNED_FILES
 
-    prepare_output_dir(tmp_path, OWNED_FILES)  # an earlier run: its files in its manifest
-    (tmp_path / "metrics.json").write_text("{}")
-    (tmp_path / "fig03_board_r_to_i.png").write_bytes(b"old")
+    prepare_output_dir(tmp_path, OWNED_FILES, command="reproduce")  # an earlier run: its files listed
+    atomic_write_text(tmp_path / "metrics.json", "{}")
+    atomic_write_bytes(tmp_path / "fig03_board_r_to_i.png", b"old")
     update_manifest(tmp_path)
     assert main(["reproduce", "--out", str(tmp_path), "--no-figures"]) == 2
     assert "--overwrite" in capsys.readouterr().err
@@ -93,3 +98,31 @@ def test_atomic_writes_give_ordinary_file_modes(tmp_path) -> None:
         os.umask(old)
     assert stat.S_IMODE((tmp_path / "results.json").stat().st_mode) == 0o644
     assert [p.name for p in tmp_path.iterdir()] == ["results.json"]  # no temporary left behind
+
+
+def test_reproduce_prints_the_readme_table_and_counts_figures_in_words(tmp_path, monkeypatch, capsys) -> None:
+    from pathlib import Path
+
+    from dss14_env import reproduce as R
+    from dss14_env.cli import main
+
+    def fake(out, model, figures=True, progress=False):
+        Path(out, "metrics.json").write_text("{}")
+        return {"markdown": "| `pi_pm45_gain_factor_drive_az` |", "table": "| labelled quantity |",
+                "figures": ["fig01.png"], "failed": [], "metrics": {}}
+
+    monkeypatch.setattr(R, "reproduce", fake)
+    monkeypatch.setattr("dss14_env.model.assembly.default_model", lambda: None)
+    assert main(["reproduce", "--out", str(tmp_path / "o")]) == 0
+    out = capsys.readouterr().out
+    assert "| labelled quantity |" in out and "pi_pm45_gain_factor_drive_az" not in out
+    assert "1 figure, metrics.json" in out
+
+
+def test_version(capsys) -> None:
+    from dss14_env import __version__
+    from dss14_env.cli import main
+
+    with pytest.raises(SystemExit) as info:
+        main(["--version"])
+    assert info.value.code == 0 and capsys.readouterr().out.strip() == f"dss14 {__version__}"

@@ -111,3 +111,14 @@ def test_evidence_ranges_are_checked(tmp_path: Path) -> None:
            "  c_az_side: {range: null}\n  c_az_front: {range: null}\n  c_el_side: {range: null}\n")
     with pytest.raises(ConfigError, match="accepted.c_el_front"):
         load_wind_evidence(_write(tmp_path, bad, "ev.yaml"))
+
+
+@pytest.mark.parametrize("script", ["drive_split", "rescore_policies"])
+def test_generated_split_tables_are_current(script: str) -> None:
+    import importlib.util
+
+    path = Path(__file__).resolve().parents[1] / "scripts" / f"{script}.py"
+    spec = importlib.util.spec_from_file_location(script, path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    assert mod.main(["--check"]) == 0

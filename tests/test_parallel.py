@@ -198,7 +198,7 @@ def test_train_seeds_on_ray_same_numbers_as_in_process(local_ray, tmp_path) -> N
     cfg = tmp_path / "tiny.yaml"
     cfg.write_text(yaml.safe_dump(TINY_TRAINING))
     serial = train_seeds(str(cfg), [0, 1, 2], tmp_path / "serial", figures=False)
-    assert cli.main(["train", "ppo", "--config", str(cfg), "--seeds", "0-2", "--ray",
+    assert cli.main(["train", "ppo", "--config", str(cfg), "--train-seeds", "0-2", "--ray",
                      "--out", str(tmp_path / "ray")]) == 0
     on_ray = _seed_results(tmp_path / "ray")
     assert on_ray == _seed_results(serial)
@@ -207,7 +207,7 @@ def test_train_seeds_on_ray_same_numbers_as_in_process(local_ray, tmp_path) -> N
 
 
 def test_train_sweep_on_ray_same_numbers_as_in_process(local_ray, tmp_path) -> None:
-    """``dss14 train ppo --seeds 0-1 --ray`` with a 2-point sweep: the four (point, seed) runs as
+    """``dss14 train ppo --train-seeds 0-1 --ray`` with a 2-point sweep: the four (point, seed) runs as
     Ray tasks give the sweep.json and the per-point summaries of the same sweep in-process."""
     from dss14_env import cli
     from dss14_env.agents.sweep import train_sweep
@@ -215,7 +215,7 @@ def test_train_sweep_on_ray_same_numbers_as_in_process(local_ray, tmp_path) -> N
     cfg = tmp_path / "sweep.yaml"
     cfg.write_text(yaml.safe_dump({**TINY_TRAINING, "sweep": {"learning_rate": [3e-4, 1e-2]}}))
     serial = train_sweep(str(cfg), [0, 1], tmp_path / "serial", figures=False)
-    assert cli.main(["train", "ppo", "--config", str(cfg), "--seeds", "0-1", "--ray",
+    assert cli.main(["train", "ppo", "--config", str(cfg), "--train-seeds", "0-1", "--ray",
                      "--out", str(tmp_path / "ray")]) == 0
     report = json.loads((tmp_path / "ray" / "sweep.json").read_text())
     assert report == json.loads((serial / "sweep.json").read_text())
@@ -227,8 +227,8 @@ def test_train_sweep_on_ray_same_numbers_as_in_process(local_ray, tmp_path) -> N
 
 
 @pytest.mark.parametrize("extra,message", [
-    (["--ray"], "--ray runs the runs of --seeds as Ray tasks: give --seeds and --out"),
-    (["--seeds", "0-1", "--out", "x", "--address", "auto", "--num-cpus", "2"],
+    (["--ray"], "--ray runs the runs of --train-seeds as Ray tasks: give --train-seeds and --out"),
+    (["--train-seeds", "0-1", "--out", "x", "--address", "auto", "--num-cpus", "2"],
      "--num-cpus: sizes a local Ray"),
 ])
 def test_train_bad_ray_options_are_one_line(extra, message, tmp_path, capsys, monkeypatch) -> None:
@@ -245,7 +245,7 @@ def test_train_without_ray_says_how_to_install_it(tmp_path, capsys, monkeypatch)
     from dss14_env import cli
 
     monkeypatch.setitem(sys.modules, "ray", None)
-    assert cli.main(["train", "ppo", "--config", "ppo_smoke", "--seeds", "0-4", "--ray",
+    assert cli.main(["train", "ppo", "--config", "ppo_smoke", "--train-seeds", "0-4", "--ray",
                      "--out", str(tmp_path / "x")]) == 2
     assert 'pip install -e ".[ray]"' in capsys.readouterr().err
     assert not (tmp_path / "x").exists()

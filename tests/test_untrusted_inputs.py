@@ -9,7 +9,6 @@ the intact files.
 from __future__ import annotations
 
 import json
-import os
 import shutil
 import sys
 import time
@@ -22,10 +21,12 @@ from dss14_env import cli
 from dss14_env.agents.config import MAX_SEED, load_config
 from dss14_env.agents.policy import DEFAULT_POLICY, dss14_policy_problem, load_policy, shipped_policy
 from dss14_env.agents.train import TrainingInterrupted, train
+from dss14_env.core.folderlock import LOCK_FILE
 from dss14_env.core.outdir import (
     MANIFEST,
     OutputDirError,
     atomic_folder,
+    atomic_write_text,
     prepare_output_dir,
     remove_run_files,
     update_manifest,
@@ -177,53 +178,48 @@ def test_an_empty_policy_config_is_refused_at_load(tmp_path: Path) -> None:
 def test_overwrite_removes_only_what_a_manifest_lists(tmp_path: Path) -> None:
     out = tmp_path / "out"
     owned = ("results.json", "chunks", "*.png")
-    prepare_output_dir(out, owned)
+    prepare_output_dir(out, owned, command="bench")
     (out / "chunks").mkdir()
     for f in ("results.json", "chunks/c0.json", "fig.png"):
-        (out / f).write_text("run")
+        atomic_write_text(out / f, "run")
     assert update_manifest(out) == ["chunks/c0.json", "fig.png", "results.json"]
     (out / "holiday.png").write_text("mine")  # the user's, written after the run
     (out / "notes.txt").write_text("mine")
     with pytest.raises(OutputDirError, match=r"already holds results \(chunks, fig.png, results.json\)"):
-        prepare_output_dir(out, owned)
-    prepare_output_dir(out, owned, overwrite=True)
-    assert sorted(p.name for p in out.iterdir()) == [MANIFEST, "holiday.png", "notes.txt"]
+        prepare_output_dir(out, owned, command="bench")
+    prepare_output_dir(out, owned, overwrite=True, command="bench")
+    assert sorted(p.name for p in out.iterdir() if p.name != LOCK_FILE) == [
+        MANIFEST, "holiday.png", "notes.txt"]
 
 
 @pytest.mark.parametrize("user_file", ["results.json", "chunks/mine.json"])
 def test_a_user_file_where_the_run_writes_is_refused_not_removed(tmp_path: Path, user_file) -> None:
     out = tmp_path / "out"
     owned = ("results.json", "chunks", "*.png")
-    prepare_output_dir(out, owned)
-    (out / "fig.png").write_text("run")
+    prepare_output_dir(out, owned, command="bench")
+    atomic_write_text(out / "fig.png", "run")
     update_manifest(out)
     (out / "chunks").mkdir(exist_ok=True)
     (out / user_file).write_text("mine")
-    # the user's file is older than the run that claims the folder next
-    old = time.time() - 3600
-    os.utime(out / user_file, (old, old))
-    manifest = json.loads((out / MANIFEST).read_text())
-    manifest["started_ns"] = int(time.time_ns())
-    (out / MANIFEST).write_text(json.dumps(manifest))
     for overwrite in (False, True):
         with pytest.raises(OutputDirError, match=rf"no run's manifest .* lists .*{user_file}"):
-            prepare_output_dir(out, owned, overwrite=overwrite)
+            prepare_output_dir(out, owned, overwrite=overwrite, command="bench")
     assert (out / user_file).read_text() == "mine" and (out / "fig.png").read_text() == "run"
 
 
 def test_a_folder_of_an_earlier_version_is_never_emptied(tmp_path: Path) -> None:
     (tmp_path / "metrics.json").write_text("{}")  # results without a manifest
     with pytest.raises(OutputDirError, match="metrics.json"):
-        prepare_output_dir(tmp_path, ("metrics.json",), overwrite=True)
+        prepare_output_dir(tmp_path, ("metrics.json",), overwrite=True, command="reproduce")
     assert (tmp_path / "metrics.json").read_text() == "{}"
 
 
 def test_dry_run_and_remove_run_files_touch_only_listed_files(tmp_path: Path) -> None:
-    prepare_output_dir(tmp_path, ("summary.json", "curves_*.png"))
-    (tmp_path / "summary.json").write_text("{}")
+    prepare_output_dir(tmp_path, ("summary.json", "curves_*.png"), command="train --seeds")
+    atomic_write_text(tmp_path / "summary.json", "{}")
     update_manifest(tmp_path)
     (tmp_path / "curves_mine.png").write_text("mine")
-    prepare_output_dir(tmp_path, ("summary.json",), overwrite=True, dry_run=True)
+    prepare_output_dir(tmp_path, ("summary.json",), overwrite=True, dry_run=True, command="train --seeds")
     assert (tmp_path / "summary.json").is_file()
     assert remove_run_files(tmp_path, ("summary.json", "curves_*.png")) == ["summary.json"]
     assert (tmp_path / "curves_mine.png").read_text() == "mine"
@@ -232,11 +228,11 @@ def test_dry_run_and_remove_run_files_touch_only_listed_files(tmp_path: Path) ->
 def test_reproduce_overwrite_keeps_the_users_pngs(tmp_path: Path, monkeypatch) -> None:
     from dss14_env import reproduce as R
 
-    def fake(out, model, figures=True):  # the real run takes minutes; its files are what matter
-        Path(out, "metrics.json").write_text("{}")
-        Path(out, "metrics.md").write_text("")
-        Path(out, "fig01.png").write_bytes(b"png")
-        return {"markdown": "", "figures": ["fig01.png"], "failed": [], "metrics": {}}
+    def fake(out, model, figures=True, progress=False):  # the real run takes minutes; its files matter
+        atomic_write_text(Path(out, "metrics.json"), "{}")
+        atomic_write_text(Path(out, "metrics.md"), "")
+        atomic_write_text(Path(out, "fig01.png"), "png")
+        return {"markdown": "", "table": "", "figures": ["fig01.png"], "failed": [], "metrics": {}}
 
     monkeypatch.setattr(R, "reproduce", fake)
     monkeypatch.setattr("dss14_env.model.assembly.default_model", lambda: None)
@@ -294,6 +290,39 @@ def test_resume_refuses_another_runs_normalisation(tiny_run: Path, tmp_path: Pat
     assert sorted(p.name for p in (run / "checkpoints").iterdir()) == ["128_steps", "256_steps"]
 
 
+@pytest.mark.parametrize("changes,field", [
+    ({"num_timesteps": -5}, "num_timesteps"),
+    ({"num_timesteps": 0}, "num_timesteps"),
+    ({"num_timesteps": "128"}, "num_timesteps"),
+    ({"num_timesteps": 128.5}, "num_timesteps"),
+    ({"num_timesteps": True}, "num_timesteps"),
+    ({"num_timesteps": 10**13}, "num_timesteps"),
+    ({"num_timesteps": 256}, "num_timesteps"),  # the next checkpoint's count: two branches mixed
+    ({"episode_num": -1}, "episode_num"),
+    ({"run_id": "../../x"}, "run_id"),
+    ({"run_id": 7}, "run_id"),
+])
+def test_every_number_of_a_checkpoints_counters_is_checked(tiny_run: Path, tmp_path: Path,
+                                                           changes: dict, field: str) -> None:
+    run = tmp_path / "run"
+    shutil.copytree(tiny_run, run)
+    ckpt = run / "checkpoints" / "128_steps"
+    counters = json.loads((ckpt / "counters.json").read_text())
+    (ckpt / "counters.json").write_text(json.dumps({**counters, **changes}))
+    with pytest.raises(ValueError, match=rf"128_steps/counters.json: field '{field}'"):
+        train(run / "config.yaml", resume=ckpt)
+    assert sorted(p.name for p in (run / "checkpoints").iterdir()) == ["128_steps", "256_steps"]
+
+
+def test_a_huge_counters_file_is_refused_unread(tiny_run: Path, tmp_path: Path) -> None:
+    run = tmp_path / "run"
+    shutil.copytree(tiny_run, run)
+    ckpt = run / "checkpoints" / "128_steps"
+    (ckpt / "counters.json").write_text(" " * 10**6 + "{}")
+    with pytest.raises(ValueError, match=r"counters.json: not a readable counters file \(more than"):
+        train(run / "config.yaml", resume=ckpt)
+
+
 def test_resume_without_a_checkpoint_takes_the_runs_last(tiny_run: Path, tmp_path: Path,
                                                          capsys) -> None:
     run = tmp_path / "run"
@@ -327,9 +356,9 @@ def test_a_seeds_campaign_interrupted_gives_the_campaign_command(tmp_path: Path,
     monkeypatch.setattr(campaign, "train", stop)
     cfg = _write(tmp_path / "c.yaml", {**TINY, "checkpoint_freq": 0, "eval_freq": 64})
     out = tmp_path / "camp"
-    assert cli.main(["train", "ppo", "--config", str(cfg), "--seeds", "0-1", "--out", str(out)]) == 130
-    err = _one_line(capsys, "continue with:")
-    want = f"dss14 train ppo --config {out / 'config.yaml'} --seeds 0-1 --out {out} --resume"
+    assert cli.main(["train", "ppo", "--config", str(cfg), "--train-seeds", "0-1", "--out", str(out)]) == 130
+    err = capsys.readouterr().err.strip().splitlines()[-1]  # after the campaign's plan line
+    want = f"dss14 train ppo --config {out / 'config.yaml'} --train-seeds 0-1 --out {out} --resume"
     assert err.endswith(want)
     monkeypatch.undo()
     # the command given continues the campaign
@@ -362,20 +391,25 @@ def test_an_interrupted_bench_gives_the_command_that_starts_it_again(tmp_path: P
     monkeypatch.setattr(B, "run_plan", stop)
     argv = ["bench", "--controllers", "pi_kp1", "--scenarios", "step", "--out", str(tmp_path / "b")]
     assert cli.main(argv) == 130
-    err = _one_line(capsys, "interrupted")
+    err = _one_line(capsys, "stopped (SIGINT)")
     assert err.endswith("start again with: dss14 " + " ".join(argv) + " --overwrite")
 
 
-def test_continue_is_the_same_as_resume_for_a_campaign(tmp_path: Path, capsys) -> None:
+def test_resume_continues_a_campaign_and_continue_names_it(tmp_path: Path, capsys) -> None:
     cfg = _write(tmp_path / "c.yaml", {**TINY, "checkpoint_freq": 0, "eval_freq": 64,
                                        "total_timesteps": 128})
     out = tmp_path / "camp"
-    assert cli.main(["train", "ppo", "--config", str(cfg), "--seeds", "0", "--out", str(out)]) == 0
+    assert cli.main(["train", "ppo", "--config", str(cfg), "--train-seeds", "0", "--out", str(out)]) == 0
     kept = (out / "seed_0" / "policy.pt").stat().st_mtime_ns
-    for word in ("--resume", "--continue"):
-        assert cli.main(["train", "ppo", "--config", str(cfg), "--seeds", "0", "--out", str(out),
-                         word]) == 0
+    assert cli.main(["train", "ppo", "--config", str(cfg), "--train-seeds", "0", "--out", str(out),
+                     "--resume"]) == 0
     assert (out / "seed_0" / "policy.pt").stat().st_mtime_ns == kept  # scored, not retrained
+    capsys.readouterr()
+    for old, new in ((["--continue"], "--resume"), (["--seeds", "0"], "--train-seeds")):
+        assert cli.main(["train", "ppo", "--config", str(cfg), "--out", str(out), *old]) == 2
+        _one_line(capsys, f"{old[0]}: is now {new}")
+    assert cli.main(["campaign", "--out", str(tmp_path / "c"), "--continue"]) == 2
+    _one_line(capsys, "--continue: is now --resume")
 
 
 # ------------------------------------------------------------------ YAML and numbers
@@ -440,8 +474,8 @@ def test_values_torch_numpy_or_sb3_cannot_take_are_refused_before_the_folder(
 def test_seed_indices_past_the_largest_seed_are_refused(tmp_path: Path, capsys) -> None:
     path = _write(tmp_path / "c.yaml", {**TINY, "seed": MAX_SEED - 10})
     out = tmp_path / "out"
-    assert cli.main(["train", "ppo", "--config", str(path), "--seeds", "0-1", "--out", str(out)]) == 2
-    _one_line(capsys, "--seeds", "seed index 1")
+    assert cli.main(["train", "ppo", "--config", str(path), "--train-seeds", "0-1", "--out", str(out)]) == 2
+    _one_line(capsys, "--train-seeds", "seed index 1")
     assert not out.exists()
 
 

@@ -16,6 +16,7 @@ output files and how to read them.
 
 from __future__ import annotations
 
+import math
 import time
 from typing import Any
 
@@ -47,6 +48,8 @@ from dss14_env.core.outdir import manifest_kept, prepare_output_dir
 
 #: what the bench owns in its output folder (removed by ``--overwrite``, nothing else)
 OWNED_FILES: tuple[str, ...] = RESULT_FILES + FIGURES
+#: the command its output folders belong to (their manifest's)
+COMMAND = "bench"
 
 
 def prepare_out(plan: BenchPlan) -> None:
@@ -54,7 +57,26 @@ def prepare_out(plan: BenchPlan) -> None:
     written, or earlier results without ``overwrite`` raise
     :class:`dss14_env.core.outdir.OutputDirError` (one line naming the path).
     """
-    prepare_output_dir(plan.out, OWNED_FILES, overwrite=plan.overwrite, option="--out")
+    prepare_output_dir(plan.out, OWNED_FILES, overwrite=plan.overwrite, option="--out",
+                       command=COMMAND)
+
+
+class NothingScoredError(RuntimeError):
+    """A controller of the bench scored nothing: its results are written, its figures are all
+    not estimable (one line naming it).
+    """
+
+
+def unscored_controllers(results: dict[str, Any]) -> list[str]:
+    """The controllers of a bench's results none of whose servo 3σ (any scenario, any axis) is
+    a finite number.
+    """
+    def finite(v: Any) -> bool:
+        return isinstance(v, (int, float)) and math.isfinite(v)
+
+    return [name for name, cells in results["summary"].items()
+            if not any(finite(axis["three_sigma"]["value"]) for cell in cells.values()
+                       for axis in cell["servo_error_mdeg"].values())]
 
 
 def bench(plan: BenchPlan, progress: bool = True) -> dict[str, Any]:
@@ -65,6 +87,8 @@ def bench(plan: BenchPlan, progress: bool = True) -> dict[str, Any]:
 
     :param plan: the plan (:func:`build_plan`; its ``threads`` sets the BLAS threads)
     :param progress: show the progress bar
+    :raises NothingScoredError: after writing the results, when a controller scored nothing
+        (:func:`unscored_controllers`)
     :return: ``results`` (results.json's content), ``headline`` (the compact headline table
         with its legend, :func:`~dss14_env.bench.report.headline_table`), ``pointing_table``
         (the dish's true pointing error, Markdown), ``main_table`` (the servo error, Markdown), ``markdown``
@@ -93,6 +117,11 @@ def _bench_in(plan: BenchPlan, progress: bool) -> dict[str, Any]:
     results["bench"]["cpu_time_s"] = time.process_time() - c0
     results["bench"]["figures"] = figures
     pj, pm = write_results(results, plan.out)
+    unscored = unscored_controllers(results)
+    if unscored:
+        raise NothingScoredError(f"{', '.join(unscored)}: scored nothing in any scenario (every "
+                                 f"episode terminated, failed or left no 3σ to estimate); "
+                                 f"{pm} shows what happened")
     return {"results": results, "headline": headline_table(results, str(pm)),
             "pointing_table": pointing_table(results), "main_table": main_table(results),
             "markdown": results_markdown(results), "files": [pj, pm] + [plan.out / f for f in figures],
@@ -100,7 +129,8 @@ def _bench_in(plan: BenchPlan, progress: bool) -> dict[str, Any]:
 
 
 __all__ = ["BenchOptionError", "BenchPlan", "DEFAULT_CONTROLLERS", "DEFAULT_SCENARIOS",
-           "FIGURES", "OWNED_FILES", "bench", "build_plan", "parse_seeds",
+           "FIGURES", "NothingScoredError", "OWNED_FILES", "bench", "unscored_controllers", "build_plan",
+           "parse_seeds",
            "parse_wind_speeds", "prepare_out",
            # re-exported for the campaign (dss14_env.bench.campaign, campaign_report)
            "fmt", "package_versions"]

@@ -55,6 +55,7 @@ import numpy as np
 from dss14_env.bench import campaign_report as report
 from dss14_env.bench import runner
 from dss14_env.bench.campaign_spec import (  # noqa: F401 - the options, re-exported
+    COMMAND,
     DEFAULT_CHUNK_SIZE,
     DEFAULT_CONTROLLERS,
     DEFAULT_DIRECTIONS,
@@ -82,6 +83,7 @@ from dss14_env.core.outdir import (
     update_manifest,
 )
 from dss14_env.core.parallel import Executor, SerialExecutor
+from dss14_env.core.progress import Progress
 from dss14_env.model.assembly import default_model
 from dss14_env.model.uncertainty import ParamDraw, draw_params, perturbed_rate_loop, pi_loop_abscissa
 
@@ -266,10 +268,10 @@ def open_campaign(spec: CampaignSpec, out: str | os.PathLike, resume: bool = Fal
             raise CampaignOptionError(f"--resume: {out} holds a campaign with other options ("
                                       f"{'; '.join(spec_differences(old, spec))}); pass the same "
                                       f"options, --overwrite to replace it, or choose another folder")
-        reopen_output_dir(out, OWNED)  # still a writable folder; its manifest kept
+        reopen_output_dir(out, OWNED, command=COMMAND)  # still a writable folder; its manifest kept
         (out / "chunks").mkdir(exist_ok=True)
         return out, finished_chunks(out, spec)
-    prepare_output_dir(out, OWNED, overwrite=overwrite)
+    prepare_output_dir(out, OWNED, overwrite=overwrite, command=COMMAND)
     (out / "chunks").mkdir(exist_ok=True)
     atomic_write_text(cj, json.dumps({"format": FORMAT, "spec": spec.as_dict(),
                                       "fingerprint": spec.fingerprint()}, indent=1) + "\n")
@@ -289,21 +291,19 @@ def run_chunks(spec: CampaignSpec, out: Path, done: dict[int, dict[str, Any]], e
 
     :return: the indices of the chunks computed now
     """
-    from tqdm.auto import tqdm
-
     chunks = spec.chunks()
     todo = [i for i in range(len(chunks)) if i not in done]
     tasks = [{"spec": spec.as_dict(), "chunk": i, "plants": chunks[i]} for i in todo]
     labels = [_chunk_label(i, chunks[i]) for i in todo]
     computed = []
-    with tqdm(total=len(chunks), initial=len(done), unit="chunk", disable=not progress,
-              dynamic_ncols=True, desc=f"campaign ({executor.kind})") as bar:
+    with Progress(len(chunks), f"campaign ({executor.kind})", unit="chunks", enabled=progress,
+                  initial=len(done)) as bar:
         for j, res in executor.map_unordered(run_chunk, tasks, labels):
             i = todo[j]
             atomic_write_text(chunk_path(out, i), json.dumps(res) + "\n")
             done[i] = res
             computed.append(i)
-            bar.set_postfix_str(f"{labels[j]} done", refresh=False)
+            bar.set_note(f"{labels[j]} done")
             bar.update(1)
     return computed
 
@@ -337,7 +337,8 @@ def run_campaign(spec: CampaignSpec, out: str | os.PathLike = "campaign_out",
     :param resume: continue the campaign in ``out`` (:func:`open_campaign`)
     :param overwrite: replace the campaign in ``out``
     :param figures: draw the CDF figures
-    :param progress: progress bar (stderr), one tick per chunk
+    :param progress: the chunks done on stderr (:class:`~dss14_env.core.progress.Progress`: a bar
+        on a terminal, lines otherwise)
     :param command: the command line, for the record
     :return: ``results`` (results.json's content), ``markdown`` (results.md), ``table`` (the
         main table), ``figures``, ``computed`` / ``resumed`` (chunk indices), ``out``

@@ -40,6 +40,7 @@ from dss14_env.bench import catalog
 from dss14_env.bench.campaign_spec import CampaignSpec
 from dss14_env.bench.plan import control_period
 from dss14_env.bench.report import fmt, package_versions
+from dss14_env.core.outdir import atomic_save_figure
 from dss14_env.core.results import ERRORS, POINTING, SERVO, episode_error
 from dss14_env.core.stats import bootstrap_ci
 from dss14_env.core.text import counted
@@ -53,6 +54,10 @@ DEFAULT_REQUIREMENTS = {"Ka": 2.0, "X": 8.0}
 THREE_SIGMA_KEYS = {POINTING: "pointing_three_sigma_mdeg", SERVO: "three_sigma_mdeg"}
 #: the quantity the requirements' shares are of
 REQUIREMENT_QUANTITY = POINTING
+#: fewest completed episodes a cell's 3σ distribution is estimated from (with one, its median
+#: and 95th percentile would be that episode's figure with an interval of zero width): fewer
+#: are reported as not estimable (—)
+MIN_UNITS = 2
 #: the statistics of the 3σ distribution and how each is computed from a sample
 QUANTILES = {"median": lambda x: float(np.median(x)), "p95": lambda x: float(np.percentile(x, 95)),
              "worst": lambda x: float(np.max(x))}
@@ -130,7 +135,7 @@ def cell_statistics(episodes: Sequence[Mapping[str, Any]], reqs: Mapping[str, fl
             dist[key] = None
             continue
         x = xs[q] = np.array([episode_three_sigma(ep, q) for ep in done])
-        dist[key] = {name: bootstrap_ci(x, stat, rng).as_dict() if x.size else None
+        dist[key] = {name: bootstrap_ci(x, stat, rng).as_dict() if x.size >= MIN_UNITS else None
                      for name, stat in QUANTILES.items()}
     x = xs.get(REQUIREMENT_QUANTITY)
     meets: dict[str, Any] = {}
@@ -422,7 +427,7 @@ def draw_cdfs(results: Mapping[str, Any], out: str | Path) -> list[str]:
         axs[0].set_ylabel(f"share of {spec.plants} plants ≤ x")
         axs[-1].legend(loc="lower right", fontsize=7)
         name = cdf_figure_name(speed)
-        fig.savefig(Path(out) / name, dpi=90)
+        atomic_save_figure(fig, Path(out) / name, dpi=90)
         written.append(name)
     return written
 

@@ -17,11 +17,10 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-import numpy as np
-
 from dss14_env.bench import catalog
 from dss14_env.bench.catalog import ControllerRow
-from dss14_env.bench.plan import check_names, control_period, parse_wind_speeds
+from dss14_env.bench.plan import MIN_SCORED_S, check_names, control_period, least_steps, parse_wind_speeds
+from dss14_env.core.counts import MAX_EPISODE_STEPS, MAX_FIRST_PLANT, MAX_PLANTS, check_count
 from dss14_env.core.units import DEG, WIND_DIRECTIONS
 
 #: the controllers of a campaign by default (the catalog's campaign rows)
@@ -37,6 +36,8 @@ WARMUP_S = 5.0
 DEFAULT_CHUNK_SIZE = 5
 #: files and folders a campaign writes into its output folder
 OWNED = ("campaign.json", "chunks", "results.json", "results.md", "cdf_*.png")
+#: the command its output folders belong to (their manifest's)
+COMMAND = "campaign"
 #: version of the chunk and campaign file layout
 FORMAT = 1
 
@@ -172,10 +173,8 @@ class CampaignSpec:
         return hashlib.sha256(text.encode()).hexdigest()
 
 
-def _positive_int(v: Any, option: str, lo: int = 1) -> int:
-    if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
-        raise CampaignOptionError(f"{option}: must be an integer >= {lo}, got {v!r}")
-    return int(v)
+def _positive_int(v: Any, option: str, lo: int = 1, hi: int = MAX_PLANTS) -> int:
+    return check_count(v, option, lo, hi, CampaignOptionError)
 
 
 def _check_controllers(names: Sequence[str]) -> None:
@@ -196,35 +195,46 @@ def check_policy(spec: CampaignSpec) -> None:
             raise CampaignOptionError(f"{opt}: {problem}")
 
 
-def check_spec(spec: CampaignSpec) -> None:
-    """Raise :class:`CampaignOptionError` naming the first bad option."""
-    _check_controllers(spec.controllers)
-    _positive_int(spec.plants, "--plants")
-    _positive_int(spec.first_plant, "--first-plant", 0)
-    _positive_int(spec.steps, "--steps")
-    _positive_int(spec.chunk_size, "--chunk-size")
-    parse_wind_speeds(spec.wind_speeds_kmh, CampaignOptionError, hint="")
-    if not spec.directions:
+def _check_directions(directions: Sequence[str | float]) -> None:
+    """Refuse an empty, unknown or repeated ``--directions``."""
+    if not directions:
         raise CampaignOptionError("--directions: give at least one direction")
-    for d in spec.directions:
+    for d in directions:
         ok = d in WIND_DIRECTIONS if isinstance(d, str) else (
             not isinstance(d, bool) and isinstance(d, (int, float)) and math.isfinite(d) and 0 <= d < 360)
         if not ok:
             raise CampaignOptionError(f"--directions: 'front', 'side' or degrees in [0, 360), got {d!r}")
-    if len(set(spec.directions)) != len(spec.directions):
-        raise CampaignOptionError(f"--directions: a direction is repeated: {list(spec.directions)}")
+    degrees = [math.degrees(WIND_DIRECTIONS[d]) if isinstance(d, str) else float(d) for d in directions]
+    if len(set(degrees)) != len(degrees):  # 'front' and 0 are one direction
+        raise CampaignOptionError(f"--directions: a direction is repeated: {list(directions)} "
+                                  f"are {', '.join(f'{x:g}' for x in degrees)} degrees")
+
+
+def check_spec(spec: CampaignSpec) -> None:
+    """Raise :class:`CampaignOptionError` naming the first bad option."""
+    _check_controllers(spec.controllers)
+    _positive_int(spec.plants, "--plants")
+    _positive_int(spec.first_plant, "--first-plant", 0, MAX_FIRST_PLANT)
+    _positive_int(spec.steps, "--steps", 1, MAX_EPISODE_STEPS)
+    _positive_int(spec.chunk_size, "--chunk-size")
+    parse_wind_speeds(spec.wind_speeds_kmh, CampaignOptionError, hint="")
+    _check_directions(spec.directions)
     if not isinstance(spec.condition_on_pi, bool):
         raise CampaignOptionError(f"condition_on_pi: must be true or false, got {spec.condition_on_pi!r}")
     w = spec.warmup_s
     if isinstance(w, bool) or not isinstance(w, (int, float)) or not (math.isfinite(w) and w >= 0):
         raise CampaignOptionError(f"warmup_s: must be a finite number >= 0, got {w!r}")
     dt = control_period()
-    if w >= spec.steps * dt:
-        raise CampaignOptionError(f"--steps: {spec.steps} steps ({dt:g} s each) leave nothing after "
-                                  f"the {w:g}-s warm-up")
+    if spec.steps < least_steps(w, dt):
+        raise CampaignOptionError(f"--steps: {spec.steps} steps ({dt:g} s each) leave less than "
+                                  f"{MIN_SCORED_S:g} s after the {w:g}-s warm-up; give --steps "
+                                  f"{least_steps(w, dt)} or more")
     opt_row = catalog.POLICY_OPTION_ROW
     if spec.ppo_model is not None and opt_row not in spec.controllers:
         raise CampaignOptionError(f"--ppo-model: given, but {opt_row!r} is not among --controllers")
+    clash = None if spec.ppo_model is None else catalog.policy_name_problem(spec.ppo_model)
+    if clash is not None:
+        raise CampaignOptionError(f"--ppo-model: {clash}")
     if len(set(spec.names)) != len(spec.names):
         raise CampaignOptionError(f"--ppo-model: the policy's name is a controller's already: "
                                   f"{list(spec.names)}")

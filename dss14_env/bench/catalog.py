@@ -46,9 +46,11 @@ class ControllerRow:
     :param batchable: runs many episodes at once through the vector environment (its class'
         ``batchable``); False: one episode at a time on the first seeds of every scenario
     :param args: positional arguments after the environment (e.g. the PI's gain set)
-    :param policy: a trained policy this controller is (a shipped policy's name of
-        ``agents/policies`` or a folder), loaded by :func:`dss14_env.agents.policy.load_policy`;
-        None: a designed controller
+    :param policy: a trained policy this controller is (with ``shipped``, a shipped policy's
+        name of ``agents/policies``, else the path of a folder), loaded by
+        :func:`dss14_env.agents.policy.load_policy`; None: a designed controller
+    :param shipped: ``policy`` names a shipped policy: a user's path is never looked up among
+        them, so a folder of the user's named like one is that folder
     :param config: its section of ``configs/controllers.yaml`` (None: none)
     :param bench: in a bench run without ``--controllers``
     :param campaign: in a campaign without ``--controllers``
@@ -63,6 +65,7 @@ class ControllerRow:
     batchable: bool = True
     args: tuple[Any, ...] = ()
     policy: str | None = None
+    shipped: bool = False
     config: str | None = None
     bench: bool = True
     campaign: bool = False
@@ -81,9 +84,10 @@ class ControllerRow:
         """The folder of the row's policy (a shipped name resolved), or None."""
         if self.policy is None:
             return None
+        if not self.shipped:
+            return Path(self.policy)
         from dss14_env.agents.policy import POLICIES_DIR
-        shipped = POLICIES_DIR / self.policy
-        return shipped if "/" not in self.policy and shipped.is_dir() else Path(self.policy)
+        return POLICIES_DIR / self.policy
 
     def policy_problem(self) -> str | None:
         """Why the row's policy cannot act on a DSS14 environment (its files loaded and its
@@ -99,8 +103,9 @@ _POLICY_CLASS = ("dss14_env.agents.policy", "PolicyController")
 
 
 def _policy_row(name: str, policy: str, description: str, bench: bool = True,
-                campaign: bool = True) -> ControllerRow:
-    return ControllerRow(name, *_POLICY_CLASS, description, policy=policy, bench=bench, campaign=campaign)
+                campaign: bool = True, shipped: bool = True) -> ControllerRow:
+    return ControllerRow(name, *_POLICY_CLASS, description, policy=policy, shipped=shipped, bench=bench,
+                         campaign=campaign)
 
 
 #: the controllers, in table order
@@ -213,11 +218,25 @@ def policy_name(path: str | Path) -> str:
     return p.name or str(path)
 
 
-def policy_row(path: str | Path, name: str | None = None) -> ControllerRow:
-    """A row for the trained policy at ``path`` (``--ppo-model``), named after the policy
-    (:func:`policy_name`) unless ``name`` is given.
+def policy_name_problem(path: str | Path) -> str | None:
+    """Why the policy at ``path`` cannot score under its name (a catalog controller's, which
+    the tables would not tell from it), or None.
     """
-    return _policy_row(name or policy_name(path), str(path), f"trained policy {path}", campaign=False)
+    name = policy_name(path)
+    if name not in CONTROLLERS:
+        return None
+    return (f"the policy's name {name!r} (its folder's) is the catalog controller {name!r}'s, "
+            f"which the tables would not tell from it; rename the folder (the shipped one is "
+            f"--controllers {name})" if CONTROLLERS[name].shipped else
+            f"the policy's name {name!r} (its folder's) is a catalog controller's; rename the folder")
+
+
+def policy_row(path: str | Path, name: str | None = None) -> ControllerRow:
+    """A row for the trained policy at ``path`` (``--ppo-model``: always a path, never a shipped
+    policy's name), named after the policy (:func:`policy_name`) unless ``name`` is given.
+    """
+    return _policy_row(name or policy_name(path), str(path), f"trained policy {path}", campaign=False,
+                       shipped=False)
 
 
 @dataclass(frozen=True)

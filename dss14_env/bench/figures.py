@@ -15,7 +15,6 @@ pyplot, no global state) and written atomically.
 
 from __future__ import annotations
 
-import io
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -24,7 +23,7 @@ import numpy as np
 
 from dss14_env.bench import catalog
 from dss14_env.bench.plan import LOADED_AXES
-from dss14_env.core.outdir import atomic_write_bytes
+from dss14_env.core.outdir import atomic_save_figure
 from dss14_env.core.results import Cell
 from dss14_env.core.units import AXES
 
@@ -52,9 +51,7 @@ def _figure(width: float, height: float) -> Any:
 
 
 def _save(fig: Any, path: Path) -> None:
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=DPI)
-    atomic_write_bytes(path, buf.getvalue())
+    atomic_save_figure(fig, path, dpi=DPI)
 
 
 def log_axis(axp: Any, which: str = "y") -> None:

@@ -26,7 +26,9 @@ import numpy as np
 
 from dss14_env.bench import catalog
 from dss14_env.bench.catalog import Budget, ControllerRow, LiveMapping, Scenario
+from dss14_env.core.counts import MAX_EPISODE_STEPS, MAX_EPISODES, MAX_THREADS, check_count
 from dss14_env.core.seeds import parse_seed_list
+from dss14_env.core.text import counted
 from dss14_env.model.variants import DRIVE_VARIANTS
 
 #: per scenario, the default run's budget and the ``--quick`` one (the catalog's rows)
@@ -36,7 +38,7 @@ QUICK_BUDGETS: Mapping[str, Budget] = LiveMapping(lambda: {n: r.quick for n, r i
 #: a point of the error-vs-wind sweep (the MPC is left out: the 50 km/h points are the hold
 #: scenarios, where it runs)
 DEFAULT_SWEEP = Budget(60.0, 32, 0)
-#: ``--quick``: the CI smoke test (well under 30 s)
+#: ``--quick``: the CI smoke test
 QUICK_SWEEP = Budget(15.0, 8, 0)
 #: controllers of a run without ``--controllers``: the shipped bench rows (with registered
 #: rows: :func:`dss14_env.bench.catalog.controller_names`)
@@ -164,7 +166,7 @@ class BenchPlan:
         """One line: what the plan runs."""
         parts = [f"{s} {r.steps * self.dt:g} s x {len(r.seeds)} (one-at-a-time: {r.sequential})"
                  for s, r in self.runs.items()]
-        line = (f"bench: {len(self.controllers)} controllers ({', '.join(self.controllers)}); "
+        line = (f"bench: {counted(len(self.controllers), 'controller')} ({', '.join(self.controllers)}); "
                 f"episodes per scenario: {'; '.join(parts)}")
         if self.sweep_directions:
             line += (f"; wind sweep {'/'.join(self.sweep_directions)} at "
@@ -258,9 +260,7 @@ def parse_episodes(value: int | str | None) -> list[int] | None:
         n = int(str(value), 10)
     except ValueError:
         raise BenchOptionError(f"--episodes: {value!r} is not an integer") from None
-    if n < 1:
-        raise BenchOptionError(f"--episodes: a count of episodes, >= 1, got {n}")
-    return list(range(n))
+    return list(range(check_count(n, "--episodes", 1, MAX_EPISODES, BenchOptionError)))
 
 
 def _is_int(x: Any) -> bool:
@@ -281,13 +281,20 @@ def _seed_option(seeds: int | Sequence[str | int] | None) -> list[int] | None:
     return parse_seeds(seeds)
 
 
+#: light winds the sweep adds below the environment's grid: the Ka-band wind envelope
+#: (:mod:`dss14_env.bench.envelope`) needs a speed each controller still meets it at
+LIGHT_WIND_SPEEDS_KMH: tuple[float, ...] = (10.0, 20.0)
+
+
 def default_wind_speeds() -> tuple[float, ...]:
-    """The sweep's speeds without ``--wind-speeds``, km/h: the environment's
-    ``wind_speed_grid_kmh`` (``configs/env.yaml``, the grid ``DSS14-v0`` draws from).
+    """The sweep's speeds without ``--wind-speeds``, km/h: :data:`LIGHT_WIND_SPEEDS_KMH` and the
+    environment's ``wind_speed_grid_kmh`` (``configs/env.yaml``, the grid ``DSS14-v0`` draws
+    from).
     """
     from dss14_env.envs.config import load_env_config  # (the environment, loaded when used)
 
-    return tuple(load_env_config().wind_speed_grid_kmh)
+    grid = tuple(load_env_config().wind_speed_grid_kmh)
+    return tuple(sorted(set(LIGHT_WIND_SPEEDS_KMH + grid)))
 
 
 def parse_wind_speeds(values: Sequence[str | float] | None, error: type[ValueError] = BenchOptionError,
@@ -324,12 +331,8 @@ def parse_wind_speeds(values: Sequence[str | float] | None, error: type[ValueErr
     return sorted(speeds)
 
 
-def _count(value: Any, option: str, low: int, what: str) -> int | None:
-    if value is None:
-        return None
-    if not _is_int(value) or value < low:
-        raise BenchOptionError(f"{option}: {what} is an integer >= {low}, got {value!r}")
-    return int(value)
+def _count(value: Any, option: str, low: int, high: int) -> int | None:
+    return None if value is None else check_count(value, option, low, high, BenchOptionError)
 
 
 def _budget(scenario: str, quick: bool) -> Budget:
@@ -362,9 +365,9 @@ def controller_rows(names: Sequence[str] | None, ppo_model: str | Path | None = 
         row, option = catalog.CONTROLLERS[name], f"--controllers {name}"
         if name == opt_row and ppo_model is not None:
             row, option = catalog.policy_row(ppo_model), "--ppo-model"
-            if row.name in chosen:
-                raise BenchOptionError(f"--ppo-model: the policy's name {row.name!r} is a "
-                                       f"controller's already; rename its folder")
+            clash = catalog.policy_name_problem(ppo_model)
+            if clash is not None:
+                raise BenchOptionError(f"--ppo-model: {clash}")
         problem = row.policy_problem()
         if problem is None:
             rows.append(row)
@@ -380,6 +383,13 @@ def controller_rows(names: Sequence[str] | None, ppo_model: str | Path | None = 
 MIN_SCORED_S = 1.0
 
 
+def least_steps(warmup_s: float, dt: float) -> int:
+    """The shortest episode, control periods, that scores :data:`MIN_SCORED_S` after a warm-up
+    of ``warmup_s`` (the one rule of the bench and the campaign: nothing scored is an error).
+    """
+    return int(math.ceil((warmup_s + MIN_SCORED_S) / dt - 1e-9))
+
+
 def _check_steps(steps: int | None, scenarios: Sequence[str], sweep: bool, dt: float) -> None:
     """Refuse ``--steps`` that leaves less than :data:`MIN_SCORED_S` after a scenario's warm-up
     (every cell of the tables would be empty).
@@ -390,7 +400,7 @@ def _check_steps(steps: int | None, scenarios: Sequence[str], sweep: bool, dt: f
     if sweep and any(s in scenarios for s, _ in SWEEP_DIRECTIONS.values()):
         warm.append((SWEEP_WARMUP_S, "the wind sweep"))
     w, name = max(warm)
-    need = int(math.ceil((w + MIN_SCORED_S) / dt - 1e-9))
+    need = least_steps(w, dt)
     if steps < need:
         raise BenchOptionError(f"--steps: {steps} control periods ({steps * dt:g} s) leave less "
                                f"than {MIN_SCORED_S:g} s after the {w:g}-s warm-up of {name}; "
@@ -473,13 +483,14 @@ def build_plan(controllers: Sequence[str] | None = None, scenarios: Sequence[str
         _names(variants, tuple(DRIVE_VARIANTS), "--variants", "drive variant") if variants else [])
     seed_list = _seed_option(seeds)
     speeds = parse_wind_speeds(wind_speeds)
-    steps = _count(steps, "--steps", 1, "the episode length")
-    sweep_n = _count(sweep_seeds, "--sweep-seeds", 1, "the number of episodes per sweep point")
-    seq = _count(sequential_episodes, "--sequential-episodes", 0, "the number of episodes")
-    threads = _count(threads, "--threads", 1, "the number of BLAS threads")
+    steps = _count(steps, "--steps", 1, MAX_EPISODE_STEPS)
+    sweep_n = _count(sweep_seeds, "--sweep-seeds", 1, MAX_EPISODES)
+    seq = _count(sequential_episodes, "--sequential-episodes", 0, MAX_EPISODES)
+    threads = _count(threads, "--threads", 1, 2**63 - 1)
     if threads is not None and threads > (os.cpu_count() or 1):
         raise BenchOptionError(f"--threads: {threads} BLAS threads, this machine has "
                                f"{os.cpu_count() or 1} CPUs")
+    threads = _count(threads, "--threads", 1, MAX_THREADS)
     scen = list(catalog.scenario_names("bench")) if scen is None else scen
     env_kwargs = {"randomize_params": True} if randomize else {}
     dt = control_period(env_kwargs)
@@ -533,5 +544,6 @@ def sweep_name(direction: str, speed_kmh: float) -> str:
 __all__ = ["BenchOptionError", "BenchPlan", "Budget", "DEFAULT_BUDGETS", "DEFAULT_CONTROLLERS",
            "DEFAULT_SCENARIOS", "DEFAULT_SWEEP", "DEFAULT_VARIANTS", "VARIANT_CONTROLLERS", "LOADED_AXES",
            "QUICK_BUDGETS", "QUICK_SWEEP", "ScenarioRun", "SWEEP_DIRECTIONS", "build_plan",
-           "check_names", "control_period", "controller_rows", "parse_episodes", "parse_seeds",
-           "default_wind_speeds", "parse_wind_speeds", "sweep_name", "sweep_scenario"]
+           "MIN_SCORED_S", "check_names", "control_period", "controller_rows", "least_steps",
+           "parse_episodes", "parse_seeds", "default_wind_speeds", "parse_wind_speeds", "sweep_name",
+           "sweep_scenario"]

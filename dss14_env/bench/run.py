@@ -15,6 +15,7 @@ from typing import Any
 from dss14_env.bench import catalog, runner
 from dss14_env.bench.plan import SWEEP_DIRECTIONS, BenchPlan, ScenarioRun, sweep_name, sweep_scenario
 from dss14_env.bench.runner import Scenario
+from dss14_env.core.progress import Progress
 from dss14_env.model.variants import DRIVE_VARIANTS
 
 #: scenarios whose first seed's time histories the figures draw (the catalog's traced rows)
@@ -102,15 +103,14 @@ def run_plan(plan: BenchPlan, progress: bool = True) -> dict[str, Any]:
     step scenarios) and the wind sweep.
 
     :param plan: the plan (:func:`dss14_env.bench.plan.build_plan`)
-    :param progress: show a tqdm progress bar (stderr), one tick per episode
+    :param progress: show the episodes done on stderr (:class:`~dss14_env.core.progress.Progress`:
+        a bar on a terminal, lines otherwise)
     :return: ``{"main": runner result (episodes with ``trace``), "sweep": runner result of the
         sweep points that ran (or None), "variants": runner result of the hold scenarios on the
         drive variants (or None), "sweep_points": [(name, direction, speed, same_as)],
         "variant_points": [(name, scenario, variant)], "wall_time_s": {"main", "sweep",
         "variants"}}``
     """
-    from tqdm.auto import tqdm
-
     ctrls = controller_entries(plan)
     points = sweep_points(plan)
     to_run = [(n, sc) for n, _, _, sc, same in points if same is None]
@@ -119,14 +119,11 @@ def run_plan(plan: BenchPlan, progress: bool = True) -> dict[str, Any]:
     total = (_expected_episodes(plan, list(plan.runs.values()) + [plan.sweep] * len(to_run))
              + len(variants) * len(v_ctrls) * len(plan.variant_run.seeds))
     t0 = time.perf_counter()
-    with tqdm(total=total, unit="ep", disable=not progress, dynamic_ncols=True,
-              desc="building the model") as bar:
+    with Progress(total, "bench", unit="episodes", enabled=progress) as bar:
         def tick(line: str, n: int) -> None:
             head, _, tail = line.partition(":")
-            bar.set_description_str(" ".join(head.split()), refresh=False)
-            bar.set_postfix_str(tail.strip(), refresh=False)
-            if bar.n + n > bar.total:
-                bar.total = bar.n + n
+            bar.set_description(" ".join(head.split()))
+            bar.set_note(tail.strip())
             bar.update(n)
 
         main = _merge([_run_one(plan, ctrls, s, plan.scenario(s), plan.runs[s], tick,
@@ -137,7 +134,7 @@ def run_plan(plan: BenchPlan, progress: bool = True) -> dict[str, Any]:
         t2 = time.perf_counter()
         var = _merge([_run_one(plan, v_ctrls, n, sc, plan.variant_run, tick, False)
                       for n, _, _, sc in variants]) if variants else None
-        bar.total = bar.n
+        bar.set_total(bar.n)
     t3 = time.perf_counter()
     return {"main": main, "sweep": sweep, "variants": var,
             "sweep_points": [(n, d, v, same) for n, d, v, _, same in points],

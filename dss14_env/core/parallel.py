@@ -32,9 +32,14 @@ A task that raises stops the run: the executor cancels what has not started and 
 
 from __future__ import annotations
 
+import os
 import sys
 from collections.abc import Callable, Iterable, Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Protocol
+
+from dss14_env.core.counts import MAX_THREADS, check_count
 
 #: the command that installs the optional Ray dependency (the ``ray`` extra of the package)
 RAY_INSTALL = 'pip install -e ".[ray]"  (from a source checkout) or  pip install "dss14-env[ray]"'
@@ -78,9 +83,7 @@ class pinned_threads:
     """
 
     def __init__(self, n: int = 1, torch: bool | None = None) -> None:
-        if isinstance(n, bool) or not isinstance(n, int) or n < 1:
-            raise ValueError(f"threads: must be an integer >= 1, got {n!r}")
-        self.n = n
+        self.n = check_count(n, "threads", 1, MAX_THREADS)
         self.torch = torch
         self._limiter: Any = None
         self._torch_threads: int | None = None
@@ -181,33 +184,93 @@ class SerialExecutor:
 
 def check_ray_options(address: str | None = None, num_cpus: int | None = None,
                       cpus_per_task: int = 1) -> None:
-    """Check the options of a :class:`RayExecutor` without starting anything.
+    """Check the options of a :class:`RayExecutor` without starting anything (the cluster they
+    address, :func:`ray_target`, included).
 
     :raises ValueError: naming the bad option
     """
     if address is not None and (not isinstance(address, str) or not address.strip()):
         raise ValueError(f"--address: must be 'auto' or a Ray cluster address, got {address!r}")
-    if address is not None:
-        split_address(address)
+    target = ray_target(address)
+    if target.address is not None:
+        split_address(target.address, target.named_by)
     if num_cpus is not None:
-        if isinstance(num_cpus, bool) or not isinstance(num_cpus, int) or num_cpus < 1:
-            raise ValueError(f"--num-cpus: must be an integer >= 1, got {num_cpus!r}")
-        if address is not None:
-            raise ValueError("--num-cpus: sizes a local Ray; a cluster (--address) has its own CPUs")
-    if isinstance(cpus_per_task, bool) or not isinstance(cpus_per_task, int) or cpus_per_task < 1:
-        raise ValueError(f"cpus_per_task: must be an integer >= 1, got {cpus_per_task!r}")
+        check_count(num_cpus, "--num-cpus", 1, MAX_NUM_CPUS)
+        if target.address is not None:
+            raise ValueError(f"--num-cpus: sizes a local Ray; {target.named_by} names a cluster, "
+                             f"which has its own CPUs")
+    check_count(cpus_per_task, "cpus_per_task", 1, MAX_NUM_CPUS)
 
 
+#: most seconds the running tasks of an interrupted run get to stop on their own (a training saves
+#: its checkpoint at its next step; an evaluation in progress ends first)
+STOP_GRACE_S = 60.0
 #: seconds a cluster address has to answer before it is called unreachable
 PROBE_TIMEOUT_S = 10.0
 #: Ray's default ports: the cluster's GCS (``host:port``) and the client server (``ray://``)
 RAY_PORT, RAY_CLIENT_PORT = 6379, 10001
+#: most CPUs a local Ray may be given (``--num-cpus``)
+MAX_NUM_CPUS = 4096
+#: the environment variable that names the cluster ``ray.init`` joins when given no address or
+#: ``"auto"``, and the file (in Ray's temporary folder) where ``ray start`` records the cluster
+#: it started, which ``ray.init`` joins when given neither
+RAY_ADDRESS_VAR, RAY_CLUSTER_FILE = "RAY_ADDRESS", "ray_current_cluster"
 
 
-def split_address(address: str) -> tuple[str, int] | None:
+@dataclass(frozen=True)
+class RayTarget:
+    """The cluster a Ray started here joins, and what named it.
+
+    :param address: the cluster's address (None: a new local Ray; ``"auto"``: Ray's own search)
+    :param named_by: where the address comes from, for messages (``--address 10.0.0.1:6379``,
+        ``RAY_ADDRESS=... (environment variable)``, the file ``ray start`` wrote)
+    """
+
+    address: str | None
+    named_by: str
+
+    def describe(self) -> str:
+        """``Ray (local)``, or ``Ray at <address> (<what named it>)``."""
+        if self.address is None:
+            return "Ray (local)"
+        return f"Ray at {self.address}" + ("" if self.named_by.startswith("--address") else
+                                            f" (from {self.named_by})")
+
+
+def _ray_temp_dir() -> Path:
+    """Ray's temporary folder, as Ray finds it (``RAY_TMPDIR``, else ``TMPDIR``, else /tmp)."""
+    root = os.environ.get("RAY_TMPDIR") or os.environ.get("TMPDIR") or "/tmp"
+    return Path(root) / "ray"
+
+
+def ray_target(address: str | None) -> RayTarget:
+    """The cluster ``ray.init`` will join for ``address``, in Ray's own order: the
+    ``RAY_ADDRESS`` environment variable when ``address`` is None or ``"auto"``; else
+    ``address``; else (None or ``"auto"``) the cluster ``ray start`` recorded on this machine;
+    else None (a local Ray) or ``"auto"``.
+    """
+    env = os.environ.get(RAY_ADDRESS_VAR, "").strip()
+    asked = None if address is None else address.strip()
+    if env and asked in (None, "auto"):
+        return RayTarget(env, f"{RAY_ADDRESS_VAR}={env} (environment variable)")
+    if asked not in (None, "auto"):
+        return RayTarget(asked, f"--address {address}")
+    file = _ray_temp_dir() / RAY_CLUSTER_FILE
+    try:
+        with file.open("rb") as fh:
+            recorded = fh.read(1024).decode("utf-8", "replace").strip()
+    except OSError:
+        recorded = ""
+    if recorded:
+        return RayTarget(recorded, f"the cluster recorded in {file} by ray start ({recorded})")
+    return RayTarget(asked, "--address auto" if asked else "")
+
+
+def split_address(address: str, named_by: str = "--address") -> tuple[str, int] | None:
     """``(host, port)`` of a cluster address (``host``, ``host:port``, ``ray://host[:port]``),
     or None for ``"auto"`` (Ray finds the cluster itself).
 
+    :param named_by: what named the address, for the message
     :raises ValueError: a port that is not a number in 1-65535
     """
     a = address.strip()
@@ -220,19 +283,23 @@ def split_address(address: str) -> tuple[str, int] | None:
         host, port = a, str(RAY_CLIENT_PORT if client else RAY_PORT)
     host = host.strip("[]")
     if not port.isdigit() or not 1 <= int(port) <= 65535 or not host:
-        raise ValueError(f"--address: must be 'auto', host:port or ray://host:port, got {address!r}")
+        what = named_by.split(" ")[0].split("=")[0]
+        raise ValueError(f"{what}: must be 'auto', host:port or ray://host:port, got {address!r}")
     return host, int(port)
 
 
 def probe_address(address: str | None, timeout: float = PROBE_TIMEOUT_S) -> None:
-    """Check that something answers at a cluster address before Ray is asked to join it (Ray
-    itself retries for many minutes and then may name another address).
+    """Check that something answers at the cluster a Ray started here would join
+    (:func:`ray_target`: ``--address``, ``RAY_ADDRESS`` or the cluster ``ray start`` recorded)
+    before Ray is asked to join it (Ray itself retries for many minutes and then may name
+    another address).
 
-    :raises RuntimeError: one line naming the address given and why it cannot be reached
+    :raises RuntimeError: one line naming the address, what named it and why it cannot be reached
     """
     import socket
 
-    hp = None if address is None else split_address(address)
+    target = ray_target(address)
+    hp = None if target.address is None else split_address(target.address, target.named_by)
     if hp is None:
         return
     try:
@@ -241,9 +308,24 @@ def probe_address(address: str | None, timeout: float = PROBE_TIMEOUT_S) -> None
     except OSError as exc:
         why = (f"no answer within {timeout:g} s" if isinstance(exc, TimeoutError)
                else (exc.strerror or str(exc)))
-        raise RuntimeError(f"--address {address}: no Ray cluster can be reached at "
-                           f"{hp[0]}:{hp[1]} ({why}); start one there (ray start --head) or "
-                           f"give its address") from None
+        raise RuntimeError(f"{target.named_by}: no Ray cluster can be reached at "
+                           f"{hp[0]}:{hp[1]} ({why}); start one there (ray start --head), "
+                           f"give its address (--address), or unset {RAY_ADDRESS_VAR} for a "
+                           f"local Ray") from None
+
+
+def ray_preflight(address: str | None = None, num_cpus: int | None = None) -> RayTarget:
+    """Every check before Ray starts, whichever way the cluster is addressed: the options
+    (:func:`check_ray_options`), Ray installed (:func:`require_ray`) and the cluster answering
+    (:func:`probe_address`).
+
+    :return: the cluster Ray will join (:func:`ray_target`)
+    :raises ValueError, RayNotInstalledError, RuntimeError: one line each
+    """
+    check_ray_options(address, num_cpus)
+    require_ray()
+    probe_address(address)
+    return ray_target(address)
 
 
 class RayExecutor:
@@ -294,8 +376,9 @@ class RayExecutor:
                       labels: Sequence[str] | None = None) -> Iterator[tuple[int, Any]]:
         """Submit every item, then ``(index, result)`` as each task finishes.
 
-        A failed task cancels the others that have not finished and raises
-        :class:`TaskFailedError`; so does closing the iterator early (no task is left running).
+        A failed task stops the others that have not finished (:meth:`stop`) and raises
+        :class:`TaskFailedError`; so do closing the iterator early and an interruption (Ctrl-C,
+        SIGTERM): no task is left running.
         """
         ray = self._ray
         remote = ray.remote(num_cpus=self.cpus_per_task, max_retries=0)(call_pinned)
@@ -314,7 +397,26 @@ class RayExecutor:
                                               f"{cause}") from None
                     yield i, res
         finally:
-            for ref in pending:
+            self.stop(list(pending))
+
+    def stop(self, refs: Sequence[Any], grace_s: float | None = None) -> None:
+        """Stop the tasks ``refs``: first as Ctrl-C would (a KeyboardInterrupt in each, through
+        its SIGINT handler: a training saves a checkpoint where it stops,
+        :mod:`dss14_env.core.stop`), waiting up to ``grace_s`` (default :data:`STOP_GRACE_S`)
+        for them to end, then by force.  A second interruption while waiting ends them at once.
+        """
+        if not refs:
+            return
+        ray = self._ray
+        for ref in refs:
+            ray.cancel(ref, force=False)
+        try:
+            ray.wait(list(refs), num_returns=len(refs),
+                     timeout=STOP_GRACE_S if grace_s is None else grace_s)
+        except KeyboardInterrupt:
+            pass
+        finally:
+            for ref in refs:
                 ray.cancel(ref, force=True)
 
     def describe(self) -> dict[str, Any]:
@@ -353,7 +455,8 @@ def make_executor(ray: bool = False, address: str | None = None, num_cpus: int |
     return SerialExecutor(threads=threads, torch=torch)
 
 
-__all__ = ["PROBE_TIMEOUT_S", "RAY_CLIENT_PORT", "RAY_INSTALL", "RAY_PORT", "Executor",
-           "RayExecutor", "RayNotInstalledError", "SerialExecutor",
+__all__ = ["MAX_NUM_CPUS", "PROBE_TIMEOUT_S", "RAY_ADDRESS_VAR", "RAY_CLIENT_PORT", "RAY_CLUSTER_FILE",
+           "RAY_INSTALL", "RAY_PORT", "STOP_GRACE_S", "Executor", "RayTarget",
+           "RayExecutor", "RayNotInstalledError", "SerialExecutor", "ray_preflight", "ray_target",
            "TaskFailedError", "call_pinned", "check_ray_options", "make_executor", "pinned_threads",
            "probe_address", "require_ray", "split_address"]

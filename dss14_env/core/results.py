@@ -71,12 +71,14 @@ class ErrorStats:
 
     @classmethod
     def of(cls, x: Sequence[float] | np.ndarray) -> ErrorStats:
-        """The statistics of the samples ``x`` (NaN for none)."""
+        """The statistics of the samples ``x`` (NaN for none; the 3σ, a spread, NaN for fewer
+        than 2: one sample has no spread to measure, not a spread of 0).
+        """
         x = np.asarray(x, float)
         if x.size == 0:
             return cls(math.nan, math.nan, math.nan, math.nan)
-        return cls(float(3.0 * x.std()), float(np.sqrt(np.mean(x * x))), float(np.max(np.abs(x))),
-                   float(x.mean()))
+        spread = float(3.0 * x.std()) if x.size >= 2 else math.nan
+        return cls(spread, float(np.sqrt(np.mean(x * x))), float(np.max(np.abs(x))), float(x.mean()))
 
     def to_dict(self) -> dict[str, float]:
         return {"three_sigma": self.three_sigma, "rms": self.rms, "max": self.max, "mean": self.mean}

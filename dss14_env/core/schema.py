@@ -11,12 +11,13 @@ learning agents (``ppo*.yaml``) -- is a frozen dataclass whose fields carry a :c
     <file>: field '<name>': must be <what>, got <value>
 
 YAML syntax errors are reported the same way (``<file>: not valid YAML (line L, column C):
-...``); numbers may be written in scientific notation (``1e-3`` and ``1.29e6``, which plain
-YAML 1.1 reads as strings, are read as numbers, as YAML 1.2 does).  A number in quotes
+...``); numbers are YAML 1.2's (``1e-3`` and ``1.29e6``, which plain YAML 1.1 reads as
+strings, are numbers; ``010`` is ten, and ``1:30`` and ``1_000``, which YAML 1.1 reads as 90 and
+1000, are strings).  A number in quotes
 (``'256'``) is a string, and a string is never taken for a number: a field that wants a
 number refuses it like any other wrong type.  A file is at most :data:`MAX_CONFIG_BYTES`
 long and expands to at most :data:`MAX_YAML_NODES` values (aliases that repeat aliases, a
-"billion laughs", are refused at once, naming the file).
+"billion laughs", and an alias that contains itself are refused at once, naming the file).
 
 Two kinds of leaves:
 
@@ -459,61 +460,141 @@ class UniqueKeySafeLoader(yaml.SafeLoader):
         return super().construct_mapping(node, deep=deep)
 
 
-#: scientific notation without a dot or without an exponent sign (``1e-3``, ``1.29e6``): a
-#: float in YAML 1.2, a string in the YAML 1.1 of PyYAML
-_SCIENTIFIC = re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$")
-UniqueKeySafeLoader.add_implicit_resolver("tag:yaml.org,2002:float", _SCIENTIFIC,
-                                          list("-+0123456789"))
+#: YAML 1.2 core-schema integers and floats (https://yaml.org/spec/1.2.2/#1032-tag-resolution):
+#: PyYAML resolves YAML 1.1's, where ``1:30`` is the integer 90 (base 60), ``010`` is 8 (octal),
+#: ``1_000`` is 1000 and ``1e-3`` a string; here ``010`` is 10, ``1e-3`` a number, and ``1:30``
+#: and ``1_000`` are strings (which a number field refuses)
+_INT_TAG, _FLOAT_TAG = "tag:yaml.org,2002:int", "tag:yaml.org,2002:float"
+_YAML12_INT = re.compile(r"^(?:[-+]?[0-9]+|0o[0-7]+|0x[0-9a-fA-F]+)$")
+_YAML12_FLOAT = re.compile(r"^(?:[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)(?:[eE][-+]?[0-9]+)?"
+                           r"|[-+]?\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN))$")
+
+
+def _construct_yaml12_int(loader: yaml.SafeLoader, node: yaml.ScalarNode) -> int:
+    """The integer of a YAML 1.2 core-schema scalar (decimal, ``0o`` octal, ``0x`` hexadecimal)."""
+    text = loader.construct_scalar(node)
+    if text.startswith(("0o", "0x")):
+        return int(text[2:], 8 if text[1] == "o" else 16)
+    return int(text, 10)
+
+
+UniqueKeySafeLoader.yaml_implicit_resolvers = {
+    first: [(tag, rx) for tag, rx in resolvers if tag not in (_INT_TAG, _FLOAT_TAG)]
+    for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()}
+UniqueKeySafeLoader.add_implicit_resolver(_INT_TAG, _YAML12_INT, list("-+0123456789"))
+UniqueKeySafeLoader.add_implicit_resolver(_FLOAT_TAG, _YAML12_FLOAT, list("-+0123456789."))
+UniqueKeySafeLoader.add_constructor(_INT_TAG, _construct_yaml12_int)
+
+
+def _children(node: yaml.Node) -> list[yaml.Node]:
+    if isinstance(node, yaml.MappingNode):
+        return [x for pair in node.value for x in pair]
+    return list(node.value) if isinstance(node, yaml.SequenceNode) else []
 
 
 def _expanded_size(node: yaml.Node, source: str, limit: int = MAX_YAML_NODES) -> int:
-    """Number of values ``node`` stands for with every alias expanded (counted once per node
-    object, so a bomb is measured in linear time).
+    """Number of values ``node`` stands for with every alias expanded, each node visited once
+    (a bomb is measured in linear time).
 
-    :raises ConfigError: more than ``limit``
+    :raises ConfigError: more than ``limit``, or a node that contains itself (a recursive alias
+        such as ``a: &a [*a]``, which would expand without end)
     """
     sizes: dict[int, int] = {}
+    open_nodes: set[int] = set()  # the nodes whose children are being measured: the path here
     stack: list[tuple[yaml.Node, bool]] = [(node, False)]
     while stack:
         n, done = stack.pop()
-        if id(n) in sizes:
-            continue
-        if isinstance(n, yaml.ScalarNode):
-            sizes[id(n)] = 1
-            continue
-        kids = ([x for pair in n.value for x in pair] if isinstance(n, yaml.MappingNode)
-                else list(n.value))
         if done:
-            sizes[id(n)] = 1 + sum(sizes.get(id(k), 0) for k in kids)
+            open_nodes.discard(id(n))
+            sizes[id(n)] = 1 + sum(sizes[id(k)] for k in _children(n))
             if sizes[id(n)] > limit:
                 raise ConfigError(f"{source}: the YAML expands to more than {limit} values "
                                   f"(aliases that repeat aliases); refused")
             continue
+        if id(n) in sizes:
+            continue
+        if id(n) in open_nodes:
+            raise ConfigError(f"{source}: the YAML holds a value that contains itself (a recursive "
+                              f"alias, line {n.start_mark.line + 1}); refused")
+        open_nodes.add(id(n))
         stack.append((n, True))
-        stack.extend((k, False) for k in kids if id(k) not in sizes)
+        stack.extend((k, False) for k in _children(n) if id(k) not in sizes)
     return sizes[id(node)]
 
 
-def _load_yaml(text: str, source: str) -> Any:
-    """The YAML document of ``text`` (:class:`UniqueKeySafeLoader`), its alias expansion
-    bounded before any Python object is built.
+def load_yaml(text: str, source: str) -> Any:
+    """The YAML document of ``text`` (:class:`UniqueKeySafeLoader`: YAML 1.2 numbers, each key
+    once), its alias expansion bounded before any Python object is built: the one YAML reader
+    of every file the tools read.
+
+    :param source: the file, for messages
+    :raises ConfigError: ``<source>: ...`` for a YAML error (with line and column), a recursive
+        alias, an expansion past :data:`MAX_YAML_NODES` or nesting too deep
     """
-    loader = UniqueKeySafeLoader(text)
+    loader = None
     try:
+        loader = UniqueKeySafeLoader(text)
         node = loader.get_single_node()
         if node is None:
             return None
         _expanded_size(node, source)
         return loader.construct_document(node)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        at = f" (line {mark.line + 1}, column {mark.column + 1})" if mark is not None else ""
+        problem = " ".join(str(getattr(exc, "problem", None) or exc).split())
+        raise ConfigError(f"{source}: not valid YAML{at}: {problem}") from None
+    except RecursionError:
+        raise ConfigError(f"{source}: the YAML is nested too deeply") from None
     finally:
-        loader.dispose()
+        if loader is not None:
+            loader.dispose()
 
 
-def read_config(name_or_path: str | Path) -> tuple[dict[str, Any], str]:
+#: the kinds of configuration file: the top-level fields only that kind has (what tells one
+#: kind from another) and its shipped example
+CONFIG_KINDS: dict[str, tuple[frozenset[str], str]] = {
+    "model": (frozenset({"board", "hydraulics", "structure", "gearbox", "calibration", "reduction",
+                         "position_loop", "recalibrate_wind"}), "configs/model.yaml"),
+    "wind": (frozenset({"loads", "table4"}), "configs/wind.yaml"),
+    "controllers": (frozenset({"design", "lqg", "mpc", "pointing"}), "configs/controllers.yaml"),
+    "training": (frozenset({"algo", "env_id", "total_timesteps", "net_arch", "n_steps", "n_envs",
+                            "learning_rate", "batch_size", "sweep", "mixture"}), "configs/ppo.yaml"),
+    "environment": (frozenset({"dt", "scenario", "wind_speed_kmh", "wind_direction", "encoders",
+                               "reward", "randomize_params", "params", "max_error_deg"}),
+                    "configs/env.yaml"),
+}
+
+
+def check_config_kind(data: Mapping[str, Any], source: str, kind: str) -> None:
+    """Refuse a configuration of another kind than ``kind`` (:data:`CONFIG_KINDS`): a file
+    that has fields of another kind and none of its own.
+
+    :raises ConfigError: one line naming the file, the kind it is and the kind wanted
+    """
+    keys = set(map(str, data))
+    if keys & CONFIG_KINDS[kind][0]:
+        return
+    found = max(CONFIG_KINDS, key=lambda k: len(keys & CONFIG_KINDS[k][0]))
+    if keys & CONFIG_KINDS[found][0]:
+        shown = ", ".join(sorted(keys & CONFIG_KINDS[found][0])[:3])
+        raise ConfigError(f"{source}: is {_a(found)} configuration (fields {shown}), not {_a(kind)} "
+                          f"configuration; give {_a(kind)} configuration (like {CONFIG_KINDS[kind][1]})")
+
+
+def _a(word: str) -> str:
+    return f"{'an' if word[0] in 'aeiou' else 'a'} {word}"
+
+
+def read_config(name_or_path: str | Path, kind: str | None = None) -> tuple[dict[str, Any], str]:
     """Read a YAML configuration (a path or a shipped name, :func:`config_path`).
 
-    Parsed with ``yaml.safe_load``'s loader (no Python objects are ever built from a file),
-    refusing a key repeated in one mapping (:class:`UniqueKeySafeLoader`).
+    Parsed by :func:`load_yaml` (``yaml.safe_load``'s loader: no Python objects are ever built
+    from a file; YAML 1.2 numbers; a key repeated in one mapping, a recursive alias or an alias
+    bomb refused).
+
+    :param kind: the kind of configuration wanted (:data:`CONFIG_KINDS`; None: any): a file of
+        another kind is refused as such (:func:`check_config_kind`)
 
     :return: ``(mapping, source)``: the top-level mapping (empty for an empty file) and the
         file's path as a string, for messages
@@ -531,18 +612,12 @@ def read_config(name_or_path: str | Path) -> tuple[dict[str, Any], str]:
         text = raw.decode("utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{source}: cannot be read ({exc})") from None
-    try:
-        data = _load_yaml(text, source)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        at = f" (line {mark.line + 1}, column {mark.column + 1})" if mark is not None else ""
-        problem = getattr(exc, "problem", None) or str(exc)
-        raise ConfigError(f"{source}: not valid YAML{at}: {problem}") from None
-    except RecursionError:
-        raise ConfigError(f"{source}: the YAML is nested too deeply") from None
+    data = load_yaml(text, source)
     if data is None:
         data = {}
     if not isinstance(data, Mapping):
         raise ConfigError(f"{source}: top level must be a mapping of fields, got "
                           f"{type(data).__name__}")
+    if kind is not None:
+        check_config_kind(data, source, kind)
     return dict(data), source

@@ -13,11 +13,15 @@ from __future__ import annotations
 import re
 from collections.abc import Sequence
 
+from dss14_env.core.counts import MAX_SEED_VALUE, MAX_SEEDS
+
 
 def parse_seed_list(values: Sequence[str | int], option: str = "--seeds",
                     error: type[ValueError] = ValueError) -> list[int]:
     """Seeds from ``--seeds`` values: non-negative integers and ranges ``lo-hi`` (both ends
-    included), none repeated, at least one.
+    included), none repeated, at least one, at most :data:`~dss14_env.core.counts.MAX_SEEDS` in
+    all, each at most :data:`~dss14_env.core.counts.MAX_SEED_VALUE` (a range is measured before
+    it is built).
 
     :param values: the option's values (strings from the command line, or ints)
     :param option: the option's name, first in every message
@@ -32,11 +36,16 @@ def parse_seed_list(values: Sequence[str | int], option: str = "--seeds",
             lo, hi = int(m[1]), int(m[2])
             if hi < lo:
                 raise error(f"{option}: empty range {s!r}")
-            out += list(range(lo, hi + 1))
         elif re.fullmatch(r"\d+", s):
-            out.append(int(s))
+            lo = hi = int(s)
         else:
             raise error(f"{option}: expected seed indices (0 3 7) or a range (0-4), got {s!r}")
+        if hi > MAX_SEED_VALUE:
+            raise error(f"{option}: a seed is at most {MAX_SEED_VALUE}, got {s!r}")
+        if len(out) + hi - lo + 1 > MAX_SEEDS:
+            raise error(f"{option}: at most {MAX_SEEDS} seeds, got {s!r}"
+                        + (f" after {len(out)} others" if out else ""))
+        out += list(range(lo, hi + 1))
     if not out:
         raise error(f"{option}: no seed given")
     if len(set(out)) != len(out):

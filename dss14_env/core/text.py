@@ -10,9 +10,21 @@ r"""Small text helpers for the messages and reports, and the generated blocks of
 from __future__ import annotations
 
 import re
+import sys
 
 #: a generated block: its start marker (and newline), body and end marker
 _BLOCK = re.compile(r"(<!-- (?P<name>[\w-]+):start -->\n)(?P<body>.*?)(<!-- (?P=name):end -->)", re.S)
+
+
+def tolerant_output() -> None:
+    r"""Let stdout and stderr write any character their encoding lacks as an escape (``\u03c3``
+    for σ under ``PYTHONIOENCODING=ascii``) instead of raising ``UnicodeEncodeError`` -- a
+    ``ValueError`` that would turn a finished run into a reported error.
+    """
+    for stream in (sys.stdout, sys.stderr):
+        reconfigure = getattr(stream, "reconfigure", None)
+        if reconfigure is not None:
+            reconfigure(errors="backslashreplace")
 
 
 def counted(n: int, noun: str, plural: str | None = None) -> str:

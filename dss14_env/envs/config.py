@@ -82,6 +82,11 @@ ACCEL_MAX_DEG_S2 = 1.0e3
 #: (distance / rate, rate / acceleration) overflows
 SLEW_MIN = 1.0e-6
 
+#: largest wind direction, rad (two turns either way, as the direction grid's +-720 deg)
+WIND_DIRECTION_MAX_RAD = 4.0 * math.pi
+#: latest time of a step or slew in an episode, s (the longest period of the tracking scenario)
+EVENT_TIME_MAX_S = 1.0e7
+
 #: keys that ``reset(options=...)`` may change for one episode
 EPISODE_KEYS = frozenset({
     "scenario", "max_error_deg", "start_az_deg", "start_el_deg", "wind_speed_kmh",
@@ -122,10 +127,11 @@ class EnvConfig:
     start_el_range_deg: tuple = _pair("deg", 0.0, 90.0)
     wind_speed_kmh: float | str = spec("km/h", lo=0.0, hi=WIND_SPEED_MAX_KMH, choices=("random",))
     wind_speed_grid_kmh: tuple = spec("km/h", kind="list", lo=0.0, hi=WIND_SPEED_MAX_KMH)
-    wind_direction: float | str = spec("rad", choices=DIRECTION_CHOICES)
+    wind_direction: float | str = spec("rad", lo=-WIND_DIRECTION_MAX_RAD, hi=WIND_DIRECTION_MAX_RAD,
+                                       choices=DIRECTION_CHOICES)
     wind_direction_grid_deg: tuple = spec("deg", kind="list", lo=-720.0, hi=720.0)
     step_deg: float = spec("deg", lo=-360.0, hi=360.0)
-    step_time_s: float = spec("s", lo=0.0, lo_open=True)
+    step_time_s: float = spec("s", lo=0.0, lo_open=True, hi=EVENT_TIME_MAX_S)
     step_axes: str = spec(None, kind="str", choices=AXES_CHOICES)
     track_rate_max_deg_s: float = spec("deg/s", lo=0.0, hi=RATE_MAX_DEG_S)
     track_amp_max_deg: float = spec("deg", lo=0.0, hi=360.0)
@@ -133,7 +139,7 @@ class EnvConfig:
     slew_deg: float = spec("deg", lo=0.0, hi=720.0)
     slew_rate_deg_s: float = spec("deg/s", lo=SLEW_MIN, hi=RATE_MAX_DEG_S)
     slew_accel_deg_s2: float = spec("deg/s^2", lo=SLEW_MIN, hi=ACCEL_MAX_DEG_S2)
-    slew_time_s: float = spec("s", lo=0.0)
+    slew_time_s: float = spec("s", lo=0.0, hi=EVENT_TIME_MAX_S)
     slew_axes: str = spec(None, kind="str", choices=AXES_CHOICES)
     randomize_params: bool = spec(None, kind="bool")
     params: dict | None = spec(None, kind="mapping", optional=True, default=None)
@@ -315,7 +321,7 @@ def load_env_config(config: str | Path | Mapping[str, Any] | EnvConfig | None = 
         base = load_section(EnvConfig, data, source, defaults=False).checked(source)
         base = base._with_sources({}, data, source)
         if isinstance(config, (str, Path)):
-            data, source = read_config(config)
+            data, source = read_config(config, kind="environment")
             base = base.updated(data, source)
         elif config is not None:
             base = base.updated(config, "config mapping")

@@ -133,6 +133,9 @@ def check_snapshot(env: Any, state: Any, names: tuple[str, ...], riders: tuple =
     if len(state.riders) != len(riders):
         raise ValueError(f"state must hold the states of the {len(riders)} object(s) attached to this "
                          f"environment, got {len(state.riders)}")
+    for rider, rider_state in zip(riders, state.riders, strict=True):
+        if hasattr(rider, "check_state"):  # a rider that knows its own snapshots (a policy interface)
+            rider.check_state(rider_state)
 
 
 def restore(env: Any, state: EnvState, shared: tuple = (), riders: tuple = ()) -> dict[str, Any]:
@@ -276,6 +279,20 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
     (uniform over ``start_el_range_deg``) or an angle move the start elsewhere, e.g. next to a
     travel limit; the dynamics and the pointing outputs stay those of the model's elevation,
     and only the travel margins and the quantisation phase follow the start.
+
+    ## Keywords together
+
+    Each keyword has its range (``configs/env.yaml``); inside them every combination works,
+    but for these rules between keywords, each refused with one line naming the keyword and
+    the rule: ``start_az_deg`` and ``start_az_range_deg`` lie within ``az_wrap_centre_deg`` +-
+    ``az_wrap_half_range_deg``; ``start_el_deg`` and ``start_el_range_deg`` within
+    ``el_limits_deg``; the track's largest rate (``track_rate_max_deg_s`` + amplitude x 2 pi /
+    shortest period) within ``rate_limit_deg_s`` and its largest acceleration within
+    ``accel_limit_deg_s2``; ``slew_rate_deg_s`` <= ``rate_limit_deg_s`` and
+    ``slew_accel_deg_s2`` <= ``accel_limit_deg_s2`` (all when the environment is made); and
+    ``start_el_deg: model`` needs the model's elevation +-0.01 deg inside ``el_limits_deg``
+    (at the reset, whose options may change either key).  A hypothesis test draws every
+    keyword in its range together (``tests/test_env_keyword_ranges.py``).
 
     ## Episode end
 
@@ -614,7 +631,8 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         ``rider.get_state()`` and :meth:`set_state` calls ``rider.set_state(...)`` with it.  A
         wrapper that keeps state of its own (a base controller, an observation history) attaches
         it, so that ``env.unwrapped.get_state()`` / ``set_state`` restore what the wrapper shows
-        next, bit for bit.
+        next, bit for bit.  A rider with a ``check_state(state)`` method has its part of a
+        snapshot checked before anything changes (a snapshot of another wrapper is refused).
         """
         self._riders.append(rider)
 

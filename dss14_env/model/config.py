@@ -234,7 +234,7 @@ def load_model_config(path: str | Path | None = None) -> ModelConfig:
     :return: the configuration in SI units
     :raises ConfigError: naming the field and file of the first problem found
     """
-    data, source = read_config("model" if path is None else path)
+    data, source = read_config("model" if path is None else path, kind="model")
     data = _with_base(data, source)
     registry: dict[str, Param] = {}
     extra = set(data) - set(SECTIONS) - {"position_loop", "recalibrate_wind"}

@@ -36,6 +36,8 @@ import numpy as np
 import numpy.typing as npt
 from scipy import linalg, optimize, signal
 
+from dss14_env.core.outdir import atomic_save_figure
+
 __all__ = [
     "DAVENPORT_KAPPA",
     "DAVENPORT_LENGTH_M",
@@ -759,5 +761,5 @@ def plot_gust_psd(
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(loc="lower left", fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    atomic_save_figure(fig, path, dpi=120)
     return os.fspath(path)

@@ -95,7 +95,7 @@ def load_wind_config(path: str | Path | None = None) -> WindConfig:
     :param path: YAML file or shipped configuration name, default ``"wind"``
     :raises ConfigError: naming the field and the file
     """
-    data, source = read_config("wind" if path is None else path)
+    data, source = read_config("wind" if path is None else path, kind="wind")
     registry: dict[str, Param] = {}
     extra = set(data) - {"loads", "table4"}
     if extra:
