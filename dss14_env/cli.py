@@ -213,10 +213,8 @@ def _bench(args: argparse.Namespace) -> int:
         print(f"dss14 bench: warning: {note}", file=sys.stderr)
     print(plan.describe(), flush=True)
     res = bench(plan, progress=args.progress)
-    print("The dish's true pointing error, 3σ (mdeg), el / xel:")
-    print(res["pointing_table"])
-    print("The servo error at the drive encoders (the report's Table 4 quantity), 3σ (mdeg), az / el:")
-    print(res["main_table"])
+    print("The dish's true pointing error in the holds:")
+    print(res["headline"])
     print(f"results.json, results.md and {counted(len(res['figures']), 'figure')} written to "
           f"{plan.out} in {res['wall_time_s']:.1f} s")
     return 0

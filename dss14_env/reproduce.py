@@ -17,7 +17,7 @@ and ``metrics.md``:
 * ``calibrated``: the calibrated constants.
 
 :func:`failed_rows` names the rows outside their accepted range; ``dss14 reproduce`` exits 1
-when there is one.  :func:`doc_blocks` renders the tables that README.md, docs/model.md and
+when there is one.  :func:`doc_blocks` renders the tables that docs/model.md and
 docs/wind.md carry between ``<!-- NAME:start -->`` / ``<!-- NAME:end -->`` markers from a
 results file (the committed ``docs/results/reproduce_metrics.json``).
 """
@@ -660,7 +660,9 @@ def _ok(metrics: dict, keys: list[str]) -> str:
 
 
 def readme_table(results: dict) -> str:
-    """The README's summary of the reproduction, rendered from a results file."""
+    """The summary of the reproduction (docs/model.md section 8, and what ``dss14 reproduce``
+    prints), rendered from a results file.
+    """
     mt = results["metrics"]
     gs = ["kp1", "kp0.7"]
 
@@ -783,7 +785,7 @@ def bandwidth_rigid_markdown(results: dict) -> str:
 
 
 def doc_blocks(results: dict) -> dict[str, str]:
-    """Every generated block of README.md, docs/model.md and docs/wind.md, keyed by its marker
+    """Every generated block of docs/model.md and docs/wind.md, keyed by its marker
     name (``<!-- NAME:start -->`` ... ``<!-- NAME:end -->``).
     """
     return {"reproduce-table": readme_table(results), "reproduce-table4": table4_markdown(results),
@@ -980,7 +982,7 @@ def reproduce(out_dir: str | Path, model: DSS14Model | None = None, figures: boo
     :param progress: its stages on stderr (:class:`~dss14_env.core.progress.Progress`)
     :return: ``{"metrics", "results", "markdown", "figures", "failed", "table"}``: the metrics
         rows, the whole content of ``metrics.json``, the Markdown, the figure files,
-        :func:`failed_rows` and the README's labelled table (:func:`readme_table`)
+        :func:`failed_rows` and the labelled summary table (:func:`readme_table`)
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

@@ -1,4 +1,4 @@
-"""The pointing LQG's ratio to the PI at 30, 50 and 70 km/h, analytic, for docs/controllers.md.
+"""The pointing LQG's ratio to the PI at 30, 50 and 70 km/h, analytic, for docs/results/notes.md.
 
 ``lqg_pointing`` is designed for the gust model at the design speed (50 km/h,
 ``design.wind_speed``) whatever the episode's wind.  This script asks why its ratio to the PI
@@ -14,7 +14,7 @@ full-order model in front and side wind, for
   of 60 s per wind on seeds 1000-1015, which the bench does not use).
 
 The loops are linear: no limiter, no true quantisation, the mean torque known.  Writes the JSON
-and renders its table into docs/controllers.md (region ``pointing-wind-speed``)::
+and renders its table into docs/results/notes.md (region ``pointing-wind-speed``)::
 
     python scripts/pointing_wind_speed.py --json docs/results/pointing_wind_speed.json
     python scripts/pointing_wind_speed.py --render
@@ -34,7 +34,7 @@ from dss14_env.core.text import fill_blocks, find_blocks
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "docs" / "results" / "pointing_wind_speed.json"
-DOC = ROOT / "docs" / "controllers.md"
+DOC = ROOT / "docs" / "results" / "notes.md"
 BLOCK = "pointing-wind-speed"
 SPEEDS_KMH = (30.0, 50.0, 70.0)
 #: the loaded pointing axis per wind direction (index into [el, xel])

@@ -1,4 +1,4 @@
-"""Render the generated tables of README.md, docs/model.md and docs/wind.md.
+"""Render the generated tables of docs/model.md and docs/wind.md.
 
 The tables between ``<!-- NAME:start -->`` and ``<!-- NAME:end -->`` markers are rendered by
 :func:`dss14_env.reproduce.doc_blocks` from the committed results file
@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parents[1]
 from dss14_env.reproduce import doc_blocks, fill_blocks, find_blocks  # noqa: E402
 
 RESULTS = ROOT / "docs" / "results" / "reproduce_metrics.json"
-DOCUMENTS = [ROOT / "README.md", ROOT / "docs" / "model.md", ROOT / "docs" / "wind.md"]
+DOCUMENTS = [ROOT / "docs" / "model.md", ROOT / "docs" / "wind.md"]
 
 
 def main(argv: list[str] | None = None) -> int:

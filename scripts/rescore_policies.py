@@ -11,7 +11,7 @@ beat the PI before (interval of its ratio below 1), it no longer does on the shi
 
     python scripts/rescore_policies.py --before OLD.json   # -> docs/results/rl_rescore.json, render
     python scripts/rescore_policies.py --render            # render the committed file
-    python scripts/rescore_policies.py --check             # exit 1 if docs/rl.md differs
+    python scripts/rescore_policies.py --check             # exit 1 if docs/results/rl_results.md differs
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 AFTER = ROOT / "docs" / "results" / "bench_default.json"
 RESULTS = ROOT / "docs" / "results" / "rl_rescore.json"
-DOC = ROOT / "docs" / "rl.md"
+DOC = ROOT / "docs" / "results" / "rl_results.md"
 BLOCK = "rl-rescore"
 POLICIES = ("ppo_plain", "ppo_residual_lqg", "ppo_general")
 #: (scenario, quantity key of the ratio, axis): the loaded axis' pointing and servo error
@@ -80,7 +80,8 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--before", type=Path, help="results.json of the default bench on the trained drive")
     p.add_argument("--render", action="store_true", help="render the committed results only")
-    p.add_argument("--check", action="store_true", help="exit 1 if docs/rl.md is not the rendering")
+    p.add_argument("--check", action="store_true",
+                   help="exit 1 if docs/results/rl_results.md is not the rendering")
     a = p.parse_args(argv)
     if a.before is not None:
         res = compute(json.loads(a.before.read_text(encoding="utf-8")),

@@ -15,7 +15,7 @@ Three steps, each writing what the next reads::
     #    marked kept_from: servo error only, the trained runs of those campaigns are not kept)
     # 3. the shipped policies: each shipped agent's seed with the best validation score
     python scripts/rl_results.py ship --runs runs      # -> agents/policies/<name>/
-    # 4. the tables of README.md and docs/rl.md (rendered from the results file, never typed)
+    # 4. the tables of docs/results/rl_results.md (rendered from the results file, never typed)
     python scripts/rl_results.py render                # rewrite them
     python scripts/rl_results.py render --check        # exit 1 if a document is out of date
 
@@ -47,8 +47,7 @@ REFERENCES = ROOT / "docs" / "results" / "rl_references.json"
 SCENARIO_REFERENCES = ROOT / "docs" / "results" / "rl_scenario_references.json"
 FIGURES = ROOT / "docs" / "results" / "rl"
 #: the generated blocks and the documents that show them
-DOCUMENTS = {ROOT / "README.md": ("rl-table",),
-             ROOT / "docs" / "rl.md": ("rl-table", "rl-seeds", "rl-campaign")}
+DOCUMENTS = {ROOT / "docs" / "results" / "rl_results.md": ("rl-table", "rl-seeds", "rl-campaign")}
 #: the robustness campaign of the learned policies beside PI and LQG (``dss14 campaign``,
 #: :func:`dss14_env.bench.campaign_report.compact_results` of its results.json), and the command
 CAMPAIGN = ROOT / "docs" / "results" / "campaign_policies.json"
@@ -355,7 +354,7 @@ def ship(runs: Path, results_path: Path) -> None:
 
 
 def campaign_block(path: Path) -> str:
-    """The learned policies' robustness campaign for docs/rl.md: what ran, then the campaign's
+    """The learned policies' robustness campaign for docs/results/rl_results.md: what ran, then the campaign's
     own table (:func:`dss14_env.bench.campaign_report.main_table`)."""
     from dss14_env.bench.campaign_report import main_table
     from dss14_env.bench.plan import control_period
@@ -418,7 +417,7 @@ def main(argv: list[str] | None = None) -> int:
     s = sub.add_parser("ship", help="copy the shipped agents' chosen seeds to agents/policies")
     s.add_argument("--runs", type=Path, default=Path("runs"))
     s.add_argument("--results", type=Path, default=RESULTS)
-    d = sub.add_parser("render", help="the tables of README.md and docs/rl.md")
+    d = sub.add_parser("render", help="the tables of docs/results/rl_results.md")
     d.add_argument("--results", type=Path, default=RESULTS)
     d.add_argument("--check", action="store_true", help="only check; exit 1 if out of date")
     args = ap.parse_args(argv)

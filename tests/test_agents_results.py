@@ -1,5 +1,5 @@
 """The learned agents' results (agents/results.py, scripts/rl_results.py): the statistics, the
-committed results file against the shipped policies, and the README / docs/rl.md tables as its
+committed results file against the shipped policies, and the docs/results/rl_results.md tables as its
 rendering (nothing typed by hand)."""
 
 from __future__ import annotations

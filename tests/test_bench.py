@@ -459,15 +459,53 @@ def test_fallbacks_are_listed_per_episode() -> None:
 # ------------------------------------------------------------------ the README's table
 def _readme_region() -> str:
     text = (ROOT / "README.md").read_text()
-    m = re.search(r"<!-- bench-table:start -->\n(.*?)<!-- bench-table:end -->", text, re.S)
-    assert m, "README.md lacks the bench-table markers"
+    m = re.search(r"<!-- bench-headline:start -->\n(.*?)<!-- bench-headline:end -->", text, re.S)
+    assert m, "README.md lacks the bench-headline markers"
     return m.group(1)
 
 
-def test_readme_table_is_generated_from_the_committed_default_results() -> None:
+def test_readme_headline_is_generated_from_the_committed_default_results() -> None:
     results = json.loads(DEFAULT_RESULTS.read_text())
-    assert _readme_region() == R.readme_table(results), \
-        "README.md's bench table differs from docs/results/bench_default.json: run scripts/readme_tables.py"
+    assert _readme_region() == R.headline_table(results, "docs/results/bench_default.md"), \
+        "README.md's headline differs from docs/results/bench_default.json: run scripts/readme_tables.py"
+    full = (ROOT / "docs" / "results" / "bench_default.md").read_text()
+    assert full == R.results_markdown(results), \
+        "docs/results/bench_default.md differs from its results: run scripts/readme_tables.py"
+
+
+def test_headline_is_the_loaded_pointing_axis_of_each_hold(tiny) -> None:
+    """One row per controller: the hold's 3σ of the loaded pointing axis and its paired ratio to
+    the PI, as stored in results.json, then one legend line naming the full tables."""
+    js, head = tiny["json"], tiny["res"]["headline"]
+    table, legend = head.rstrip("\n").split("\n\n")
+    lines = table.split("\n")
+    assert lines[0] == "| controller | hold_side xel 3σ (mdeg) | ÷ pi_kp1 |"  # hold_front did not run
+    assert len(lines) == 2 + len(CTRLS) and "\n" not in legend
+    assert legend.endswith(f"full tables: {tiny['out'] / 'results.md'}.")
+    for c, line in zip(CTRLS, lines[2:], strict=True):
+        cell = js["summary"][c]["hold_side"]
+        ratio = "1" if c == "pi_kp1" else R.fmt_ratio(cell["vs_reference_pointing_error_mdeg"]["xel"])
+        assert line == f"| {c} | {R.fmt_ci(cell['pointing_error_mdeg']['xel']['three_sigma'])} | {ratio} |"
+
+
+def test_headline_of_the_default_run_shows_both_holds() -> None:
+    results = json.loads(DEFAULT_RESULTS.read_text())
+    head = R.headline_table(results)
+    assert head.startswith("| controller | hold_front el 3σ (mdeg) | ÷ pi_kp1 | hold_side xel 3σ (mdeg) "
+                           "| ÷ pi_kp1 |\n")
+    assert head.count("\n| ") == len(results["meta"]["controllers"])  # a row each, below the rule
+    assert "full tables: results.md." in head
+
+
+def test_cli_bench_prints_the_headline_not_the_large_tables(monkeypatch, capsys, tmp_path) -> None:
+    results = json.loads(DEFAULT_RESULTS.read_text())
+    head = R.headline_table(results, str(tmp_path / "results.md"))
+    fake = {"results": results, "headline": head, "pointing_table": R.pointing_table(results),
+            "main_table": R.main_table(results), "figures": [], "wall_time_s": 1.0}
+    monkeypatch.setattr(B, "bench", lambda plan, progress=True: fake)
+    assert cli.main(["bench", "--quick", "--no-progress", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert head in out and fake["pointing_table"] not in out and fake["main_table"] not in out
 
 
 def test_committed_results_are_a_default_run() -> None:
@@ -519,15 +557,29 @@ def test_pointing_is_the_headline(tiny) -> None:
 
 
 def test_readme_script_checks_and_writes(tmp_path) -> None:
-    readme = tmp_path / "README.md"
-    readme.write_text("intro\n<!-- bench-table:start -->\nSTALE-TABLE\n<!-- bench-table:end -->\nrest\n")
+    readme, full = tmp_path / "README.md", tmp_path / "bench_default.md"
+    readme.write_text("intro\n<!-- bench-headline:start -->\nSTALE-TABLE\n"
+                      "<!-- bench-headline:end -->\nrest\n")
     script = ROOT / "scripts" / "readme_tables.py"
-    cmd = [sys.executable, str(script), "--readme", str(readme), "--results", str(DEFAULT_RESULTS)]
+    cmd = [sys.executable, str(script), "--readme", str(readme), "--full-tables", str(full),
+           "--results", str(DEFAULT_RESULTS)]
     assert subprocess.run(cmd + ["--check"], capture_output=True).returncode == 1
+    assert not full.exists()
     assert subprocess.run(cmd, capture_output=True).returncode == 0
     assert subprocess.run(cmd + ["--check"], capture_output=True).returncode == 0
     text = readme.read_text()
     assert text.startswith("intro\n") and text.endswith("rest\n") and "STALE-TABLE" not in text
+    results = json.loads(DEFAULT_RESULTS.read_text())
+    assert full.read_text() == R.results_markdown(results)
+    full.write_text(full.read_text() + "typed by hand\n")
+    assert subprocess.run(cmd + ["--check"], capture_output=True).returncode == 1
+
+
+def test_readme_script_requires_the_headline_region(tmp_path) -> None:
+    readme = tmp_path / "README.md"
+    readme.write_text("no generated table here\n")
+    done = _script("readme_tables.py", "--check", "--readme", str(readme))
+    assert done.returncode == 2 and "bench-headline" in done.stderr
 
 
 # ------------------------------------------------------------------ the scripts

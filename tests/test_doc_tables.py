@@ -1,4 +1,4 @@
-"""The result tables in README.md, docs/model.md and docs/wind.md are the rendering of the
+"""The result tables in docs/model.md and docs/wind.md are the rendering of the
 committed ``docs/results/reproduce_metrics.json`` (nothing typed by hand).
 
 ``tests/test_reproduce.py::test_committed_results_match_the_code`` checks that the committed
@@ -18,9 +18,8 @@ from dss14_env.reproduce import doc_blocks, fill_blocks, find_blocks
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "docs" / "results" / "reproduce_metrics.json"
 EXPECTED_BLOCKS = {
-    "README.md": {"reproduce-table", "reproduce-table4"},
-    "docs/model.md": {"reproduce-loop-figures", "reproduce-poles", "reproduce-bandwidth-rigid",
-                      "reproduce-viscosity"},
+    "docs/model.md": {"reproduce-table", "reproduce-loop-figures", "reproduce-poles",
+                      "reproduce-bandwidth-rigid", "reproduce-viscosity"},
     "docs/wind.md": {"reproduce-wind-coefficients", "reproduce-wind-drive", "reproduce-table4"},
 }
 

@@ -34,6 +34,7 @@ from dss14_env.bench.report import (
     RESULT_FILES,
     assemble_results,
     fmt,
+    headline_table,
     load_average,
     main_table,
     package_versions,
@@ -88,8 +89,9 @@ def bench(plan: BenchPlan, progress: bool = True) -> dict[str, Any]:
     :param progress: show the progress bar
     :raises NothingScoredError: after writing the results, when a controller scored nothing
         (:func:`unscored_controllers`)
-    :return: ``results`` (results.json's content), ``pointing_table`` (the headline, the dish's
-        true pointing error, Markdown), ``main_table`` (the servo error, Markdown), ``markdown``
+    :return: ``results`` (results.json's content), ``headline`` (the compact headline table
+        with its legend, :func:`~dss14_env.bench.report.headline_table`), ``pointing_table``
+        (the dish's true pointing error, Markdown), ``main_table`` (the servo error, Markdown), ``markdown``
         (results.md), ``files`` (paths written), ``figures`` (names), ``wall_time_s``, and
         ``ran`` (:func:`dss14_env.bench.run.run_plan`'s output, with the time histories)
     """
@@ -120,7 +122,8 @@ def _bench_in(plan: BenchPlan, progress: bool) -> dict[str, Any]:
         raise NothingScoredError(f"{', '.join(unscored)}: scored nothing in any scenario (every "
                                  f"episode terminated, failed or left no 3σ to estimate); "
                                  f"{pm} shows what happened")
-    return {"results": results, "pointing_table": pointing_table(results), "main_table": main_table(results),
+    return {"results": results, "headline": headline_table(results, str(pm)),
+            "pointing_table": pointing_table(results), "main_table": main_table(results),
             "markdown": results_markdown(results), "files": [pj, pm] + [plan.out / f for f in figures],
             "figures": figures, "wall_time_s": wall, "ran": ran}
 

@@ -3,7 +3,8 @@
 :func:`assemble_results` turns :func:`dss14_env.bench.run.run_plan`'s output into results.json's
 content; :func:`results_markdown` renders results.md from it (and nothing else), so the tables
 can be regenerated from a results file at any time (``scripts/readme_tables.py`` renders the
-README's table from the committed default results).  Every figure is shown with its 95 %
+README's compact headline (:func:`headline_table`) and docs/results/bench_default.md from the
+committed default results).  Every figure is shown with its 95 %
 confidence interval as ``value ± half-width`` (:func:`fmt_ci`), ratios as ``value [low,
 high]`` with ``n.s.`` where the interval contains 1.
 
@@ -743,54 +744,40 @@ def results_markdown(results: Mapping[str, Any]) -> str:
     return "\n".join(parts)
 
 
-def readme_table(results: Mapping[str, Any]) -> str:
-    """The README's bench section tables: the dish's true pointing error (the headline) and
-    its ratios to the reference, the servo error at the encoders (the report's Table 4
-    quantity) and its ratios, and the step response of a default run, with a line on how it
-    was run.
+#: the scenarios of the compact headline table (:func:`headline_table`)
+HEADLINE_SCENARIOS = ("hold_front", "hold_side")
+#: the full tables of a run: where :func:`headline_table` points to
+FULL_TABLES = RESULT_FILES[1]
+
+
+def headline_table(results: Mapping[str, Any], full_tables: str = FULL_TABLES) -> str:
+    """The compact headline: per controller, the 3σ of the dish's true pointing error on the
+    axis the wind loads in each hold (hold_front: el, hold_side: xel) with its ratio to the
+    reference controller on the same seeds (paired 95 % CI), then a one-line legend naming
+    ``full_tables``, where the full tables are.  Holds the results lack are left out.
     """
-    b = results["bench"]
-    cfg = b["config"]
-    hold = cfg["runs"].get("hold_front") or next(iter(cfg["runs"].values()))
-    head = (f"The default run (`dss14 bench`; `docs/results/bench_default.json`): the batched "
-            f"controllers ran {len(hold['seeds'])} episodes of {hold['seconds']:g} s per hold "
-            f"scenario, the one-at-a-time ones {len(hold['sequential_seeds'])}; every figure is "
-            f"**value ± 95 % CI half-width** (bootstrap over episodes), the axis the wind loads in "
-            f"bold. {_timing(b)}.")
-    parts = [head, "", "**The dish's true pointing error**, 3σ in mdeg, `el / xel` (command minus "
-             "the structure's pointing angle, deformation included):", "", pointing_table(results), ""]
-    pr = pointing_ratio_table(results)
-    if pr:
-        parts += ["Pointing error over the report's PI on the same seeds (paired 95 % CI; n.s.: not "
-                  "significant, the interval contains 1):", "", pr, ""]
-    parts += ["**The servo error at the drive encoders**, 3σ in mdeg, `az / el` (the report's Table 4 "
-              "quantity and the model's calibration anchor):", "", main_table(results), ""]
-    rt = ratio_table(results)
-    if rt:
-        parts += ["Ratios of the loaded axis' 3σ servo error with their 95 % CI (n.s.: not "
-                  "significant, the interval contains 1):", "", rt, ""]
-    st = step_table(results)
-    if st:
-        parts += ["The 0.1° step (Fig. 21 scenario), 95 % CI:", "", st, ""]
-    vt = variant_tables(results)
-    if vt:
-        parts += ["**The drive/structure split**: the pointing error on the shipped model and on the soft "
-                  "and stiff drive variants (`hold_side@stiff`: the hold on the stiff variant; controllers "
-                  "designed on the shipped model; docs/model.md §7), 3σ in mdeg `el / xel`, and over the PI "
-                  "on the same seeds:", ""]
-        for t in vt:
-            parts += [t, ""]
-    return "\n".join(parts)
-
-
-def pointing_summary(results: Mapping[str, Any]) -> str:
-    """The headline alone (docs/bench.md): the pointing table and its ratios to the reference."""
-    parts = [pointing_table(results), ""]
-    pr = pointing_ratio_table(results)
-    if pr:
-        parts += ["Over the report's PI on the same seeds (paired 95 % CI; n.s.: the interval "
-                  "contains 1):", "", pr, ""]
-    return "\n".join(parts)
+    ref = results["meta"].get("reference")
+    cols = [(s, ax) for s in HEADLINE_SCENARIOS if s in results["meta"]["scenarios"]
+            for ax in loaded_axes(s, POINTING)]
+    header = ["controller"]
+    for s, ax in cols:
+        header += [f"{s} {ax} 3σ (mdeg)"] + ([f"÷ {ref}"] if ref else [])
+    rows = []
+    for c in results["meta"]["controllers"]:
+        r = [c]
+        for s, ax in cols:
+            x = _cell(results, c, s)
+            r.append(fmt_ci(summary_cell(x, POINTING, ax)))
+            if ref:
+                r.append("1" if c == ref and x is not None else
+                         fmt_ratio(ratio_cell(x, "vs_reference", ax, POINTING)))
+        rows.append(r)
+    legend = ("3σ of the dish's true pointing error on the axis the wind loads, value ± 95 % CI "
+              "half-width (bootstrap over episodes)"
+              + (f"; ÷ {ref}: the ratio to it on the same seeds [paired 95 % CI], below 1 is "
+                 "better, n.s.: the interval contains 1" if ref else "")
+              + f"; full tables: {full_tables}.")
+    return _table(header, rows) + "\n\n" + legend + "\n"
 
 
 def write_results(results: Mapping[str, Any], out: str | Path) -> tuple[Path, Path]:
@@ -806,8 +793,9 @@ def write_results(results: Mapping[str, Any], out: str | Path) -> tuple[Path, Pa
 
 
 __all__ = ["LEGEND", "RESULT_FILES", "assemble_results", "command_table", "episode_columns",
-           "episode_rows", "error_table", "fmt", "fmt_ci", "fmt_ratio", "loaded_axes", "main_table",
-           "package_versions", "pointing_ratio_table", "pointing_summary", "pointing_table",
+           "episode_rows", "error_table", "fmt", "fmt_ci", "fmt_ratio", "headline_table", "loaded_axes",
+           "main_table",
+           "package_versions", "pointing_ratio_table", "pointing_table",
            "three_sigma_table",
-           "precision_table", "ratio_table", "readme_table", "results_json", "results_markdown",
+           "precision_table", "ratio_table", "results_json", "results_markdown",
            "step_table", "sweep_tables", "wind_sweep_curves", "write_results"]
