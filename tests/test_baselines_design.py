@@ -145,12 +145,18 @@ def test_residualisation_keeps_the_dc_gain(order: int) -> None:
     assert dc[:, :2] == pytest.approx(full_rate_dc_gain(), rel=1e-8, abs=1e-12)
 
 
-@pytest.mark.parametrize("channel,band_limit", [("r_a->enc_az", 0.005), ("r_e->enc_el", 0.005),
-                                                ("Tw_az->enc_az", 0.02), ("Tw_el->enc_el", 0.12)])
-def test_configured_order_frequency_response_error(channel: str, band_limit: float) -> None:
+@pytest.mark.parametrize("channel,band_limit,peak_limit", [
+    ("r_a->enc_az", 0.005, 1e-3), ("r_e->enc_el", 0.005, 1e-3), ("Tw_az->enc_az", 0.02, 1e-3),
+    ("Tw_el->enc_el", 0.25, 5e-3)])
+def test_configured_order_frequency_response_error(channel: str, band_limit: float,
+                                                   peak_limit: float) -> None:
+    """Regression check of the reduction's accuracy at the configured order: Tw_el -> enc_el
+    is within 19 % in band on the shipped drive (10 % on the drive shipped before, whose more
+    compliant drive damped the el structure more; configs/controllers.yaml states both), and
+    within 0.3 % of its peak (0.1 % before)."""
     row = reduction_error([default_controllers_config().design.order])[0]
     assert row[channel]["rel_in_band"] < band_limit
-    assert row[channel]["rel_to_peak"] < 1e-3
+    assert row[channel]["rel_to_peak"] < peak_limit
 
 
 def test_lower_order_is_clearly_worse() -> None:

@@ -39,6 +39,9 @@ from dss14_env.model.linsys import freqresp
 
 #: frequency grid of the loop-gain analysis, Hz (above the el gearbox resonance at 20 Hz)
 F_GRID = np.geomspace(0.005, 40.0, 1600)
+#: the grid a candidate is checked on again before it is kept: 4x finer and to 60 Hz (a lightly
+#: damped resonance can peak between the search grid's points)
+F_CHECK = np.geomspace(0.005, 60.0, 8000)
 #: target crossovers searched, Hz
 CROSSOVERS_HZ = np.geomspace(0.05, 2.5, 64)
 #: lead phases searched, deg (0: a PI alone)
@@ -191,7 +194,16 @@ def lead_design(rate_loop: ct.StateSpace, axis: str, outputs: tuple[str, str], s
     cols = [rate_loop.input_labels.index(i) for i in inputs]
     plant = ct.ss(rate_loop.A, rate_loop.B[:, cols], np.diag(scale) @ rate_loop.C[rows], np.zeros((2, 2)))
     other = ct.tf([other_pi[0], other_pi[1]], [1.0, 0.0])
+    sc = 2j * np.pi * F_CHECK
+    gc = freqresp(rate_loop, F_CHECK, outputs[k], inputs[k]) * scale[k]
     for fcx, pm, ms, fc, phi, ratio, notches, gain in sorted(candidates, key=lambda x: -x[0]):
+        n = np.ones_like(sc)
+        for fn, zp in notches:
+            n = n * _notch(fn, zp, sc)
+        fcx, pm, ms = (float(x[0]) for x in _margins((gain * _factors(fc, phi, ratio, sc) * n * gc)[None, :],
+                                                      F_CHECK))
+        if not (pm >= pm_min and ms <= ms_max):
+            continue  # met the criteria on the search grid only
         c = gain * lead_tf(fc, phi, ratio, notches)
         if _closed_loop_abscissa(plant, [c, other] if k == 0 else [other, c]) < 0.0:
             return LeadDesign(axis, encoders, float(fcx), float(pm), float(ms), float(phi), float(ratio),
