@@ -301,6 +301,7 @@ def test_pi_step(metrics: dict, axis: str, gs: str) -> None:
     assert val(metrics, f"pi_settling_5pct_s_{axis}_{gs}") <= val(metrics, f"pi_settling_2pct_s_{axis}_{gs}")
 
 
+@pytest.mark.parametrize("axis,gs", [("el", "kp1"), ("az", "kp0.7"), ("el", "kp0.7")])
 def test_cross_coupling_not_calibrated(metrics: dict, axis: str, gs: str) -> None:
     """Fig. 22 "of the order 1e-3" for the rows the calibration does not set."""
     assert 1e-4 <= val(metrics, f"cross_coupling_{axis}_step_{gs}") <= 5e-3
