@@ -24,13 +24,14 @@ def _modules_with_examples() -> list[str]:
     return mods
 
 
-def test_doctest_collection_imports_no_torch() -> None:
+def test_doctest_collection_imports_no_torch(tmp_path: Path) -> None:
     mods = _modules_with_examples()
     assert "dss14_env.agents.config" in mods and "dss14_env.agents.vec_env" not in mods
     code = ("import importlib, sys\n"
             f"for m in {mods!r}: importlib.import_module(m)\n"
             "print(sorted(m for m in ('torch', 'stable_baselines3') if m in sys.modules))")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=300)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path,
+                         timeout=300)  # away from the source tree: the installed package is imported
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "[]", out.stdout
 
