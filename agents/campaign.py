@@ -65,6 +65,7 @@ from dss14_env.agents.policy import load_policy
 from dss14_env.agents.results import SCENARIO_COLUMNS, column_summary, column_values
 from dss14_env.agents.train import evaluation_ranks, last_checkpoint, train, validation_tasks
 from dss14_env.core.arrays import read_arrays
+from dss14_env.core.files import read_json, read_text
 from dss14_env.core.outdir import (
     atomic_save_figure,
     atomic_write_text,
@@ -76,7 +77,7 @@ from dss14_env.core.outdir import (
 )
 from dss14_env.core.parallel import Executor, SerialExecutor, pinned_threads
 from dss14_env.core.progress import eta_seconds, format_duration
-from dss14_env.core.schema import load_yaml
+from dss14_env.core.schema import MAX_CONFIG_BYTES, load_yaml
 from dss14_env.core.seeds import parse_seed_list
 from dss14_env.core.stats import iqm_ci
 from dss14_env.core.text import counted
@@ -159,8 +160,8 @@ def finished_run(cfg: TrainConfig, run: Path) -> bool:
     is ``cfg``.
     """
     try:
-        ts = json.loads((run / "train_summary.json").read_text())
-        saved = load_yaml((run / "config.yaml").read_text(), str(run / "config.yaml"))
+        ts = read_json(run / "train_summary.json")
+        saved = load_yaml(read_text(run / "config.yaml", MAX_CONFIG_BYTES), str(run / "config.yaml"))
     except (OSError, ValueError):
         return False
     return saved == _as_yaml_data(cfg) and int(ts.get("num_timesteps", -1)) >= cfg.total_timesteps
@@ -172,7 +173,7 @@ def check_saved_config(cfg: TrainConfig, folder: Path) -> None:
     :raises ValueError: no readable ``config.yaml``, or another configuration (``--resume``)
     """
     try:
-        saved = load_yaml((folder / "config.yaml").read_text(), str(folder / "config.yaml"))
+        saved = load_yaml(read_text(folder / "config.yaml", MAX_CONFIG_BYTES), str(folder / "config.yaml"))
     except (OSError, ValueError):
         raise ValueError(f"--resume: {folder} holds no campaign to continue (no readable "
                          f"config.yaml)") from None
@@ -205,8 +206,8 @@ def resumable_checkpoint(cfg: TrainConfig, run: Path) -> Path | None:
     trains anew).
     """
     try:
-        saved = yaml.safe_load((run / "config.yaml").read_text())
-    except (OSError, yaml.YAMLError):
+        saved = load_yaml(read_text(run / "config.yaml", MAX_CONFIG_BYTES), str(run / "config.yaml"))
+    except (OSError, ValueError):
         return None
     return last_checkpoint(run, before=cfg.total_timesteps) if saved == _as_yaml_data(cfg) else None
 
@@ -325,7 +326,7 @@ def train_one_seed(item: Mapping[str, Any]) -> dict[str, Any]:
                                  f"{seed_cfg.total_timesteps} steps")
               + f" into {run} (training seed {seed_cfg.seed})", file=sys.stderr, flush=True)
         run = train(seed_cfg, run_dir=run, resume=ckpt, progress=item.get("progress"))
-    ts = json.loads((run / "train_summary.json").read_text())
+    ts = read_json(run / "train_summary.json")
     entry: dict[str, Any] = {"seed_index": k, "training_seed": training_seed(cfg, k),
                              "run": run.name, "wall_s": ts["wall_s"],
                              "env_steps": ts["num_timesteps"]}

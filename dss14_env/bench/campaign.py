@@ -74,6 +74,7 @@ from dss14_env.bench.campaign_spec import (  # noqa: F401 - the options, re-expo
     parse_directions,
 )
 from dss14_env.bench.plan import parse_wind_speeds  # noqa: F401 - the option, re-exported
+from dss14_env.core.files import read_json
 from dss14_env.core.outdir import (
     OutputDirError,
     atomic_write_text,
@@ -183,7 +184,7 @@ def chunk_path(out: str | os.PathLike, i: int) -> Path:
 
 def _read_json(path: Path) -> Any:
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
+        return read_json(path)
     except (OSError, ValueError) as exc:
         raise CampaignFileError(f"{path}: cannot be read as JSON ({exc})") from None
 

@@ -61,6 +61,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from dss14_env.core.files import read_text
 from dss14_env.core.units import AXES, UNITS, si_unit, to_si
 
 #: the kinds of value a field can hold
@@ -604,13 +605,10 @@ def read_config(name_or_path: str | Path, kind: str | None = None) -> tuple[dict
     path = config_path(name_or_path)
     source = str(path)
     try:
-        with path.open("rb") as fh:
-            raw = fh.read(MAX_CONFIG_BYTES + 1)
-        if len(raw) > MAX_CONFIG_BYTES:
-            raise ConfigError(f"{source}: longer than {MAX_CONFIG_BYTES} bytes; not a "
-                              f"configuration file")
-        text = raw.decode("utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
+        text = read_text(path, MAX_CONFIG_BYTES, "configuration file")
+    except ValueError as exc:
+        raise ConfigError(str(exc)) from None
+    except OSError as exc:
         raise ConfigError(f"{source}: cannot be read ({exc})") from None
     data = load_yaml(text, source)
     if data is None:
