@@ -36,7 +36,10 @@ an oracle of the wind) is told the episode's wind from the reset info.
   (steps the limiter clipped the rate or its change), ``controller_time_ms`` (``median``,
   ``p95``, ``max`` wall time of one decision: one ``act()``, or one ``act_batch()`` divided by
   its rows), ``step`` (scenarios with a command step: ``overshoot_pct``, ``settling_time_s``
-  into the 2 % band);
+  into the 2 % band); ``smoothness`` (:mod:`dss14_env.core.smoothness`, over the whole
+  episode): ``accel_limit_hits_pct``, the periods the limiter clipped the command's change in %
+  of the periods run, and ``command_change_hf_pct`` per axis, the share of the variance of the
+  rate command's first difference above 5 Hz, %;
 * health: ``terminated``, ``failures`` (the controller raised; the episode ends there),
   ``fallbacks`` (MPC solves replaced by the fallback law, ``info["n_fallbacks"]``) and
   ``fallback_log`` (the solver status of each fallback, ``info["fallbacks"]``, when the
@@ -54,6 +57,7 @@ import numpy as np
 
 from dss14_env.baselines.base import Controller
 from dss14_env.core.results import POINTING_AXES, EpisodeFigures, ErrorStats
+from dss14_env.core.smoothness import high_frequency_share, limit_hit_pct
 from dss14_env.core.units import AXES
 from dss14_env.envs.core import OBS
 from dss14_env.envs.scenarios import axes_mask
@@ -125,7 +129,10 @@ def episode_figures(rec: Mapping[str, np.ndarray], dt: float, warmup_s: float,
         cost_per_step=float(np.mean(rec["cost"][w])) if np.any(w) else math.nan,
         rate_command_deg_s=rate, limits=dict(limits),
         limit_hits={"rate": int(rec["hits"][:, 0].sum()), "accel": int(rec["hits"][:, 1].sum())},
-        controller_time_ms=times, step=step_fig)
+        controller_time_ms=times, step=step_fig,
+        smoothness={"accel_limit_hits_pct": limit_hit_pct(rec["hits"][:, 1]),
+                    "command_change_hf_pct": {ax: 100.0 * high_frequency_share(rec["r"][:, i], dt)
+                                              for i, ax in enumerate(AXES)}})
 
 
 # ------------------------------------------------------------------------- controllers

@@ -296,6 +296,29 @@ def test_intervals_recomputed_from_the_stored_episodes(tiny) -> None:
                 assert a["ci95"] == pytest.approx(b["ci95"], rel=1e-3)
 
 
+def test_smoothness_of_every_controller_with_its_interval(tiny) -> None:
+    """Acceleration-limit hits (% of steps) and the command change's share above 5 Hz (per
+    axis) for every controller and scenario: the mean over the stored episodes with its
+    interval, and both tables in results.md."""
+    js = tiny["json"]
+    rows = R.episode_rows(js["episodes"])
+    for c in CTRLS:
+        for s in SCENS:
+            sm = js["summary"][c][s]["smoothness"]
+            eps = [ep for ep in rows if ep["controller"] == c and ep["scenario"] == s]
+            hits = [ep["smoothness"]["accel_limit_hits_pct"] for ep in eps]
+            assert sm["accel_limit_hits_pct"]["value"] == pytest.approx(np.mean(hits), rel=1e-5, abs=1e-9)
+            total = sum(ep["limit_hits"]["accel"] for ep in eps)
+            assert np.mean(hits) == pytest.approx(100 * total / (len(eps) * STEPS), rel=1e-5)
+            for ax in ("az", "el"):
+                cell = sm["command_change_hf_pct"][ax]
+                assert 0 <= cell["value"] <= 100 and cell["n_episodes"] == len(eps)
+                if len(eps) > 1:
+                    assert cell["ci95"][0] <= cell["value"] <= cell["ci95"][1]
+    md = tiny["res"]["markdown"]
+    assert "| accel-limit hits (% of steps) |" in md and "| command change above 5 Hz az / el (%) |" in md
+
+
 def test_results_json_records_the_run(tiny) -> None:
     js = tiny["json"]
     b = js["bench"]

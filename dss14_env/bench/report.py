@@ -20,7 +20,7 @@ import json
 import math
 import os
 import platform
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
@@ -78,7 +78,7 @@ def load_average() -> list[float] | None:
 #: per-episode entries stored as one column per leaf (``servo_error_mdeg.az.three_sigma``);
 #: any other entry is one column of its own (e.g. ``fallback_log``, a list per episode)
 _NESTED = ("servo_error_mdeg", "pointing_error_mdeg", "rate_command_deg_s", "limit_hits",
-           "controller_time_ms", "step")
+           "controller_time_ms", "step", "smoothness")
 
 
 def _flat(ep: Mapping[str, Any]) -> dict[str, Any]:
@@ -538,6 +538,30 @@ def step_table(results: Mapping[str, Any], scenario: str = "step") -> str | None
     return _table(header, rows)
 
 
+def smoothness_tables(results: Mapping[str, Any]) -> list[str]:
+    """The command's smoothness per controller and scenario (:mod:`dss14_env.core.smoothness`):
+    acceleration-limit hits in % of the periods, then the share of the command change's
+    variance above 5 Hz (%), az / el; empty when the results hold neither.
+    """
+    ctrls, scens = results["meta"]["controllers"], results["meta"]["scenarios"]
+    if not any("smoothness" in x for _, _, x in _cells(results)):
+        return []
+
+    def table(first: str, cell: Callable[[Mapping[str, Any]], str]) -> str:
+        rows = []
+        for c in ctrls:
+            r = [c]
+            for s in scens:
+                sm = (_cell(results, c, s) or {}).get("smoothness")
+                r.append("—" if sm is None else cell(sm))
+            rows.append(r)
+        return _table([first] + list(scens), rows)
+
+    return [table("accel-limit hits (% of steps)", lambda sm: fmt_ci(sm["accel_limit_hits_pct"])),
+            table("command change above 5 Hz az / el (%)",
+                  lambda sm: " / ".join(fmt_ci(sm["command_change_hf_pct"][ax]) for ax in AXES))]
+
+
 def sweep_tables(results: Mapping[str, Any]) -> list[str]:
     """One table per sweep direction: the wind's axis' 3σ per controller and speed."""
     sw = results.get("wind_sweep")
@@ -668,6 +692,11 @@ LEGEND = """\
   the 2 % band (s from the step; ∞: not settled; median over episodes).  **slew**: 5° on both
   axes in 30 km/h wind; its 3σ and peak measure the commanded move.  **track**: slow
   sinusoidal track in a random 30–70 km/h wind and direction (wide intervals by design).
+* **smoothness**: **accel-limit hits (%)** is the share of an episode's steps in which the
+  limiter clipped the change of the rate command; **command change above 5 Hz (%)** is, per
+  axis, the share of the variance of the rate command's first difference above 5 Hz (Welch
+  power spectral density; white noise gives 80 % at the 50-Hz control rate, a slow command
+  about 0); both over the whole episode, means over the episodes.
 * **limit hits**: steps where the environment's limiter clipped the rate or its change
   (0.25 °/s, 0.2 °/s²).  **decision time**: wall time of one control decision (a batched
   controller's batch call divided by its rows), median over episodes.  **fallbacks**: MPC
@@ -712,6 +741,12 @@ def results_markdown(results: Mapping[str, Any]) -> str:
                      ("## Step response (Fig. 21 scenario)", step_table(results))):
         if t:
             parts += [title, "", t, ""]
+    sm = smoothness_tables(results)
+    if sm:
+        parts += ["## Command smoothness: acceleration-limit hits and the command change's variance "
+                  "above 5 Hz, 95 % confidence intervals (dss14_env/core/smoothness.py)", ""]
+        for t in sm:
+            parts += [t, ""]
     sw = sweep_tables(results)
     if sw:
         s = results["wind_sweep"]
@@ -798,4 +833,4 @@ __all__ = ["LEGEND", "RESULT_FILES", "assemble_results", "command_table", "episo
            "package_versions", "pointing_ratio_table", "pointing_table",
            "three_sigma_table",
            "precision_table", "ratio_table", "results_json", "results_markdown",
-           "step_table", "sweep_tables", "wind_sweep_curves", "write_results"]
+           "step_table", "smoothness_tables", "sweep_tables", "wind_sweep_curves", "write_results"]
