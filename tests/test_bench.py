@@ -246,9 +246,10 @@ def tiny(tmp_path_factory) -> dict:
             "json": json.loads((out / "results.json").read_text())}
 
 
-def _comparable(summary: dict) -> dict:
-    """A runner summary without the wall-clock figures."""
-    return {k: v for k, v in summary.items() if k != "controller_time_ms"}
+def _comparable(summary: dict) -> str:
+    """A runner summary without the wall-clock figures, as JSON (NaN, e.g. a move not settled
+    within the episode, equal to NaN)."""
+    return json.dumps({k: v for k, v in summary.items() if k != "controller_time_ms"}, sort_keys=True)
 
 
 def test_results_json_matches_the_runner(tiny) -> None:
@@ -362,7 +363,12 @@ def test_results_md(tiny) -> None:
     assert tiny["res"]["main_table"] in md and "## How to read it" in md
     for c in CTRLS:
         assert f"| {c} |" in md
-    assert "yardstick (analytic)" in md and "Step response" in md and "side wind, 3σ az" in md
+    assert "yardstick (analytic)" in md and "## Commanded move: step" in md and "side wind, 3σ az" in md
+    # the commanded move is scored by its response, not by the 3σ of the move itself
+    assert "| step az / el" not in md and "| step el / xel" not in md
+    step = tiny["json"]["summary"]["pi_kp1"]["step"]["step"]
+    assert {"overshoot_pct", "settling_time_s", "peak_error_mdeg", "settled_rms_mdeg"} <= set(step["az"])
+    assert R.fmt_ci(step["az"]["settled_rms_mdeg"]) in md
     assert "hold_side az ÷ pi_kp1" in md and "Precision of the hold figures" in md
     pi = tiny["json"]["summary"]["pi_kp1"]["hold_side"]["servo_error_mdeg"]["az"]["three_sigma"]
     assert R.fmt_ci(pi) in md and " ± " in R.fmt_ci(pi)

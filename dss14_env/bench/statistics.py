@@ -45,7 +45,8 @@ N_RESAMPLES = stats.N_RESAMPLES
 #: how each per-episode metric is pooled over episodes (:data:`dss14_env.core.stats.POOLINGS`)
 ERROR_POOLING = {"three_sigma": "rms", "rms": "rms", "max": "mean", "mean": "mean"}
 RATE_POOLING = {"rms": "rms", "peak": "mean", "peak_accel_deg_s2": "mean"}
-STEP_POOLING = {"overshoot_pct": "mean", "settling_time_s": "median"}
+STEP_POOLING = {"overshoot_pct": "mean", "settling_time_s": "median", "peak_error_mdeg": "mean",
+                "settled_rms_mdeg": "rms"}
 TIME_POOLING = {"median": "median", "p95": "median", "max": "median"}
 
 # ------------------------------------------------------------------------- summaries
