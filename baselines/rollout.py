@@ -62,6 +62,10 @@ from dss14_env.core.smoothness import high_frequency_share, limit_hit_pct
 from dss14_env.core.units import AXES
 from dss14_env.envs.core import OBS
 
+#: the environment's scenario kinds (``scenario``) whose command is one move, scored by its
+#: response when :func:`run_rows` is not told otherwise
+MOVE_SCENARIOS = ("step", "slew")
+
 
 def step_response(t: np.ndarray, theta: np.ndarray, size: float, t_step: float,
                   band: float = 0.02) -> dict[str, float]:
@@ -100,7 +104,8 @@ def move_response(t: np.ndarray, e: np.ndarray, c: np.ndarray, p: np.ndarray, sc
     the servo error's rms (mean included) after settling (NaN: not settled, or no sample left).
     Under ``pointing``, per pointing axis (el, xel): ``peak_error_mdeg`` and
     ``settled_rms_mdeg`` of the dish's pointing error, after the last moved axis settled.
-    Empty when the command did not move (e.g. the episode ended before the step).
+    Empty when the command did not move (e.g. the episode ended before the step); overshoot,
+    settling and the rms after settling NaN when it still moved at the episode's end.
 
     :param t: times, s
     :param e: true servo errors (n, 2), mdeg
@@ -117,7 +122,10 @@ def move_response(t: np.ndarray, e: np.ndarray, c: np.ndarray, p: np.ndarray, sc
         if size == 0.0 or changed.size == 0:
             continue
         t_end = float(t[changed[-1] + 1])
-        r = step_response(t, c[:, i] * 1e3 - e[:, i] - c[0, i] * 1e3, size, t_end, band)
+        if changed[-1] + 2 == len(t):  # still moving at the episode's end: nothing settled
+            r = {"overshoot_pct": math.nan, "settling_time_s": math.nan}
+        else:
+            r = step_response(t, c[:, i] * 1e3 - e[:, i] - c[0, i] * 1e3, size, t_end, band)
         settle = t_end + r["settling_time_s"]
         after = t >= settle
         r["peak_error_mdeg"] = float(np.max(np.abs(e[scored, i]))) if np.any(scored) else math.nan
@@ -270,8 +278,9 @@ def run_rows(driver: Any, env: Any, seeds: Sequence[int], steps: int, warmup_s: 
     :param record: keep the first row's time histories under ``"trace"``
     :param reseed: reset the environment with ``seeds`` (default); False continues its
         generators (the next episodes after a seeded reset; ``seeds`` then only label the rows)
-    :param move: score the response to the commanded move (:func:`move_response`: a scenario
-        whose command moves, e.g. the bench's ``move`` group); None: in the step scenario
+    :param move: score the response to the commanded move (:func:`move_response`; the bench
+        passes its catalog's ``move`` group); None: in the environment's scenario kinds of
+        :data:`MOVE_SCENARIOS`
     :return: one :func:`episode_metrics` dict per seed, with ``seed``, ``terminated``,
         ``failures``, ``failure``, ``fallbacks`` (and ``fallback_log``), the episode's wind
         and ``batch_rows``
@@ -330,7 +339,7 @@ def run_rows(driver: Any, env: Any, seeds: Sequence[int], steps: int, warmup_s: 
             if not alive.any():
                 break
     rows = driver.row_info(n)
-    move = cfg.scenario == "step" if move is None else bool(move)
+    move = cfg.scenario in MOVE_SCENARIOS if move is None else bool(move)
     limits = {"rate_deg_s": cfg.rate_limit_deg_s, "accel_deg_s2": cfg.accel_limit_deg_s2}
     out = []
     for i, seed in enumerate(seeds):
@@ -358,6 +367,5 @@ def run_episode(ctrl: Controller, env: Any, seed: int, steps: int, warmup_s: flo
 
 
 
-__all__ = ["BatchDriver", "SequentialDriver", "batch_driver", "episode_figures", "episode_metrics",
-           "run_episode",
-           "move_response", "run_rows", "step_response"]
+__all__ = ["BatchDriver", "MOVE_SCENARIOS", "SequentialDriver", "batch_driver", "episode_figures",
+           "episode_metrics", "move_response", "run_episode", "run_rows", "step_response"]

@@ -148,6 +148,15 @@ def test_move_response_of_a_ramp_with_a_known_tail() -> None:
     assert r["pointing"]["el"]["settled_rms_mdeg"] == pytest.approx(r["az"]["settled_rms_mdeg"], rel=1e-9)
 
 
+def test_a_move_unfinished_at_the_end_has_no_settling() -> None:
+    t = (np.arange(500) + 1) * 0.02
+    c, e = _ramp_move(t, 1.0, 21.0, 5.0, 0.1, 2.0)
+    r = move_response(t, np.column_stack([e, e]), np.column_stack([c, 0 * c]), np.column_stack([e, e]),
+                      np.ones(t.size, bool))
+    assert set(r) == {"az", "pointing"} and r["az"]["peak_error_mdeg"] == pytest.approx(25.0, rel=1e-6)
+    assert all(math.isnan(r["az"][k]) for k in ("overshoot_pct", "settling_time_s", "settled_rms_mdeg"))
+
+
 def test_move_response_without_a_move_is_empty() -> None:
     t = (np.arange(100) + 1) * 0.02
     z = np.zeros((100, 2))
