@@ -116,9 +116,9 @@ def run_grid(controllers: Sequence[str | ControllerRow] = CONTROLLERS, episodes:
     check_options(episodes, seconds)
     pts = grid_points()
     scens = [(n, grid_scenario(d, v, seconds)) for n, d, v in pts]
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     res = runner.run(list(controllers), scens, range(episodes), progress=progress)
-    wall = time.perf_counter() - t0
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     key = "vs_reference_pointing_error_mdeg"
     summary = {c: {s: {POINTING: {ax: cell[POINTING][ax]["three_sigma"] for ax in POINTING_AXES},
                        **({key: cell[key]} if key in cell else {})}
@@ -126,7 +126,8 @@ def run_grid(controllers: Sequence[str | ControllerRow] = CONTROLLERS, episodes:
     return {"grid": {"command": command, "directions_deg": list(DIRECTIONS_DEG), "speed_kmh": SPEED_KMH,
                      "other_speeds_kmh": list(OTHER_SPEEDS_KMH),
                      "other_speed_directions_deg": list(SPEED_DIRECTIONS_DEG), "episodes": episodes,
-                     "seconds": seconds, "warmup_s": SWEEP_WARMUP_S, "wall_time_s": wall},
+                     "seconds": seconds, "warmup_s": SWEEP_WARMUP_S, "wall_time_s": wall,
+                     "cpu_time_s": cpu},
             "versions": package_versions(),
             "meta": {k: res["meta"][k] for k in ("controllers", "scenarios", "seeds", "sequential_seeds",
                                                    "batched", "reference", "statistics")},
