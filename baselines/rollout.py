@@ -35,8 +35,12 @@ an oracle of the wind) is told the episode's wind from the reset info.
   and largest change per second ``peak_accel_deg_s2`` of the applied command), ``limit_hits``
   (steps the limiter clipped the rate or its change), ``controller_time_ms`` (``median``,
   ``p95``, ``max`` wall time of one decision: one ``act()``, or one ``act_batch()`` divided by
-  its rows), ``step`` (scenarios with a command step: ``overshoot_pct``, ``settling_time_s``
-  into the 2 % band);
+  its rows), ``step`` (scenarios with a commanded move, a step or a slew:
+  :func:`move_response`'s overshoot, settling into the 2 % band, peak error and rms after
+  settling); ``smoothness`` (:mod:`dss14_env.core.smoothness`, over the whole
+  episode): ``accel_limit_hits_pct``, the periods the limiter clipped the command's change in %
+  of the periods run, and ``command_change_hf_pct`` per axis, the share of the variance of the
+  rate command's first difference above 5 Hz, %;
 * health: ``terminated``, ``failures`` (the controller raised; the episode ends there),
   ``fallbacks`` (MPC solves replaced by the fallback law, ``info["n_fallbacks"]``) and
   ``fallback_log`` (the solver status of each fallback, ``info["fallbacks"]``, when the
@@ -54,9 +58,13 @@ import numpy as np
 
 from dss14_env.baselines.base import Controller
 from dss14_env.core.results import POINTING_AXES, EpisodeFigures, ErrorStats
+from dss14_env.core.smoothness import high_frequency_share, limit_hit_pct
 from dss14_env.core.units import AXES
 from dss14_env.envs.core import OBS
-from dss14_env.envs.scenarios import axes_mask
+
+#: the environment's scenario kinds (``scenario``) whose command is one move, scored by its
+#: response when :func:`run_rows` is not told otherwise
+MOVE_SCENARIOS = ("step", "slew")
 
 
 def step_response(t: np.ndarray, theta: np.ndarray, size: float, t_step: float,
@@ -83,24 +91,76 @@ def step_response(t: np.ndarray, theta: np.ndarray, size: float, t_step: float,
     return {"overshoot_pct": over, "settling_time_s": settle}
 
 
-def episode_metrics(rec: Mapping[str, np.ndarray], dt: float, warmup_s: float,
-                    step: Mapping[str, Any] | None, limits: Mapping[str, float]) -> dict[str, Any]:
+def move_response(t: np.ndarray, e: np.ndarray, c: np.ndarray, p: np.ndarray, scored: np.ndarray,
+                  band: float = 0.02) -> dict[str, Any]:
+    """The response to the commanded move of an episode (a step or a slew): the move of each
+    axis is the command's change from the first to the last sample, ending at the command's
+    last change.
+
+    Per moved axis (az, el): ``overshoot_pct``, the largest excursion past the target after the
+    move's end in % of the move; ``settling_time_s``, from the move's end until the servo error
+    stays within ``band`` of the move (``inf``: not settled at the end; 0: never outside);
+    ``peak_error_mdeg``, the largest |servo error| in the scored window; ``settled_rms_mdeg``,
+    the servo error's rms (mean included) after settling (NaN: not settled, or no sample left).
+    Under ``pointing``, per pointing axis (el, xel): ``peak_error_mdeg`` and
+    ``settled_rms_mdeg`` of the dish's pointing error, after the last moved axis settled.
+    Empty when the command did not move (e.g. the episode ended before the step); overshoot,
+    settling and the rms after settling NaN when it still moved at the episode's end.
+
+    :param t: times, s
+    :param e: true servo errors (n, 2), mdeg
+    :param c: commands (n, 2), deg
+    :param p: pointing errors (n, 2), mdeg
+    :param scored: the samples after the warm-up (n,)
+    :param band: the settling band, a share of the move
+    """
+    out: dict[str, Any] = {}
+    settled_at: list[float] = []
+    for i, ax in enumerate(AXES):
+        size = float(c[-1, i] - c[0, i]) * 1e3 if len(c) else 0.0  # mdeg
+        changed = np.nonzero(np.diff(c[:, i]))[0]
+        if size == 0.0 or changed.size == 0:
+            continue
+        t_end = float(t[changed[-1] + 1])
+        if changed[-1] + 2 == len(t):  # still moving at the episode's end: nothing settled
+            r = {"overshoot_pct": math.nan, "settling_time_s": math.nan}
+        else:
+            r = step_response(t, c[:, i] * 1e3 - e[:, i] - c[0, i] * 1e3, size, t_end, band)
+        settle = t_end + r["settling_time_s"]
+        after = t >= settle
+        r["peak_error_mdeg"] = float(np.max(np.abs(e[scored, i]))) if np.any(scored) else math.nan
+        r["settled_rms_mdeg"] = float(np.sqrt(np.mean(e[after, i] ** 2))) if np.any(after) else math.nan
+        out[ax] = r
+        settled_at.append(settle)
+    if out:
+        after = t >= max(settled_at)
+        out["pointing"] = {ax: {"peak_error_mdeg": float(np.max(np.abs(p[scored, i]))) if np.any(scored)
+                                else math.nan,
+                                "settled_rms_mdeg": float(np.sqrt(np.mean(p[after, i] ** 2)))
+                                if np.any(after) else math.nan}
+                           for i, ax in enumerate(POINTING_AXES)}
+    return out
+
+
+def episode_metrics(rec: Mapping[str, np.ndarray], dt: float, warmup_s: float, move: bool,
+                    limits: Mapping[str, float]) -> dict[str, Any]:
     """Metrics of one recorded episode (see the module docstring).
 
     :param rec: arrays ``e`` (n, 2) true servo errors (mdeg), ``p`` (n, 2) pointing errors
-        (mdeg), ``c`` (n, 2) commands (deg), ``r`` (n, 2) applied rate commands (deg/s),
-        ``cost`` (n,), ``hits`` (n, 2) rate/accel limiter flags, ``t_ctrl`` (n,) decision
-        times (s)
+        (mdeg), ``c`` (n, 2) commands relative to the start (deg), ``r`` (n, 2) applied rate
+        commands (deg/s), ``cost`` (n,), ``hits`` (n, 2) rate/accel limiter flags, ``t_ctrl``
+        (n,) decision times (s)
     :param dt: control period, s
     :param warmup_s: left out of the error statistics, s
-    :param step: ``{"size_deg": [az, el], "time_s": t}`` for a step scenario, else None
+    :param move: score the response to the commanded move (:func:`move_response`, under
+        ``step``)
     :param limits: ``rate_deg_s`` and ``accel_deg_s2`` of the limiter (for the record)
     """
-    return episode_figures(rec, dt, warmup_s, step, limits).to_dict()
+    return episode_figures(rec, dt, warmup_s, move, limits).to_dict()
 
 
-def episode_figures(rec: Mapping[str, np.ndarray], dt: float, warmup_s: float,
-                    step: Mapping[str, Any] | None, limits: Mapping[str, float]) -> EpisodeFigures:
+def episode_figures(rec: Mapping[str, np.ndarray], dt: float, warmup_s: float, move: bool,
+                    limits: Mapping[str, float]) -> EpisodeFigures:
     """The typed figures of one recorded episode (:func:`episode_metrics`' arguments)."""
     n = len(rec["cost"])
     t = (np.arange(n) + 1) * dt
@@ -115,17 +175,16 @@ def episode_figures(rec: Mapping[str, np.ndarray], dt: float, warmup_s: float,
             for i, ax in enumerate(AXES)}
     tc = np.asarray(rec["t_ctrl"]) * 1e3 if len(rec["t_ctrl"]) else np.zeros(1)
     times = {"median": float(np.median(tc)), "p95": float(np.percentile(tc, 95)), "max": float(tc.max())}
-    step_fig = None
-    if step is not None:
-        theta = rec["c"] * 1e3 - e  # mdeg
-        step_fig = {ax: step_response(t, theta[:, i], step["size_deg"][i] * 1e3, step["time_s"])
-                    for i, ax in enumerate(AXES) if step["size_deg"][i] != 0}
+    step_fig = move_response(t, e, rec["c"], p, w) if move else None
     return EpisodeFigures(
         n_steps=int(n), seconds=float(np.count_nonzero(w) * dt), errors=errors,
         cost_per_step=float(np.mean(rec["cost"][w])) if np.any(w) else math.nan,
         rate_command_deg_s=rate, limits=dict(limits),
         limit_hits={"rate": int(rec["hits"][:, 0].sum()), "accel": int(rec["hits"][:, 1].sum())},
-        controller_time_ms=times, step=step_fig)
+        controller_time_ms=times, step=step_fig or None,
+        smoothness={"accel_limit_hits_pct": limit_hit_pct(rec["hits"][:, 1]),
+                    "command_change_hf_pct": {ax: 100.0 * high_frequency_share(rec["r"][:, i], dt)
+                                              for i, ax in enumerate(AXES)}})
 
 
 # ------------------------------------------------------------------------- controllers
@@ -193,13 +252,6 @@ def batch_driver(ctrl: Controller) -> BatchDriver | None:
 
 
 
-def _step_spec(cfg: Any) -> dict[str, Any] | None:
-    if cfg.scenario != "step":
-        return None
-    return {"size_deg": [cfg.step_deg * m for m in axes_mask(cfg.step_axes).tolist()],
-            "time_s": cfg.step_time_s}
-
-
 def _fallback_record(info: Mapping[str, Any]) -> dict[str, Any]:
     """Fallback count and, when the controller gives them, each fallback's step and status."""
     out: dict[str, Any] = {"fallbacks": int(info.get("n_fallbacks", 0) or 0)}
@@ -213,7 +265,7 @@ def _fallback_record(info: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def run_rows(driver: Any, env: Any, seeds: Sequence[int], steps: int, warmup_s: float = 0.0,
-             record: bool = False, reseed: bool = True) -> list[dict[str, Any]]:
+             record: bool = False, reseed: bool = True, move: bool | None = None) -> list[dict[str, Any]]:
     """Episodes ``seeds`` of one controller: rows of a vector environment (batched driver) or
     one episode on a single environment (sequential driver, one seed).
 
@@ -226,6 +278,9 @@ def run_rows(driver: Any, env: Any, seeds: Sequence[int], steps: int, warmup_s: 
     :param record: keep the first row's time histories under ``"trace"``
     :param reseed: reset the environment with ``seeds`` (default); False continues its
         generators (the next episodes after a seeded reset; ``seeds`` then only label the rows)
+    :param move: score the response to the commanded move (:func:`move_response`; the bench
+        passes its catalog's ``move`` group); None: in the environment's scenario kinds of
+        :data:`MOVE_SCENARIOS`
     :return: one :func:`episode_metrics` dict per seed, with ``seed``, ``terminated``,
         ``failures``, ``failure``, ``fallbacks`` (and ``fallback_log``), the episode's wind
         and ``batch_rows``
@@ -284,14 +339,14 @@ def run_rows(driver: Any, env: Any, seeds: Sequence[int], steps: int, warmup_s: 
             if not alive.any():
                 break
     rows = driver.row_info(n)
-    step = _step_spec(cfg)
+    move = cfg.scenario in MOVE_SCENARIOS if move is None else bool(move)
     limits = {"rate_deg_s": cfg.rate_limit_deg_s, "accel_deg_s2": cfg.accel_limit_deg_s2}
     out = []
     for i, seed in enumerate(seeds):
         L = int(length[i])
         rec = {"e": E[:L, i], "p": P[:L, i], "c": Cm[:L, i], "r": R[:L, i], "cost": cost[:L, i],
                "hits": hits[:L, i], "t_ctrl": tc[:max(L, 1)]}
-        m = episode_metrics(rec, cfg.dt, warmup_s, step, limits)
+        m = episode_metrics(rec, cfg.dt, warmup_s, move, limits)
         m.update({"seed": int(seed), "terminated": bool(terminated[i]),
                   "failures": int(failure is not None), "failure": failure,
                   **_fallback_record(rows[i]),
@@ -306,12 +361,11 @@ def run_rows(driver: Any, env: Any, seeds: Sequence[int], steps: int, warmup_s: 
 
 
 def run_episode(ctrl: Controller, env: Any, seed: int, steps: int, warmup_s: float = 0.0,
-                record: bool = False) -> dict[str, Any]:
+                record: bool = False, move: bool | None = None) -> dict[str, Any]:
     """One episode of one controller on a single environment (:func:`run_rows`, one row)."""
-    return run_rows(SequentialDriver(ctrl), env, [seed], steps, warmup_s, record)[0]
+    return run_rows(SequentialDriver(ctrl), env, [seed], steps, warmup_s, record, move=move)[0]
 
 
 
-__all__ = ["BatchDriver", "SequentialDriver", "batch_driver", "episode_figures", "episode_metrics",
-           "run_episode",
-           "run_rows", "step_response"]
+__all__ = ["BatchDriver", "MOVE_SCENARIOS", "SequentialDriver", "batch_driver", "episode_figures",
+           "episode_metrics", "move_response", "run_episode", "run_rows", "step_response"]

@@ -246,9 +246,10 @@ def tiny(tmp_path_factory) -> dict:
             "json": json.loads((out / "results.json").read_text())}
 
 
-def _comparable(summary: dict) -> dict:
-    """A runner summary without the wall-clock figures."""
-    return {k: v for k, v in summary.items() if k != "controller_time_ms"}
+def _comparable(summary: dict) -> str:
+    """A runner summary without the wall-clock figures, as JSON (NaN, e.g. a move not settled
+    within the episode, equal to NaN)."""
+    return json.dumps({k: v for k, v in summary.items() if k != "controller_time_ms"}, sort_keys=True)
 
 
 def test_results_json_matches_the_runner(tiny) -> None:
@@ -296,6 +297,29 @@ def test_intervals_recomputed_from_the_stored_episodes(tiny) -> None:
                 assert a["ci95"] == pytest.approx(b["ci95"], rel=1e-3)
 
 
+def test_smoothness_of_every_controller_with_its_interval(tiny) -> None:
+    """Acceleration-limit hits (% of steps) and the command change's share above 5 Hz (per
+    axis) for every controller and scenario: the mean over the stored episodes with its
+    interval, and both tables in results.md."""
+    js = tiny["json"]
+    rows = R.episode_rows(js["episodes"])
+    for c in CTRLS:
+        for s in SCENS:
+            sm = js["summary"][c][s]["smoothness"]
+            eps = [ep for ep in rows if ep["controller"] == c and ep["scenario"] == s]
+            hits = [ep["smoothness"]["accel_limit_hits_pct"] for ep in eps]
+            assert sm["accel_limit_hits_pct"]["value"] == pytest.approx(np.mean(hits), rel=1e-5, abs=1e-9)
+            total = sum(ep["limit_hits"]["accel"] for ep in eps)
+            assert np.mean(hits) == pytest.approx(100 * total / (len(eps) * STEPS), rel=1e-5)
+            for ax in ("az", "el"):
+                cell = sm["command_change_hf_pct"][ax]
+                assert 0 <= cell["value"] <= 100 and cell["n_episodes"] == len(eps)
+                if len(eps) > 1:
+                    assert cell["ci95"][0] <= cell["value"] <= cell["ci95"][1]
+    md = tiny["res"]["markdown"]
+    assert "| accel-limit hits (% of steps) |" in md and "| command change above 5 Hz az / el (%) |" in md
+
+
 def test_results_json_records_the_run(tiny) -> None:
     js = tiny["json"]
     b = js["bench"]
@@ -339,7 +363,12 @@ def test_results_md(tiny) -> None:
     assert tiny["res"]["main_table"] in md and "## How to read it" in md
     for c in CTRLS:
         assert f"| {c} |" in md
-    assert "yardstick (analytic)" in md and "Step response" in md and "side wind, 3σ az" in md
+    assert "yardstick (analytic)" in md and "## Commanded move: step" in md and "side wind, 3σ az" in md
+    # the commanded move is scored by its response, not by the 3σ of the move itself
+    assert "| step az / el" not in md and "| step el / xel" not in md
+    step = tiny["json"]["summary"]["pi_kp1"]["step"]["step"]
+    assert {"overshoot_pct", "settling_time_s", "peak_error_mdeg", "settled_rms_mdeg"} <= set(step["az"])
+    assert R.fmt_ci(step["az"]["settled_rms_mdeg"]) in md
     assert "hold_side az ÷ pi_kp1" in md and "Precision of the hold figures" in md
     pi = tiny["json"]["summary"]["pi_kp1"]["hold_side"]["servo_error_mdeg"]["az"]["three_sigma"]
     assert R.fmt_ci(pi) in md and " ± " in R.fmt_ci(pi)

@@ -4,6 +4,7 @@ on the randomised plant."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
@@ -12,6 +13,7 @@ import pytest
 
 from dss14_env.baselines.base import Controller
 from dss14_env.baselines.pi import PIController
+from dss14_env.baselines.rollout import move_response
 from dss14_env.bench.runner import (
     CONTROLLERS,
     SCENARIOS,
@@ -112,6 +114,64 @@ def test_step_response_on_a_synthetic_curve(overshoot: float, settle: float) -> 
 def test_step_response_never_settled_is_infinite() -> None:
     t = np.arange(0, 5, 0.01)
     assert step_response(t, np.full_like(t, 0.5), 1.0, 1.0)["settling_time_s"] == math.inf
+
+
+def _ramp_move(t: np.ndarray, t0: float, t1: float, size_deg: float, over: float, decay_s: float
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """A command ramping by ``size_deg`` from t0 to t1 (deg) and a servo error (mdeg) that lags
+    it by 0.1 s, then overshoots by ``over`` of the move and decays exponentially."""
+    c = size_deg * np.clip((t - t0) / (t1 - t0), 0.0, 1.0)
+    lag = 1e3 * size_deg * np.where((t > t0) & (t < t1), 0.1 / (t1 - t0), 0.0)
+    tail = np.where(t >= t1, -over * 1e3 * size_deg * np.exp(-(t - t1) / decay_s), 0.0)
+    return c, lag + tail
+
+
+def test_move_response_of_a_ramp_with_a_known_tail() -> None:
+    """Overshoot, settling, peak and rms after settling of a slew-like move, against their
+    closed forms: the tail -over * D * exp(-(t - t1) / tau) leaves the 2 % band at
+    tau * ln(over / 0.02)."""
+    t = (np.arange(3000) + 1) * 0.02
+    c1, e1 = _ramp_move(t, 1.0, 21.0, 5.0, 0.1, 2.0)
+    c2, e2 = _ramp_move(t, 1.0, 11.0, -1.0, 0.0, 1.0)
+    c, e = np.column_stack([c1, c2]), np.column_stack([e1, e2])
+    r = move_response(t, e, c, e, np.ones(t.size, bool))
+    assert r["az"]["overshoot_pct"] == pytest.approx(10.0, rel=1e-6)
+    assert r["az"]["settling_time_s"] == pytest.approx(2.0 * math.log(0.1 / 0.02), abs=0.03)
+    assert r["az"]["peak_error_mdeg"] == pytest.approx(500.0, rel=1e-6)
+    settled = t >= 21.0 + r["az"]["settling_time_s"]
+    assert r["az"]["settled_rms_mdeg"] == pytest.approx(np.sqrt(np.mean(e1[settled] ** 2)), rel=1e-9)
+    assert r["az"]["settled_rms_mdeg"] < 0.02 * 5000.0
+    # the el axis moves the other way without overshoot: settled as the ramp ends
+    assert r["el"]["overshoot_pct"] == 0.0 and r["el"]["settling_time_s"] == 0.0
+    assert r["el"]["peak_error_mdeg"] == pytest.approx(10.0, rel=1e-6)
+    # pointing: after the later axis settled
+    assert r["pointing"]["el"]["settled_rms_mdeg"] == pytest.approx(r["az"]["settled_rms_mdeg"], rel=1e-9)
+
+
+def test_a_move_unfinished_at_the_end_has_no_settling() -> None:
+    t = (np.arange(500) + 1) * 0.02
+    c, e = _ramp_move(t, 1.0, 21.0, 5.0, 0.1, 2.0)
+    r = move_response(t, np.column_stack([e, e]), np.column_stack([c, 0 * c]), np.column_stack([e, e]),
+                      np.ones(t.size, bool))
+    assert set(r) == {"az", "pointing"} and r["az"]["peak_error_mdeg"] == pytest.approx(25.0, rel=1e-6)
+    assert all(math.isnan(r["az"][k]) for k in ("overshoot_pct", "settling_time_s", "settled_rms_mdeg"))
+
+
+def test_move_response_without_a_move_is_empty() -> None:
+    t = (np.arange(100) + 1) * 0.02
+    z = np.zeros((100, 2))
+    assert move_response(t, z, z, z, np.ones(100, bool)) == {}
+
+
+@pytest.mark.parametrize("group", ["move", "wind"])
+def test_the_scenario_group_decides_the_move_figures(group: str) -> None:
+    """A scenario of the move group is scored by its move's response, whatever its name."""
+    sc = dataclasses.replace(SCENARIOS["slew"], steps=200, group=group)
+    st = run(["pi_kp1"], [("a_move", sc)], seeds=[0])["summary"]["pi_kp1"]["a_move"]
+    assert ("step" in st) == (group == "move")
+    if group == "move":
+        assert set(st["step"]) == {"az", "el", "pointing"}
+        assert st["step"]["az"]["peak_error_mdeg"]["value"] > 0
 
 
 def test_episode_metrics_statistics() -> None:

@@ -262,12 +262,16 @@ class Scenario:
     :param steps: control periods per episode
     :param warmup_s: seconds at the start left out of the error statistics
     :param description: one line for tables
+    :param group: :data:`GROUPS`: ``"wind"`` (scored by the error's 3σ) or ``"move"`` (a
+        commanded move, scored by its response: overshoot, settling, peak error and rms after
+        settling)
     """
 
     env: Mapping[str, Any]
     steps: int
     warmup_s: float = 0.0
     description: str = ""
+    group: str = "wind"
 
 
 @dataclass(frozen=True)
@@ -280,8 +284,9 @@ class ScenarioRow:
     :param quick: the ``--quick`` budget (the CI smoke test)
     :param steps: episode length of :func:`dss14_env.bench.runner.run` without ``steps``,
         control periods (None: the preset's ``max_episode_steps``)
-    :param group: ``"wind"`` (disturbance rejection) or ``"move"`` (commanded moves): the
-        axes of errors_3sigma.png
+    :param group: ``"wind"`` (disturbance rejection, scored by the 3σ) or ``"move"``
+        (commanded moves, scored by the move's response in the tables and results): the axes
+        of errors_3sigma.png
     :param traced: the bench keeps the first seed's time histories (the figures draw them)
     :param sweep: the error-vs-wind sweep's direction this scenario anchors (``"front"``,
         ``"side"``; None: no sweep)
@@ -330,7 +335,7 @@ class ScenarioRow:
         """The runner's scenario: the preset's keys (and the variant's), warm-up and description."""
         p = self.preset_spec
         return Scenario({**p.kwargs, **self.env}, self.steps or p.max_episode_steps, p.warmup_s,
-                        self.description)
+                        self.description, self.group)
 
 
 #: the scenarios, in table order; hold budgets: a 95 % half-width <= 5 % of the loaded axis'

@@ -20,13 +20,14 @@ import json
 import math
 import os
 import platform
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from dss14_env.bench import catalog
 from dss14_env.bench.envelope import band_envelopes, envelope_table
 from dss14_env.bench.plan import LOADED_AXES, SWEEP_DIRECTIONS, SWEEP_WARMUP_S, BenchPlan
 from dss14_env.bench.statistics import flatten
@@ -78,7 +79,7 @@ def load_average() -> list[float] | None:
 #: per-episode entries stored as one column per leaf (``servo_error_mdeg.az.three_sigma``);
 #: any other entry is one column of its own (e.g. ``fallback_log``, a list per episode)
 _NESTED = ("servo_error_mdeg", "pointing_error_mdeg", "rate_command_deg_s", "limit_hits",
-           "controller_time_ms", "step")
+           "controller_time_ms", "step", "smoothness")
 
 
 def _flat(ep: Mapping[str, Any]) -> dict[str, Any]:
@@ -360,6 +361,27 @@ def _cells(results: Mapping[str, Any]) -> Iterator[tuple[str, str, Mapping[str, 
 
 
 # ------------------------------------------------------------------------------ tables
+def scenario_group(results: Mapping[str, Any], scenario: str) -> str:
+    """The scenario's group (:data:`dss14_env.bench.catalog.GROUPS`): the run's record, else
+    the catalog's row (a drive variant's: its hold scenario's), else ``"wind"``.
+    """
+    g = (results["meta"].get("groups") or {}).get(scenario)
+    if g is None:
+        row = catalog.SCENARIOS.get(scenario.partition("@")[0])
+        g = row.group if row is not None else "wind"
+    return str(g)
+
+
+def scored_by_3sigma(results: Mapping[str, Any]) -> list[str]:
+    """The run's scenarios scored by their 3σ (the wind group), in table order."""
+    return [s for s in results["meta"]["scenarios"] if scenario_group(results, s) != "move"]
+
+
+def move_scenarios(results: Mapping[str, Any]) -> list[str]:
+    """The run's commanded-move scenarios (the move group), scored by the move's response."""
+    return [s for s in results["meta"]["scenarios"] if scenario_group(results, s) == "move"]
+
+
 def loaded_axes(scenario: str, quantity: str = SERVO) -> tuple[str, ...]:
     """The axes of ``quantity`` the scenario's wind loads (bold in the tables): the drive
     axes of the catalog, or the pointing axes they move the beam on (azimuth: cross-elevation).
@@ -377,11 +399,12 @@ def _episode_counts(results: Mapping[str, Any], c: str) -> str:
 
 
 def three_sigma_table(results: Mapping[str, Any], quantity: str = SERVO) -> str:
-    """3σ of ``quantity`` per controller and scenario, both axes (servo error: az / el;
-    pointing error: el / xel), ``value ± 95 % half-width`` (the wind's axis in bold), with the
-    episodes behind each row, and, for the servo error, the yardstick's analytic expected value.
+    """3σ of ``quantity`` per controller and wind scenario (:func:`scored_by_3sigma`; the
+    commanded moves are in :func:`move_table`), both axes (servo error: az / el; pointing
+    error: el / xel), ``value ± 95 % half-width`` (the wind's axis in bold), with the episodes
+    behind each row, and, for the servo error, the yardstick's analytic expected value.
     """
-    ctrls, scens = results["meta"]["controllers"], results["meta"]["scenarios"]
+    ctrls, scens = results["meta"]["controllers"], scored_by_3sigma(results)
     axes = ERRORS[quantity]
     header = ["controller"] + [f"{s} {' / '.join(axes)}" for s in scens] + ["episodes per scenario"]
     rows = []
@@ -434,11 +457,11 @@ def pointing_table(results: Mapping[str, Any]) -> str:
 
 def pointing_ratio_table(results: Mapping[str, Any]) -> str | None:
     """The pointing error's 3σ over the reference controller's (paired, same seeds), el / xel,
-    for every controller and scenario; None when the reference did not run or the results hold
-    no pointing ratios.
+    for every controller and wind scenario; None when the reference did not run or the results
+    hold no pointing ratios.
     """
     ref = results["meta"].get("reference")
-    scens = results["meta"]["scenarios"]
+    scens = scored_by_3sigma(results)
     key = ratio_key("vs_reference", POINTING)
     if not ref or not any(key in x for _, _, x in _cells(results)):
         return None
@@ -517,25 +540,64 @@ def precision_table(results: Mapping[str, Any]) -> str | None:
     return _table(header, rows)
 
 
-def step_table(results: Mapping[str, Any], scenario: str = "step") -> str | None:
-    """Step response per controller: overshoot and 2 % settling time with their intervals."""
+#: the columns of a move table: (header, where in the cell's ``step``, the axes, the statistic)
+MOVE_COLUMNS: tuple[tuple[str, str | None, tuple[str, ...], str], ...] = (
+    ("overshoot az / el (%)", None, AXES, "overshoot_pct"),
+    ("2 % settling az / el (s)", None, AXES, "settling_time_s"),
+    ("peak servo error az / el (mdeg)", None, AXES, "peak_error_mdeg"),
+    ("servo rms after settling az / el (mdeg)", None, AXES, "settled_rms_mdeg"),
+    ("peak pointing error el / xel (mdeg)", "pointing", POINTING_AXES, "peak_error_mdeg"),
+    ("pointing rms after settling el / xel (mdeg)", "pointing", POINTING_AXES, "settled_rms_mdeg"))
+
+
+def move_table(results: Mapping[str, Any], scenario: str) -> str | None:
+    """The response to a commanded move per controller (:func:`dss14_env.baselines.rollout.
+    move_response`): overshoot, 2 % settling time, peak error and rms after settling of the
+    servo error (az / el) and of the pointing error (el / xel), with their intervals, then
+    the peak command acceleration and the limiter hits; None when the scenario did not run.
+    """
     if scenario not in results["meta"]["scenarios"]:
         return None
-    header = ["controller", "overshoot az / el (%)", "2 % settling az / el (s)",
-              "peak accel az / el (°/s²)", "limit hits rate / accel (total)"]
+    header = ["controller"] + [h for h, *_ in MOVE_COLUMNS] + ["peak accel az / el (°/s²)",
+                                                               "limit hits rate / accel (total)"]
     rows = []
     for c in results["meta"]["controllers"]:
         x = _cell(results, c, scenario)
         if x is None:
-            rows.append([c, "—", "—", "—", "—"])
+            rows.append([c] + ["—"] * (len(header) - 1))
             continue
         st = x.get("step", {})
-        rows.append([c,
-                     " / ".join(fmt_ci(st[ax]["overshoot_pct"]) if ax in st else "—" for ax in AXES),
-                     " / ".join(fmt_ci(st[ax]["settling_time_s"]) if ax in st else "—" for ax in AXES),
-                     " / ".join(fmt_ci(x["rate_command_deg_s"][ax]["peak_accel_deg_s2"]) for ax in AXES),
-                     f"{x['limit_hits']['rate']} / {x['limit_hits']['accel']}"])
+        r = [c]
+        for _, where, axes, stat in MOVE_COLUMNS:
+            d = st.get(where, {}) if where else st
+            r.append(" / ".join(fmt_ci(d[ax][stat]) if stat in d.get(ax, {}) else "—" for ax in axes))
+        rows.append(r + [" / ".join(fmt_ci(x["rate_command_deg_s"][ax]["peak_accel_deg_s2"]) for ax in AXES),
+                         f"{x['limit_hits']['rate']} / {x['limit_hits']['accel']}"])
     return _table(header, rows)
+
+
+def smoothness_tables(results: Mapping[str, Any]) -> list[str]:
+    """The command's smoothness per controller and scenario (:mod:`dss14_env.core.smoothness`):
+    acceleration-limit hits in % of the periods, then the share of the command change's
+    variance above 5 Hz (%), az / el; empty when the results hold neither.
+    """
+    ctrls, scens = results["meta"]["controllers"], results["meta"]["scenarios"]
+    if not any("smoothness" in x for _, _, x in _cells(results)):
+        return []
+
+    def table(first: str, cell: Callable[[Mapping[str, Any]], str]) -> str:
+        rows = []
+        for c in ctrls:
+            r = [c]
+            for s in scens:
+                sm = (_cell(results, c, s) or {}).get("smoothness")
+                r.append("—" if sm is None else cell(sm))
+            rows.append(r)
+        return _table([first] + list(scens), rows)
+
+    return [table("accel-limit hits (% of steps)", lambda sm: fmt_ci(sm["accel_limit_hits_pct"])),
+            table("command change above 5 Hz az / el (%)",
+                  lambda sm: " / ".join(fmt_ci(sm["command_change_hf_pct"][ax]) for ax in AXES))]
 
 
 def sweep_tables(results: Mapping[str, Any]) -> list[str]:
@@ -664,10 +726,18 @@ LEGEND = """\
   at once through the vector environment; the MPC runs one episode at a time on the first
   seeds of the same list, so its intervals are wider (see the episodes column).  The same
   seed is the same episode (start, wind direction, gusts, trajectory) for every controller.
-* **step**: 0.1° command step on both axes at 1 s, no wind; overshoot (%) and settling into
-  the 2 % band (s from the step; ∞: not settled; median over episodes).  **slew**: 5° on both
-  axes in 30 km/h wind; its 3σ and peak measure the commanded move.  **track**: slow
+* **commanded moves** (**step**: 0.1° command step on both axes at 1 s, no wind; **slew**: 5°
+  on both axes in 30 km/h wind) are scored by their response, not by a 3σ (which would measure
+  the move itself): overshoot past the target (% of the move), settling into the 2 % band
+  (s from the move's end; ∞: not settled; median over episodes), the peak |error| and the
+  rms error after settling, of the servo error (az / el) and of the pointing error (el /
+  xel).  **track**: slow
   sinusoidal track in a random 30–70 km/h wind and direction (wide intervals by design).
+* **smoothness**: **accel-limit hits (%)** is the share of an episode's steps in which the
+  limiter clipped the change of the rate command; **command change above 5 Hz (%)** is, per
+  axis, the share of the variance of the rate command's first difference above 5 Hz (Welch
+  power spectral density; white noise gives 80 % at the 50-Hz control rate, a slow command
+  about 0); both over the whole episode, means over the episodes.
 * **limit hits**: steps where the environment's limiter clipped the rate or its change
   (0.25 °/s, 0.2 °/s²).  **decision time**: wall time of one control decision (a batched
   controller's batch call divided by its rows), median over episodes.  **fallbacks**: MPC
@@ -699,7 +769,8 @@ def results_markdown(results: Mapping[str, Any]) -> str:
              f"{'--quick. ' if cfg['quick'] else ''}{_timing(b)}.", ""]
     if b["notes"]:
         parts += [f"Note: {n}" for n in b["notes"]] + [""]
-    parts += ["## The dish's true pointing error: 3σ (mdeg), el / xel, 95 % confidence intervals", "",
+    parts += ["## The dish's true pointing error: 3σ (mdeg), el / xel, 95 % confidence intervals "
+              "(the commanded moves: their own tables below)", "",
               pointing_table(results), ""]
     pr = pointing_ratio_table(results)
     if pr:
@@ -708,10 +779,19 @@ def results_markdown(results: Mapping[str, Any]) -> str:
               "(the report's Table 4 quantity)", "", main_table(results), ""]
     for title, t in (("## Ratios of the loaded axis' 3σ servo error, 95 % confidence intervals",
                       ratio_table(results)),
-                     ("## Precision of the hold figures", precision_table(results)),
-                     ("## Step response (Fig. 21 scenario)", step_table(results))):
+                     ("## Precision of the hold figures", precision_table(results))):
         if t:
             parts += [title, "", t, ""]
+    for s in move_scenarios(results):
+        t = move_table(results, s)
+        if t:
+            parts += [f"## Commanded move: {s}, 95 % confidence intervals", "", t, ""]
+    sm = smoothness_tables(results)
+    if sm:
+        parts += ["## Command smoothness: acceleration-limit hits and the command change's variance "
+                  "above 5 Hz, 95 % confidence intervals (dss14_env/core/smoothness.py)", ""]
+        for t in sm:
+            parts += [t, ""]
     sw = sweep_tables(results)
     if sw:
         s = results["wind_sweep"]
@@ -798,4 +878,4 @@ __all__ = ["LEGEND", "RESULT_FILES", "assemble_results", "command_table", "episo
            "package_versions", "pointing_ratio_table", "pointing_table",
            "three_sigma_table",
            "precision_table", "ratio_table", "results_json", "results_markdown",
-           "step_table", "sweep_tables", "wind_sweep_curves", "write_results"]
+           "smoothness_tables", "sweep_tables", "wind_sweep_curves", "write_results"]

@@ -67,7 +67,7 @@ def _merge(parts: list[dict[str, Any]]) -> dict[str, Any]:
     meta: dict[str, Any] = {k: v for k, v in parts[0]["meta"].items()}
     for key in ("scenarios",):
         meta[key] = [s for p in parts for s in p["meta"][key]]
-    for key in ("steps", "warmup_s"):
+    for key in ("steps", "warmup_s", "groups"):
         meta[key] = {k: v for p in parts for k, v in p["meta"][key].items()}
     meta["seeds"] = {s: p["meta"]["seeds"] for p in parts for s in p["meta"]["scenarios"]}
     meta["sequential_seeds"] = {s: p["meta"]["sequential_seeds"]

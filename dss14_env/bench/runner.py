@@ -145,20 +145,23 @@ def _sensor_envs(by_sensors: dict[tuple, _ScenarioEnvs], kw: dict[str, Any], sen
 
 def _controller_episodes(ctrl: Controller, envs: _ScenarioEnvs, seeds: Sequence[int], n_seq: int,
                          steps: int, warmup_s: float, record: bool, batch: bool,
-                         progress: Callable[[list[dict[str, Any]]], None]
+                         progress: Callable[[list[dict[str, Any]]], None], move: bool = False
                          ) -> tuple[list[dict[str, Any]], bool]:
-    """All episodes of one controller in one scenario, and whether it ran batched."""
+    """All episodes of one controller in one scenario, and whether it ran batched (``move``:
+    score the commanded move's response).
+    """
     driver = batch_driver(ctrl) if batch else None
     eps: list[dict[str, Any]] = []
     if driver is not None:
         for chunk in _chunks(seeds, steps):
-            new = run_rows(driver, envs.vector(len(chunk)), chunk, steps, warmup_s, record=record and not eps)
+            new = run_rows(driver, envs.vector(len(chunk)), chunk, steps, warmup_s, record=record and not eps,
+                           move=move)
             eps += new
             progress(new)
     else:
         seq = SequentialDriver(ctrl)
         for seed in seeds[:n_seq]:
-            new = run_rows(seq, envs.single, [seed], steps, warmup_s, record=record and not eps)
+            new = run_rows(seq, envs.single, [seed], steps, warmup_s, record=record and not eps, move=move)
             eps += new
             progress(new)
     return eps, driver is not None
@@ -209,7 +212,7 @@ def _run_scenario(ctrls: list[tuple[str, Callable[[Any], Controller]]], sname: s
                 progress(_progress_line(c, sname, eps), len(eps))
         cenvs = _sensor_envs(by_sensors, kw, getattr(factory, "sensors", None))
         eps, batched = _controller_episodes(factory(cenvs.single), cenvs, seeds, n_seq, n_steps,
-                                            sc.warmup_s, record, batch, tick)
+                                            sc.warmup_s, record, batch, tick, sc.group == "move")
         flags[cname] = (batched, time.perf_counter() - t0)
         for ep in eps:
             ep.update({"controller": cname, "scenario": sname})
@@ -286,7 +289,7 @@ def run(controllers: Iterable[Any], scenarios: Iterable[Any], seeds: Iterable[in
             "sequential_seeds": seeds[:n_seq], "batched": batched,
             "reference": reference if reference in names else None,
             "env_kwargs": env_kwargs, "steps": {n: int(steps or sc.steps) for n, sc in scens},
-            "warmup_s": {n: sc.warmup_s for n, sc in scens},
+            "warmup_s": {n: sc.warmup_s for n, sc in scens}, "groups": {n: sc.group for n, sc in scens},
             "statistics": _statistics_meta(n_resamples, bootstrap_seed),
             "wall_time_s": time.perf_counter() - t_start, "controller_wall_time_s": wall}
     traces = [ep.pop("trace", None) for ep in episodes]

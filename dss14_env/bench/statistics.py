@@ -7,10 +7,14 @@ episodes with a 95 % confidence interval, ``{"value", "ci95": [lo, hi], "n_episo
 "seconds", "median", "min", "max"}`` (``seconds``: the data behind it, warm-ups left out;
 ``median``, ``min``, ``max``: over the episodes, the spread of single episodes).  Spreads pool
 as root mean squares (the pooled 3σ of n equal episodes is ``sqrt(mean(three_sigma_i ** 2))``),
-peaks, means, costs and overshoots as means, times as medians; the interval is the percentile
-bootstrap over episodes (:func:`dss14_env.core.stats.pooled_estimates`), all metrics of a cell
-resampled together from a generator seeded by the cell's name (:func:`cell_rng`), so a rerun
-reproduces it.  Ratios (``three_sigma`` per axis): ``vs_reference``, over the reference
+peaks, means, costs, overshoots and the command's smoothness as means, times as medians; the
+interval is the percentile bootstrap over episodes (:func:`dss14_env.core.stats.pooled_estimates`),
+all metrics of a cell resampled together from a generator seeded by the cell's name
+(:func:`cell_rng`), so a rerun
+reproduces it.  The command's smoothness (``smoothness``: acceleration-limit hits in % of
+the periods, and per axis the share of the command change's variance above 5 Hz in %) is
+defined once in :mod:`dss14_env.core.smoothness`, where every episode's figures are computed.
+Ratios (``three_sigma`` per axis): ``vs_reference``, over the reference
 controller (default the report's PI, ``pi_kp1``) on the seeds both ran, resampling the pairs
 together; ``vs_yardstick``, over the yardstick's analytic expected 3σ
 (:func:`dss14_env.baselines.yardstick.expected_performance`) for scenarios with one fixed wind,
@@ -41,7 +45,8 @@ N_RESAMPLES = stats.N_RESAMPLES
 #: how each per-episode metric is pooled over episodes (:data:`dss14_env.core.stats.POOLINGS`)
 ERROR_POOLING = {"three_sigma": "rms", "rms": "rms", "max": "mean", "mean": "mean"}
 RATE_POOLING = {"rms": "rms", "peak": "mean", "peak_accel_deg_s2": "mean"}
-STEP_POOLING = {"overshoot_pct": "mean", "settling_time_s": "median"}
+STEP_POOLING = {"overshoot_pct": "mean", "settling_time_s": "median", "peak_error_mdeg": "mean",
+                "settled_rms_mdeg": "rms"}
 TIME_POOLING = {"median": "median", "p95": "median", "max": "median"}
 
 # ------------------------------------------------------------------------- summaries
@@ -54,7 +59,7 @@ def cell_rng(*names: str, seed: int = 0) -> np.random.Generator:
 POOLING: dict[str, str | dict[str, str]] = {
     "servo_error_mdeg": ERROR_POOLING, "pointing_error_mdeg": ERROR_POOLING, "cost_per_step": "mean",
     "rate_command_deg_s": RATE_POOLING, "limit_hits": "mean", "controller_time_ms": TIME_POOLING,
-    "step": STEP_POOLING}
+    "step": STEP_POOLING, "smoothness": "mean"}
 
 
 def flatten(d: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
@@ -135,8 +140,9 @@ def summarise(episodes: Sequence[Mapping[str, Any]], rng: np.random.Generator | 
     s["fallbacks"] = int(sum(ep.get("fallbacks", 0) for ep in episodes))
     s["failures"] = int(sum(ep["failures"] for ep in episodes))
     s["terminated"] = int(sum(ep["terminated"] for ep in episodes))
-    if "step" in nested:
-        s["step"] = nested["step"]
+    for key in ("step", "smoothness"):
+        if key in nested:
+            s[key] = nested[key]
     return s
 
 

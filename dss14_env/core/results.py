@@ -6,7 +6,7 @@ only place that writes them to (and reads them from) the JSON of results.json.
   ``rms``, mean included; ``max``, largest magnitude; ``mean``) -- :meth:`ErrorStats.of` is
   the one 3σ of the package (the bench, the campaign and the agents' evaluation);
 * :class:`EpisodeFigures`: an episode's figures (:data:`ERRORS` per axis, cost, rate command,
-  limiter hits, decision times, step response);
+  limiter hits, decision times, step response, the command's smoothness);
 * :class:`Cell`: a statistic pooled over episodes with its 95 % confidence interval
   (``value``, ``ci95``, ``n_episodes``, ``seconds`` of data behind it, and the spread of
   single episodes: ``median``, ``min``, ``max``);
@@ -102,6 +102,8 @@ class EpisodeFigures:
     :param limit_hits: steps the limiter clipped the ``rate`` or its change (``accel``)
     :param controller_time_ms: ``median``, ``p95``, ``max`` wall time of one decision
     :param step: per stepped axis, ``overshoot_pct`` and ``settling_time_s`` (None: no step)
+    :param smoothness: ``accel_limit_hits_pct`` and, per axis, ``command_change_hf_pct``
+        (:mod:`dss14_env.core.smoothness`; None: not measured)
     """
 
     n_steps: int
@@ -113,6 +115,7 @@ class EpisodeFigures:
     limit_hits: Mapping[str, int]
     controller_time_ms: Mapping[str, float]
     step: Mapping[str, Mapping[str, float]] | None = None
+    smoothness: Mapping[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """The episode's entry of results.json (before the runner adds seed, health, wind)."""
@@ -125,6 +128,9 @@ class EpisodeFigures:
                     "controller_time_ms": dict(self.controller_time_ms)})
         if self.step is not None:
             out["step"] = {ax: dict(v) for ax, v in self.step.items()}
+        if self.smoothness is not None:
+            out["smoothness"] = {k: dict(v) if isinstance(v, Mapping) else float(v)
+                                 for k, v in self.smoothness.items()}
         return out
 
     @classmethod
@@ -132,7 +138,7 @@ class EpisodeFigures:
         errors = {q: {ax: ErrorStats.from_dict(v) for ax, v in d[q].items()} for q in ERRORS if q in d}
         return cls(int(d["n_steps"]), float(d["seconds"]), errors, _float(d.get("cost_per_step")),
                    d.get("rate_command_deg_s", {}), d.get("limits", {}), d.get("limit_hits", {}),
-                   d.get("controller_time_ms", {}), d.get("step"))
+                   d.get("controller_time_ms", {}), d.get("step"), d.get("smoothness"))
 
 
 def episode_error(episode: Mapping[str, Any], quantity: str, axis: str,
