@@ -170,12 +170,83 @@ def test_a_training_run_prints_progress_lines_without_a_terminal(tmp_path: Path,
     cfg.write_text(yaml.safe_dump({**TINY, "eval_freq": 0, "total_timesteps": 256}))
     assert cli.main(["train", "ppo", "--config", str(cfg), "--out", str(tmp_path / "r")]) == 0
     err = capsys.readouterr().err.splitlines()
-    assert err[0] == "r: 0/256 steps (0 %), starting"
+    assert err[0] == f"ppo on Pendulum-v1: one run of 256 steps into {tmp_path / 'r'}"
+    assert err[1] == "r: 0/256 steps (0 %), starting"
     assert any(line.startswith("r: ") and "elapsed, ETA" in line for line in err)
     assert err[-1].startswith("r: 256/256 steps (100 %) done in ")
     assert cli.main(["train", "ppo", "--config", str(cfg), "--out", str(tmp_path / "q"),
                      "--no-progress"]) == 0
     assert capsys.readouterr().err == ""
+
+
+# ------------------------------------------------------------------ the first line
+def _env_check_sees(monkeypatch, capsys, module: str) -> list[str]:
+    """Replace ``module``'s environment check by one that records what stderr held when it was
+    called, then refuses (so nothing is trained)."""
+    import importlib
+
+    seen: list[str] = []
+
+    def check(cfg):
+        seen.append(capsys.readouterr().err)
+        raise ValueError("environment check reached")
+
+    monkeypatch.setattr(importlib.import_module(module), "check_env", check)
+    return seen
+
+
+def test_a_campaign_says_its_first_line_before_the_environment_check(tmp_path: Path, monkeypatch,
+                                                                      capsys) -> None:
+    """The check builds the model (seconds): the campaign's first line comes before it."""
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(yaml.safe_dump(TINY))
+    seen = _env_check_sees(monkeypatch, capsys, "dss14_env.agents.campaign")
+    out = tmp_path / "camp"
+    assert cli.main(["train", "ppo", "--config", str(cfg), "--train-seeds", "0-1", "--out", str(out)]) == 2
+    assert seen == [f"ppo on Pendulum-v1: 2 runs of 512 steps into {out}\n"]
+    assert "environment check reached" in capsys.readouterr().err
+    assert not out.exists()  # a refused environment: no folder made
+
+
+def test_a_sweep_says_its_first_line_before_the_environment_checks(tmp_path: Path, monkeypatch,
+                                                                    capsys) -> None:
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(yaml.safe_dump({**TINY, "sweep": {"env_kwargs.g": [9.0, 10.0]}}))
+    seen = _env_check_sees(monkeypatch, capsys, "dss14_env.agents.sweep")
+    out = tmp_path / "sw"
+    assert cli.main(["train", "ppo", "--config", str(cfg), "--train-seeds", "0", "--out", str(out)]) == 2
+    assert seen == [f"ppo on Pendulum-v1: 2 runs of 512 steps into {out}\n"]
+    assert not out.exists()
+
+
+def test_a_single_run_says_its_first_line_before_the_environment_check(tmp_path: Path, monkeypatch,
+                                                                        capsys) -> None:
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(yaml.safe_dump(TINY))
+    seen = _env_check_sees(monkeypatch, capsys, "dss14_env.agents.train")
+    out = tmp_path / "r"
+    assert cli.main(["train", "ppo", "--config", str(cfg), "--out", str(out)]) == 2
+    assert seen == [f"ppo on Pendulum-v1: one run of 512 steps into {out}\n"]
+    capsys.readouterr()
+    assert cli.main(["train", "ppo", "--config", str(cfg), "--out", str(out), "--no-progress"]) == 2
+    assert seen[1] == ""  # --no-progress: silent
+
+
+def test_a_refused_campaign_folder_is_said_at_once_without_a_first_line(tmp_path: Path, monkeypatch,
+                                                                         capsys) -> None:
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(yaml.safe_dump(TINY))
+    seen = _env_check_sees(monkeypatch, capsys, "dss14_env.agents.campaign")
+    out = tmp_path / "camp"
+    out.mkdir()
+    (out / "summary.json").write_text("{}")  # the user's file where the campaign writes
+    assert cli.main(["train", "ppo", "--config", str(cfg), "--train-seeds", "0-1", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert seen == [] and err.count("\n") == 1 and "summary.json" in err, err
+    assert cli.main(["train", "ppo", "--config", str(cfg), "--train-seeds", "0-1", "--out",
+                     str(tmp_path / "none"), "--resume"]) == 2
+    err = capsys.readouterr().err
+    assert seen == [] and err.count("\n") == 1 and "no campaign to continue" in err, err
 
 
 @pytest.mark.parametrize("sig,stop_in", [(signal.SIGINT, "seed_1"), (signal.SIGTERM, "seed_0")])
