@@ -329,11 +329,32 @@ def test_a_stopped_campaign_on_ray_keeps_a_checkpoint_of_every_running_seed(tmp_
         assert summary["start_timesteps"] == stopped[k] and summary["num_timesteps"] >= 20_000
 
 
+def test_subprocess_workers_ignore_ctrl_c_so_that_only_the_main_process_stops() -> None:
+    """A terminal's Ctrl-C reaches every process of the foreground group, the workers of a
+    ``vec_env: subproc`` training included: they go on answering, and close when told."""
+    import functools
+
+    import gymnasium as gym
+
+    from dss14_env.agents.vec_env import make_subproc_vec_env
+
+    venv = make_subproc_vec_env([functools.partial(gym.make, "Pendulum-v1")] * 2)
+    try:
+        for p in venv.processes:
+            os.kill(p.pid, signal.SIGINT)
+        obs = venv.reset()
+        assert obs.shape == (2, 3) and all(p.is_alive() for p in venv.processes)
+    finally:
+        venv.close()
+    assert [p.exitcode for p in venv.processes] == [0, 0]
+
+
 @pytest.mark.slow
+@pytest.mark.parametrize("vec_env", ["dummy", "subproc"])
 def test_a_terminal_session_shows_a_bar_and_ctrl_c_to_its_process_group_keeps_a_checkpoint(
-        tmp_path: Path) -> None:
+        tmp_path: Path, vec_env: str) -> None:
     """``dss14 train`` on a pseudo-terminal, stopped as a terminal's Ctrl-C stops it (SIGINT to
-    the whole foreground process group)."""
+    the whole foreground process group, subprocess workers included)."""
     import fcntl
     import pty
     import select
@@ -344,7 +365,8 @@ def test_a_terminal_session_shows_a_bar_and_ctrl_c_to_its_process_group_keeps_a_
     import time
 
     cfg = tmp_path / "c.yaml"
-    cfg.write_text(yaml.safe_dump({**TINY, "total_timesteps": 1_000_000, "eval_freq": 0}))
+    cfg.write_text(yaml.safe_dump({**TINY, "total_timesteps": 1_000_000, "eval_freq": 0,
+                                   "vec_env": vec_env}))
     master, slave = pty.openpty()
     fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 120, 0, 0))
     proc = subprocess.Popen([sys.executable, "-m", "dss14_env.cli", "train", "ppo", "--config", str(cfg),
@@ -376,6 +398,7 @@ def test_a_terminal_session_shows_a_bar_and_ctrl_c_to_its_process_group_keeps_a_
     (ckpt,) = (tmp_path / "r" / "checkpoints").iterdir()
     lines = text.decode(errors="replace").replace("\r", "\n")
     assert f"kept checkpoint {ckpt}" in " ".join(lines.split())
+    assert "Traceback" not in lines and "Error" not in lines, lines[-3000:]
 
 
 def test_a_stop_as_a_seed_ends_keeps_it_whole_and_still_stops_the_campaign(tmp_path: Path, monkeypatch,
