@@ -401,6 +401,34 @@ def test_a_terminal_session_shows_a_bar_and_ctrl_c_to_its_process_group_keeps_a_
     assert "Traceback" not in lines and "Error" not in lines, lines[-3000:]
 
 
+@pytest.mark.slow
+def test_sigterm_to_the_process_group_of_a_subprocess_training_keeps_a_checkpoint(tmp_path: Path) -> None:
+    """A SIGTERM to the whole process group (a service manager's stop) ends the subprocess
+    workers too: the main process keeps a checkpoint where it stopped and says so in one line."""
+    import subprocess
+    import sys
+    import time
+
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(yaml.safe_dump({**TINY, "total_timesteps": 1_000_000, "eval_freq": 0,
+                                   "vec_env": "subproc"}))
+    log = tmp_path / "stderr.txt"
+    with log.open("w") as err:
+        proc = subprocess.Popen([sys.executable, "-m", "dss14_env.cli", "train", "ppo", "--config", str(cfg),
+                                 "--out", str(tmp_path / "r")], stdout=err, stderr=err,
+                                start_new_session=True)
+        deadline = time.monotonic() + 300
+        while time.monotonic() < deadline and "r: 0/1000000 steps (0 %), starting" not in log.read_text():
+            time.sleep(0.5)
+        time.sleep(2.0)  # into the training
+        os.killpg(proc.pid, signal.SIGTERM)
+        assert proc.wait(timeout=300) == 143
+    text = log.read_text()
+    (ckpt,) = (tmp_path / "r" / "checkpoints").iterdir()
+    assert f"training stopped (SIGTERM) at {ckpt.name[:-6]} steps; kept checkpoint {ckpt}" in text, text
+    assert "Traceback" not in text and "Error" not in text, text
+
+
 def test_a_stop_as_a_seed_ends_keeps_it_whole_and_still_stops_the_campaign(tmp_path: Path, monkeypatch,
                                                                              capsys) -> None:
     cfg = tmp_path / "c.yaml"
