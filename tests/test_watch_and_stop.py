@@ -195,41 +195,28 @@ def _env_check_sees(monkeypatch, capsys, module: str) -> list[str]:
     return seen
 
 
-def test_a_campaign_says_its_first_line_before_the_environment_check(tmp_path: Path, monkeypatch,
-                                                                      capsys) -> None:
-    """The check builds the model (seconds): the campaign's first line comes before it."""
+@pytest.mark.parametrize("module, config, options, header", [
+    ("dss14_env.agents.campaign", {}, ["--train-seeds", "0-1"], "2 runs of 512 steps"),
+    ("dss14_env.agents.sweep", {"sweep": {"env_kwargs.g": [9.0, 10.0]}}, ["--train-seeds", "0"],
+     "2 runs of 512 steps"),
+    ("dss14_env.agents.train", {}, [], "one run of 512 steps"),
+], ids=["campaign", "sweep", "single-run"])
+def test_training_says_its_first_line_before_the_environment_check(
+        tmp_path: Path, monkeypatch, capsys, module: str, config: dict, options: list[str],
+        header: str) -> None:
+    """The check builds the model (seconds): the first line comes before it; a refused
+    environment leaves no folder, and ``--no-progress`` keeps a single run silent."""
     cfg = tmp_path / "c.yaml"
-    cfg.write_text(yaml.safe_dump(TINY))
-    seen = _env_check_sees(monkeypatch, capsys, "dss14_env.agents.campaign")
-    out = tmp_path / "camp"
-    assert cli.main(["train", "ppo", "--config", str(cfg), "--train-seeds", "0-1", "--out", str(out)]) == 2
-    assert seen == [f"ppo on Pendulum-v1: 2 runs of 512 steps into {out}\n"]
+    cfg.write_text(yaml.safe_dump({**TINY, **config}))
+    seen = _env_check_sees(monkeypatch, capsys, module)
+    out = tmp_path / "out"
+    argv = ["train", "ppo", "--config", str(cfg), *options, "--out", str(out)]
+    assert cli.main(argv) == 2
+    assert seen == [f"ppo on Pendulum-v1: {header} into {out}\n"]
     assert "environment check reached" in capsys.readouterr().err
-    assert not out.exists()  # a refused environment: no folder made
-
-
-def test_a_sweep_says_its_first_line_before_the_environment_checks(tmp_path: Path, monkeypatch,
-                                                                    capsys) -> None:
-    cfg = tmp_path / "c.yaml"
-    cfg.write_text(yaml.safe_dump({**TINY, "sweep": {"env_kwargs.g": [9.0, 10.0]}}))
-    seen = _env_check_sees(monkeypatch, capsys, "dss14_env.agents.sweep")
-    out = tmp_path / "sw"
-    assert cli.main(["train", "ppo", "--config", str(cfg), "--train-seeds", "0", "--out", str(out)]) == 2
-    assert seen == [f"ppo on Pendulum-v1: 2 runs of 512 steps into {out}\n"]
     assert not out.exists()
-
-
-def test_a_single_run_says_its_first_line_before_the_environment_check(tmp_path: Path, monkeypatch,
-                                                                        capsys) -> None:
-    cfg = tmp_path / "c.yaml"
-    cfg.write_text(yaml.safe_dump(TINY))
-    seen = _env_check_sees(monkeypatch, capsys, "dss14_env.agents.train")
-    out = tmp_path / "r"
-    assert cli.main(["train", "ppo", "--config", str(cfg), "--out", str(out)]) == 2
-    assert seen == [f"ppo on Pendulum-v1: one run of 512 steps into {out}\n"]
-    capsys.readouterr()
-    assert cli.main(["train", "ppo", "--config", str(cfg), "--out", str(out), "--no-progress"]) == 2
-    assert seen[1] == ""  # --no-progress: silent
+    if not options:
+        assert cli.main([*argv, "--no-progress"]) == 2 and seen[1] == ""
 
 
 def test_a_refused_campaign_folder_is_said_at_once_without_a_first_line(tmp_path: Path, monkeypatch,
