@@ -316,24 +316,26 @@ def test_a_stopped_campaign_on_ray_keeps_a_checkpoint_of_every_running_seed(tmp_
         assert summary["start_timesteps"] == stopped[k] and summary["num_timesteps"] >= 20_000
 
 
+@pytest.mark.slow
 def test_subprocess_workers_ignore_ctrl_c_so_that_only_the_main_process_stops() -> None:
     """A terminal's Ctrl-C reaches every process of the foreground group, the workers of a
-    ``vec_env: subproc`` training included: they go on answering, and close when told."""
+    ``vec_env: subproc`` training included: they go on answering, and close when told.  (A
+    worker imports stable-baselines3 and torch as it starts: 5-20 s.)"""
     import functools
 
     import gymnasium as gym
 
     from dss14_env.agents.vec_env import make_subproc_vec_env
 
-    venv = make_subproc_vec_env([functools.partial(gym.make, "Pendulum-v1")] * 2)
+    venv = make_subproc_vec_env([functools.partial(gym.make, "Pendulum-v1")])  # one worker: seconds
     try:
         for p in venv.processes:
             os.kill(p.pid, signal.SIGINT)
         obs = venv.reset()
-        assert obs.shape == (2, 3) and all(p.is_alive() for p in venv.processes)
+        assert obs.shape == (1, 3) and all(p.is_alive() for p in venv.processes)
     finally:
         venv.close()
-    assert [p.exitcode for p in venv.processes] == [0, 0]
+    assert [p.exitcode for p in venv.processes] == [0]
 
 
 @pytest.mark.slow
