@@ -278,11 +278,29 @@ def seed_items(cfg: TrainConfig, folder: Path, seeds: Sequence[int], finished: s
              "finished": k in finished, "progress": progress} for k in seeds]
 
 
-def say_plan(cfg: TrainConfig, folder: Path, runs: int, finished: int = 0) -> None:
-    """One line on stderr as a campaign starts: what it trains, how long a run, where."""
-    again = f" ({finished} finished earlier)" if finished else ""
-    print(f"{cfg.algo} on {cfg.env_id}: {counted(runs, 'run')}{again} of {cfg.total_timesteps} "
-          f"steps into {folder}", file=sys.stderr, flush=True)
+def check_folder_first(cfg: TrainConfig, out: str | Path, overwrite: bool, resume: bool,
+                       owned: Sequence[str] | None = None) -> None:
+    """Refuse an unusable campaign (or sweep) folder at once, before the campaign's first line
+    and its environment check: checked only, nothing made or removed (:func:`open_campaign`
+    opens it after the checks).
+
+    :raises ValueError: as :func:`open_campaign` (with ``resume``: no campaign of ``cfg`` there)
+    """
+    if resume:
+        check_saved_config(cfg, Path(out))
+    else:
+        prepare_output_dir(out, owned_files(out) if owned is None else owned, overwrite, "--out",
+                           dry_run=True, command=COMMAND)
+
+
+def say_plan(cfg: TrainConfig, folder: str | Path, runs: int, resume: bool = False) -> None:
+    """The campaign's first line on stderr, before its environment is checked and any model is
+    built (seconds): what it trains, how long a run, where.  Each run then says as it starts
+    whether it trains, continues from a checkpoint or finished earlier.
+    """
+    what = f"continuing {counted(runs, 'run')}" if resume else counted(runs, "run")
+    print(f"{cfg.algo} on {cfg.env_id}: {what} of {cfg.total_timesteps} steps into {folder}",
+          file=sys.stderr, flush=True)
 
 
 def run_seed_items(executor: Executor, items: Sequence[Mapping[str, Any]],
@@ -436,10 +454,11 @@ def train_seeds(config: TrainConfig | Mapping[str, Any] | str | Path, seeds: Seq
     seeds = [int(k) for k in seeds]
     check_training_seeds(cfg, seeds)
     campaign_tasks(cfg)  # an environment the tasks cannot be made of: before any work
+    check_folder_first(cfg, out, overwrite, resume)
+    say_plan(cfg, out, len(seeds), resume)
     with pinned_threads(1):  # a training environment that cannot be made: before any work
         check_env(cfg)
     folder, finished = open_campaign(cfg, out, seeds, overwrite, resume)
-    say_plan(cfg, folder, len(seeds), len(finished))
     with manifest_kept(folder):
         items = seed_items(cfg, folder, seeds, finished, test_seeds, test_steps, progress)
         ex = executor if executor is not None else SerialExecutor()
@@ -604,7 +623,7 @@ def write_curves(folder: Path, runs: Sequence[Path], tasks: Sequence[EvalTask],
     return written
 
 
-__all__ = ["CAMPAIGN_FILES", "SEED_STRIDE", "campaign_tasks", "check_saved_config",
+__all__ = ["CAMPAIGN_FILES", "SEED_STRIDE", "campaign_tasks", "check_folder_first", "check_saved_config",
            "check_training_seeds", "finished_run", "kept_work", "resumable_checkpoint", "run_seed_items",
            "say_plan", "owned_files",
            "best_seed_policy", "is_campaign_folder", "learning_curves", "open_campaign", "parse_seeds",

@@ -46,6 +46,11 @@ from typing import Any
 
 import numpy as np
 
+from dss14_env.agents.config_files import (
+    shipped_config_path,
+    shipped_training_configs,
+    shipped_training_configs_by_algo,
+)
 from dss14_env.agents.evaluation import DEFAULT_SCENARIOS, SCENARIO_TASKS
 from dss14_env.core.counts import MAX_THREADS
 from dss14_env.core.schema import (
@@ -557,33 +562,12 @@ PPOConfig = TrainConfig
 
 
 # ------------------------------------------------------------------------------ files
-def shipped_config_path(name: str) -> Path:
-    """Path of a configuration file shipped in the ``configs`` package (``ppo.yaml``)."""
-    from importlib import resources
-
-    return Path(str(resources.files("dss14_env.configs").joinpath(name)))
-
-
 def default_config_path(name: str = "ppo.yaml") -> Path:
     """Path of a training configuration shipped in the ``configs`` package.
 
     :param name: file name, default ``"ppo.yaml"`` (``"ppo_smoke.yaml"``: Pendulum-v1 smoke run)
     """
     return shipped_config_path(name)
-
-
-def shipped_training_configs() -> list[str]:
-    """Names of the shipped training configurations (``ppo``, ``ppo_plain``, ``sac``, ...)."""
-    return [n for n in shipped_configs() if n.split("_")[0] in ("ppo", "sac", "recurrent")]
-
-
-def shipped_training_configs_by_algo() -> dict[str, list[str]]:
-    """The shipped training configurations grouped by their ``algo`` key (read from the files)."""
-    out: dict[str, list[str]] = {}
-    for name in shipped_training_configs():
-        algo = read_config(shipped_config_path(f"{name}.yaml"))[0].get("algo")
-        out.setdefault(str(algo), []).append(name)
-    return out
 
 
 def check_training_config_name(path: str | Path) -> None:

@@ -309,9 +309,9 @@ def make_train_vec_env(cfg: TrainConfig, plan: EnvPlan, env_config: Any,
     ``Monitor`` per copy (``monitor_dir/<i>.monitor.csv``).
     """
     from stable_baselines3.common.env_util import make_vec_env
-    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+    from stable_baselines3.common.vec_env import DummyVecEnv
 
-    from dss14_env.agents.vec_env import make_sb3_vec_env
+    from dss14_env.agents.vec_env import make_sb3_vec_env, make_subproc_vec_env
 
     kind = vec_env_kind(cfg, plan)
     if cfg.mixture:
@@ -333,7 +333,7 @@ def make_train_vec_env(cfg: TrainConfig, plan: EnvPlan, env_config: Any,
         factory = functools.partial(make_env, cfg.env_id, cfg.env_kwargs, cfg.env_module)
     return make_vec_env(factory, n_envs=cfg.n_envs, seed=cfg.seed,
                         monitor_dir=None if monitor_dir is None else str(monitor_dir),
-                        vec_env_cls=SubprocVecEnv if kind == "subproc" else DummyVecEnv)
+                        vec_env_cls=make_subproc_vec_env if kind == "subproc" else DummyVecEnv)
 
 
 __all__ = ["DEFAULT_BASE_ID", "DEFAULT_ENV_MODULES", "EnvPlan", "WRAPPER_IDS", "check_env", "is_dss14_id",

@@ -39,6 +39,7 @@ from dss14_env.agents.campaign import (
     COMMAND,
     SEED_STRIDE,
     campaign_tasks,
+    check_folder_first,
     check_saved_config,
     check_training_seeds,
     open_campaign,
@@ -71,10 +72,13 @@ RANKING_NOTE = ("points sorted by the IQM over training seeds of each task's met
                 "with fewer than 2 training seeds: no interval)")
 
 
+def _point_folders(points: Sequence[SweepPoint]) -> tuple[str, ...]:
+    """The folders of the sweep's points (glob patterns of their labels)."""
+    return tuple(glob.escape(p.label) for p in points)
+
+
 def _check_envs(points: Sequence[SweepPoint], sweep: Mapping[str, Any]) -> None:
     """Make the environment of every point whose environment keys differ (before any work)."""
-    for p in points:
-        campaign_tasks(p.config)
     if not any(key.split(".")[0] in ENV_KEYS for key in sweep):
         return
     seen = set()
@@ -95,7 +99,7 @@ def _open(cfg: TrainConfig, points: Sequence[SweepPoint], out: str | Path, seeds
         reopen_output_dir(folder, owned_files(folder), "--out", command=COMMAND)
         remove_run_files(folder, ("sweep.json", "sweep.md"))
     else:
-        mine = tuple(glob.escape(p.label) for p in points)  # this sweep's points, and any before
+        mine = _point_folders(points)  # this sweep's points, and any before
         folder = prepare_output_dir(out, owned_files(out) + mine, overwrite, "--out", command=COMMAND)
         atomic_write_text(folder / "config.yaml", f"# sweep (from {cfg.source}): one campaign per "
                           f"point of the grid in <label>/; run k of every point trains with seed "
@@ -208,9 +212,12 @@ def train_sweep(config: TrainConfig | Mapping[str, Any] | str | Path, seeds: Seq
     points = cfg.points()
     for p in points:
         check_training_seeds(p.config, seeds)
+    for p in points:  # an environment the tasks cannot be made of: before any work
+        campaign_tasks(p.config)
+    check_folder_first(cfg, out, overwrite, resume, owned_files(out) + _point_folders(points))
+    say_plan(cfg, out, len(points) * len(seeds), resume)
     _check_envs(points, cfg.sweep)
     folder, campaigns = _open(cfg, points, out, seeds, overwrite, resume)
-    say_plan(cfg, folder, len(points) * len(seeds), sum(len(f) for _, f in campaigns))
     with manifest_kept(folder):
         return _run_sweep(cfg, points, folder, campaigns, seeds, test_seeds, test_steps, figures,
                           executor, progress)

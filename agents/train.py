@@ -292,6 +292,10 @@ def save_checkpoint(folder: Path, cfg: TrainConfig, run_id: str, model: Any, ven
          "episode_num": int(getattr(model, "_episode_num", 0))}, indent=2) + "\n")
 
 
+#: what a vector environment's call raises once its subprocess workers are gone
+WORKERS_GONE = (EOFError, BrokenPipeError, ConnectionResetError)
+
+
 def _stop_checkpoint(cfg: TrainConfig, run: Path, run_id: str, model: Any, venv: Any,
                      config_text: str) -> Path:
     """The checkpoint of a run stopped by a signal, at its step count (``checkpoints/<N>_steps``;
@@ -802,6 +806,11 @@ def _train_in(cfg: TrainConfig, run: Path, src: _Resume | None, plan: EnvPlan, o
                 raise TrainingInterrupted(run, int(model.num_timesteps), last,
                                           _resume_command(cfg, run, last),
                                           getattr(exc, "signum", signal.SIGINT)) from None
+            except WORKERS_GONE:
+                if requests.signum is None:
+                    raise
+                # the stop reached subprocess workers too (a SIGTERM to the process group): they
+                # are gone, the model and its statistics are here, and the run stops as asked
             if requests.signum is not None and model.num_timesteps < cfg.total_timesteps:
                 kept = _stop_checkpoint(cfg, run, run_id, model, venv, config_text)
                 raise TrainingInterrupted(run, int(model.num_timesteps), kept,
@@ -809,7 +818,11 @@ def _train_in(cfg: TrainConfig, run: Path, src: _Resume | None, plan: EnvPlan, o
             wall = time.perf_counter() - t0
             save_checkpoint(run, cfg, run_id, model, venv, config_text)
     finally:
-        venv.close()
+        try:
+            venv.close()
+        except WORKERS_GONE:  # workers stopped by the signal that stops the run
+            if requests.signum is None:
+                raise
     summary = {
         "algo": cfg.algo, "env_id": cfg.env_id, "run_id": run_id,
         "num_timesteps": int(model.num_timesteps), "start_timesteps": start,

@@ -24,6 +24,11 @@ rollout costs a few microseconds per environment step instead of tens.
 The module subclasses SB3's classes and so imports stable-baselines3 (and torch); the rest of
 :mod:`dss14_env.agents` imports it only where a training VecEnv is built.
 
+:func:`make_subproc_vec_env` is SB3's ``SubprocVecEnv`` whose worker processes ignore SIGINT: a
+terminal's Ctrl-C goes to the whole foreground process group, and workers killed by it would
+end the training with their tracebacks and an ``EOFError`` instead of the main process's one
+stop (a checkpoint where it stopped, :func:`dss14_env.agents.train.train`).
+
 ``make_sb3_vec_env(env_id, n_envs, seed=s)`` seeds sub-environment ``i`` with ``s + i`` (SB3's
 ``make_vec_env`` convention; ``PPO(seed=s)`` re-seeds a VecEnv the same way), so its episodes
 are those of ``make_vec_env(env_id, n_envs, seed=s)`` with ``DummyVecEnv`` (tested up to the
@@ -33,7 +38,11 @@ vector environment's rounding, about 1e-10 relative).  It works under ``VecMonit
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+import contextlib
+import functools
+import multiprocessing
+import signal
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from typing import Any
 
 import gymnasium as gym
@@ -332,5 +341,53 @@ class InterfaceVecEnv(_vec_env_wrapper()):
         return self.interface.observe(obs), rew, dones, infos
 
 
+def _ignoring_sigint(factory: Callable[[], Any]) -> Any:
+    """Build a worker's environment with SIGINT ignored in the worker (run there, by SB3)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    return factory()
+
+
+@contextlib.contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """Context manager: SIGINT ignored in this (main) thread's process for the block, so that a
+    process started in it inherits the ignored signal from birth; elsewhere than in the main
+    thread (a Ray task's thread) nothing changes.
+    """
+    try:
+        before = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:  # not the main thread: signals are not this thread's to set
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, before)
+
+
+def make_subproc_vec_env(env_fns: Sequence[Callable[[], Any]], **kwargs: Any) -> Any:
+    """SB3's ``SubprocVecEnv`` over ``env_fns`` whose workers ignore SIGINT (see the module doc):
+    only the main process handles a Ctrl-C, and closes the workers.
+
+    The workers are forked by multiprocessing's fork server, started here (if it is not
+    running yet) with SIGINT ignored for the milliseconds it takes, so that every worker
+    ignores it from birth; each worker also ignores it as it builds its environment (a fork
+    server started earlier by other code).  Pass as ``vec_env_cls`` of SB3's ``make_vec_env``.
+
+    :param kwargs: ``SubprocVecEnv``'s (``start_method`` is chosen here)
+    """
+    from stable_baselines3.common.vec_env import SubprocVecEnv
+
+    method = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
+    if method == "forkserver":
+        from multiprocessing import forkserver
+
+        with _sigint_ignored():
+            forkserver.ensure_running()
+    kwargs.pop("start_method", None)
+    return SubprocVecEnv([functools.partial(_ignoring_sigint, fn) for fn in env_fns],
+                         start_method=method, **kwargs)
+
+
 __all__ = ["InterfaceVecEnv", "LogRewardVecEnv", "MixtureVecEnv", "SB3VecEnv", "SameStepDSS14VectorEnv",
+           "make_subproc_vec_env",
            "make_sb3_vec_env"]

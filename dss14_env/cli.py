@@ -12,7 +12,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from dss14_env.agents.config import shipped_training_configs_by_algo
+from dss14_env.agents.config_files import shipped_training_configs_by_algo
 from dss14_env.bench import catalog
 from dss14_env.bench.plan import QUICK_WIND_SPEEDS_KMH
 from dss14_env.core.progress import LINE_EVERY_S
@@ -107,6 +107,18 @@ def campaign_resume_command(args: argparse.Namespace) -> str:
     return shlex.join(cmd)
 
 
+def say_run(cfg: Any, out: str | None, resume: str | None) -> None:
+    """A single run's first line on stderr, before its environment is checked and its model is
+    built (seconds): what it trains, how long, where (a campaign says its own,
+    :func:`dss14_env.agents.campaign.say_plan`).
+    """
+    where = (out if out is not None else "the checkpoint's run folder" if resume is not None
+             else f"a new folder runs/{cfg.algo}-<date>-<time>")
+    what = f"continuing {resume} to" if resume is not None else "one run of"
+    print(f"{cfg.algo} on {cfg.env_id}: {what} {cfg.total_timesteps} steps into {where}",
+          file=sys.stderr, flush=True)
+
+
 def _train(args: argparse.Namespace) -> int:
     from dss14_env.agents.campaign import COMMAND, kept_work, owned_files, parse_seeds, train_seeds
     from dss14_env.agents.sweep import train_sweep
@@ -133,6 +145,8 @@ def _train(args: argparse.Namespace) -> int:
             prepare_output_dir(args.out, owned_files(args.out), args.overwrite, dry_run=True,
                                command=COMMAND)
     if args.train_seeds is None:
+        if args.progress:
+            say_run(cfg, args.out, resume)
         try:
             run = train(cfg, run_dir=args.out, resume=resume, overwrite=args.overwrite,
                         trust_pickle=args.trust_pickle, progress=args.progress)

@@ -88,23 +88,15 @@ def render(res: dict) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """Compute (default), render or check."""
-    from dss14_env.core.text import fill_blocks
+    from dss14_env.core.text import add_block_options, render_block
+
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--render", action="store_true", help="render the committed results only")
-    p.add_argument("--check", action="store_true", help="exit 1 if docs/model.md is not the rendering")
+    add_block_options(p, "docs/model.md")
     a = p.parse_args(argv)
     if not (a.render or a.check):
         RESULTS.write_text(json.dumps(compute(), indent=1) + "\n", encoding="utf-8")
-    text = DOC.read_text(encoding="utf-8")
-    new = fill_blocks(text, {BLOCK: render(json.loads(RESULTS.read_text(encoding="utf-8")))})
-    if a.check:
-        if new != text:
-            print(f"{DOC}: block {BLOCK} is not the rendering of {RESULTS}; run "
-                  "python scripts/drive_split.py --render")
-            return 1
-        return 0
-    DOC.write_text(new, encoding="utf-8")
-    return 0
+    return render_block(DOC, BLOCK, render(json.loads(RESULTS.read_text(encoding="utf-8"))), RESULTS,
+                        "python scripts/drive_split.py --render", check=a.check)
 
 
 if __name__ == "__main__":

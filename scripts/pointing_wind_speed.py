@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from dss14_env.core.outdir import atomic_write_text
-from dss14_env.core.text import fill_blocks, find_blocks
+from dss14_env.core.text import add_block_options, render_block
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "docs" / "results" / "pointing_wind_speed.json"
@@ -132,26 +132,13 @@ def render(res: dict[str, Any]) -> str:
 def main(argv: list[str] | None = None) -> int:
     """Compute (``--json``), render or check."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    g = p.add_mutually_exclusive_group(required=True)
-    g.add_argument("--json", help="compute and write this file, then render the doc")
-    g.add_argument("--render", action="store_true", help="render the committed results into the doc")
-    g.add_argument("--check", action="store_true", help="exit 1 if the doc's table is not the rendering")
+    add_block_options(p, "docs/results/notes.md", ("--json", "compute and write this file, then render"))
     a = p.parse_args(argv)
     if a.json:
         atomic_write_text(a.json, json.dumps(compute(), indent=1) + "\n")
-    text = DOC.read_text(encoding="utf-8")
-    if BLOCK not in find_blocks(text):
-        print(f"{DOC}: no <!-- {BLOCK}:start --> ... <!-- {BLOCK}:end --> block", file=sys.stderr)
-        return 1
-    new = fill_blocks(text, {BLOCK: render(json.loads((Path(a.json) if a.json else RESULTS).read_text()))})
-    if a.check:
-        if new != text:
-            print(f"{DOC}: block {BLOCK} is not the rendering of {RESULTS}; run "
-                  f"python scripts/pointing_wind_speed.py --render")
-            return 1
-        return 0
-    DOC.write_text(new, encoding="utf-8")
-    return 0
+    source = Path(a.json) if a.json else RESULTS
+    return render_block(DOC, BLOCK, render(json.loads(source.read_text())), source,
+                        "python scripts/pointing_wind_speed.py --render", check=a.check)
 
 
 if __name__ == "__main__":

@@ -76,29 +76,19 @@ def render(res: dict) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """Compute (with ``--before``), render or check."""
-    from dss14_env.core.text import fill_blocks
+    from dss14_env.core.text import add_block_options, render_block
+
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--before", type=Path, help="results.json of the default bench on the trained drive")
-    p.add_argument("--render", action="store_true", help="render the committed results only")
-    p.add_argument("--check", action="store_true",
-                   help="exit 1 if docs/results/rl_results.md is not the rendering")
+    add_block_options(p, "docs/results/rl_results.md",
+                      ("--before", "results.json of the default bench on the trained drive: compute, "
+                                   "then render"))
     a = p.parse_args(argv)
     if a.before is not None:
-        res = compute(json.loads(a.before.read_text(encoding="utf-8")),
+        res = compute(json.loads(Path(a.before).read_text(encoding="utf-8")),
                       json.loads(AFTER.read_text(encoding="utf-8")))
         RESULTS.write_text(json.dumps(res, indent=1) + "\n", encoding="utf-8")
-    elif not (a.render or a.check):
-        p.error("give --before, --render or --check")
-    text = DOC.read_text(encoding="utf-8")
-    new = fill_blocks(text, {BLOCK: render(json.loads(RESULTS.read_text(encoding="utf-8")))})
-    if a.check:
-        if new != text:
-            print(f"{DOC}: block {BLOCK} is not the rendering of {RESULTS}; run "
-                  "python scripts/rescore_policies.py --render")
-            return 1
-        return 0
-    DOC.write_text(new, encoding="utf-8")
-    return 0
+    return render_block(DOC, BLOCK, render(json.loads(RESULTS.read_text(encoding="utf-8"))), RESULTS,
+                        "python scripts/rescore_policies.py --render", check=a.check)
 
 
 if __name__ == "__main__":

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from dss14_env.core.text import fill_blocks, find_blocks
+from dss14_env.core.text import add_block_options, render_block
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "docs" / "results" / "wind_range_ends.json"
@@ -127,34 +127,15 @@ def render(res: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def fill(text: str, body: str) -> str:
-    """``text`` with the block's body replaced (:func:`dss14_env.core.text.fill_blocks`).
-
-    :raises ValueError: ``text`` has no such block
-    """
-    if BLOCK not in find_blocks(text):
-        raise ValueError(f"no <!-- {BLOCK}:start --> ... <!-- {BLOCK}:end --> block")
-    return fill_blocks(text, {BLOCK: body})
-
-
 def main(argv: list[str] | None = None) -> int:
     """Compute (default), render or check."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--render", action="store_true", help="render the committed results only")
-    p.add_argument("--check", action="store_true", help="exit 1 if docs/wind.md is not the rendering")
+    add_block_options(p, "docs/wind.md")
     a = p.parse_args(argv)
     if not (a.render or a.check):
         RESULTS.write_text(json.dumps(compute(), indent=1) + "\n", encoding="utf-8")
-    text = DOC.read_text(encoding="utf-8")
-    new = fill(text, render(json.loads(RESULTS.read_text(encoding="utf-8"))))
-    if a.check:
-        if new != text:
-            print(f"{DOC}: block {BLOCK} is not the rendering of {RESULTS}; run "
-                  f"python scripts/wind_range_ends.py --render")
-            return 1
-        return 0
-    DOC.write_text(new, encoding="utf-8")
-    return 0
+    return render_block(DOC, BLOCK, render(json.loads(RESULTS.read_text(encoding="utf-8"))), RESULTS,
+                        "python scripts/wind_range_ends.py --render", check=a.check)
 
 
 if __name__ == "__main__":

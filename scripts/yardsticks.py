@@ -26,7 +26,6 @@ from __future__ import annotations
 import argparse
 import datetime
 import json
-import re
 import sys
 from pathlib import Path
 from typing import Any
@@ -43,6 +42,7 @@ from dss14_env.baselines.yardstick import (
 )
 from dss14_env.bench.runner import run
 from dss14_env.core.outdir import atomic_write_text
+from dss14_env.core.text import add_block_options, render_block
 from dss14_env.core.units import KMH, R2D
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -148,33 +148,17 @@ def render(doc: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _region(text: str) -> re.Pattern:
-    return re.compile(rf"(<!-- {REGION}:start -->\n)(.*?)(<!-- {REGION}:end -->)", re.S)
-
-
-def write_doc(doc: dict, check: bool) -> int:
-    """Render into docs/controllers.md (or check it); 1 when the check fails."""
-    text = DOC.read_text()
-    pat = _region(text)
-    if not pat.search(text):
-        print(f"{DOC}: no <!-- {REGION}:start --> ... end region", file=sys.stderr)
-        return 1
-    new = pat.sub(lambda m: m.group(1) + render(doc) + m.group(3), text)
-    if check:
-        if new != text:
-            print(f"{DOC}: the {REGION} table differs from {RESULTS}; run scripts/yardsticks.py --render")
-            return 1
-        return 0
-    DOC.write_text(new)
-    return 0
+def write_doc(doc: dict, source: Path, check: bool) -> int:
+    """Render ``doc`` (read from ``source``) into docs/controllers.md (or check it); 1 when the
+    check fails.
+    """
+    return render_block(DOC, REGION, render(doc), source, "python scripts/yardsticks.py --render",
+                        check=check)
 
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    g = p.add_mutually_exclusive_group(required=True)
-    g.add_argument("--json", help="measure and write this file, then render the doc")
-    g.add_argument("--render", action="store_true", help="render the committed results into the doc")
-    g.add_argument("--check", action="store_true", help="exit 1 if the doc's table is not the rendering")
+    add_block_options(p, "docs/controllers.md", ("--json", "measure and write this file, then render"))
     p.add_argument("--episodes", type=int, default=16, help="simulated holds per setting (default 16)")
     args = p.parse_args(argv)
     if args.json:
@@ -190,8 +174,8 @@ def main(argv: list[str] | None = None) -> int:
                "simulated": simulated(args.episodes)}
         atomic_write_text(args.json, json.dumps(doc, indent=1) + "\n")
         print(f"wrote {args.json}")
-        return write_doc(doc, check=False)
-    return write_doc(json.loads(RESULTS.read_text()), check=args.check)
+        return write_doc(doc, Path(args.json), check=False)
+    return write_doc(json.loads(RESULTS.read_text()), RESULTS, check=args.check)
 
 
 if __name__ == "__main__":

@@ -176,10 +176,8 @@ def test_interrupted_campaign_continues(tmp_path: Path, capsys: pytest.CaptureFi
     path = tmp_path / "c.yaml"
     path.write_text(yaml.safe_dump(cfg))
     kw = dict(test_seeds=(0,), test_steps=260, figures=False)
-    whole = json.loads((train_seeds(str(path), [0, 1], tmp_path / "whole", **kw)
-                        / "summary.json").read_text())
     out = tmp_path / "cut"
-    train_seeds(str(path), [0, 1], out, **kw)
+    whole = json.loads((train_seeds(str(path), [0, 1], out, **kw) / "summary.json").read_text())
     # interrupted: seed 1 stopped before its last file, the summary never written
     (out / "seed_1" / "train_summary.json").unlink()
     (out / "summary.json").unlink()

@@ -1,5 +1,6 @@
 """Fast feedback: collecting the docstring examples imports no torch (the examples that need
-none), and the ``quick`` tier is registered."""
+none), importing the command line imports none of the heavy libraries (a command's own modules
+are imported inside the command), and the ``quick`` tier is registered."""
 
 from __future__ import annotations
 
@@ -32,6 +33,20 @@ def test_doctest_collection_imports_no_torch(tmp_path: Path) -> None:
             "print(sorted(m for m in ('torch', 'stable_baselines3') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path,
                          timeout=300)  # away from the source tree: the installed package is imported
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "[]", out.stdout
+
+
+#: libraries whose import costs seconds on a loaded machine: a command imports them when it runs
+HEAVY = ("torch", "stable_baselines3", "sb3_contrib", "ray", "cvxpy", "numba", "control", "matplotlib",
+         "scipy")
+
+
+def test_importing_the_command_line_imports_no_heavy_library(tmp_path: Path) -> None:
+    code = ("import sys\nimport dss14_env.cli\n"
+            f"print(sorted({{m.split('.')[0] for m in sys.modules}} & set({HEAVY!r})))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path,
+                         timeout=300)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "[]", out.stdout
 

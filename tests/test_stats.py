@@ -124,3 +124,12 @@ def test_ratio_ci_paired_and_independent() -> None:
     assert zero.value == 2.0 and np.isfinite([zero.low, zero.high]).all() and zero.low <= zero.high
     with pytest.raises(ValueError, match="paired samples need equal sizes"):
         stats.ratio_ci([1.0, 2.0], [1.0], np.mean, np.random.default_rng(0), paired=True)
+
+
+def test_the_iqm_of_a_batch_of_resamples_is_each_resample_s_iqm() -> None:
+    """The bootstrap's batched IQM (one reduction over the batch) gives the same bits as the
+    IQM of each resample."""
+    rng = np.random.default_rng(3)
+    for n in (2, 3, 4, 5, 8, 11):
+        x = rng.lognormal(size=(200, n))
+        assert np.array_equal(stats.along(stats.iqm, x), np.array([stats.iqm(row) for row in x]))

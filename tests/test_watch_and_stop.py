@@ -170,12 +170,70 @@ def test_a_training_run_prints_progress_lines_without_a_terminal(tmp_path: Path,
     cfg.write_text(yaml.safe_dump({**TINY, "eval_freq": 0, "total_timesteps": 256}))
     assert cli.main(["train", "ppo", "--config", str(cfg), "--out", str(tmp_path / "r")]) == 0
     err = capsys.readouterr().err.splitlines()
-    assert err[0] == "r: 0/256 steps (0 %), starting"
+    assert err[0] == f"ppo on Pendulum-v1: one run of 256 steps into {tmp_path / 'r'}"
+    assert err[1] == "r: 0/256 steps (0 %), starting"
     assert any(line.startswith("r: ") and "elapsed, ETA" in line for line in err)
     assert err[-1].startswith("r: 256/256 steps (100 %) done in ")
     assert cli.main(["train", "ppo", "--config", str(cfg), "--out", str(tmp_path / "q"),
                      "--no-progress"]) == 0
     assert capsys.readouterr().err == ""
+
+
+# ------------------------------------------------------------------ the first line
+def _env_check_sees(monkeypatch, capsys, module: str) -> list[str]:
+    """Replace ``module``'s environment check by one that records what stderr held when it was
+    called, then refuses (so nothing is trained)."""
+    import importlib
+
+    seen: list[str] = []
+
+    def check(cfg):
+        seen.append(capsys.readouterr().err)
+        raise ValueError("environment check reached")
+
+    monkeypatch.setattr(importlib.import_module(module), "check_env", check)
+    return seen
+
+
+@pytest.mark.parametrize("module, config, options, header", [
+    ("dss14_env.agents.campaign", {}, ["--train-seeds", "0-1"], "2 runs of 512 steps"),
+    ("dss14_env.agents.sweep", {"sweep": {"env_kwargs.g": [9.0, 10.0]}}, ["--train-seeds", "0"],
+     "2 runs of 512 steps"),
+    ("dss14_env.agents.train", {}, [], "one run of 512 steps"),
+], ids=["campaign", "sweep", "single-run"])
+def test_training_says_its_first_line_before_the_environment_check(
+        tmp_path: Path, monkeypatch, capsys, module: str, config: dict, options: list[str],
+        header: str) -> None:
+    """The check builds the model (seconds): the first line comes before it; a refused
+    environment leaves no folder, and ``--no-progress`` keeps a single run silent."""
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(yaml.safe_dump({**TINY, **config}))
+    seen = _env_check_sees(monkeypatch, capsys, module)
+    out = tmp_path / "out"
+    argv = ["train", "ppo", "--config", str(cfg), *options, "--out", str(out)]
+    assert cli.main(argv) == 2
+    assert seen == [f"ppo on Pendulum-v1: {header} into {out}\n"]
+    assert "environment check reached" in capsys.readouterr().err
+    assert not out.exists()
+    if not options:
+        assert cli.main([*argv, "--no-progress"]) == 2 and seen[1] == ""
+
+
+def test_a_refused_campaign_folder_is_said_at_once_without_a_first_line(tmp_path: Path, monkeypatch,
+                                                                         capsys) -> None:
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(yaml.safe_dump(TINY))
+    seen = _env_check_sees(monkeypatch, capsys, "dss14_env.agents.campaign")
+    out = tmp_path / "camp"
+    out.mkdir()
+    (out / "summary.json").write_text("{}")  # the user's file where the campaign writes
+    assert cli.main(["train", "ppo", "--config", str(cfg), "--train-seeds", "0-1", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert seen == [] and err.count("\n") == 1 and "summary.json" in err, err
+    assert cli.main(["train", "ppo", "--config", str(cfg), "--train-seeds", "0-1", "--out",
+                     str(tmp_path / "none"), "--resume"]) == 2
+    err = capsys.readouterr().err
+    assert seen == [] and err.count("\n") == 1 and "no campaign to continue" in err, err
 
 
 @pytest.mark.parametrize("sig,stop_in", [(signal.SIGINT, "seed_1"), (signal.SIGTERM, "seed_0")])
@@ -259,10 +317,33 @@ def test_a_stopped_campaign_on_ray_keeps_a_checkpoint_of_every_running_seed(tmp_
 
 
 @pytest.mark.slow
+def test_subprocess_workers_ignore_ctrl_c_so_that_only_the_main_process_stops() -> None:
+    """A terminal's Ctrl-C reaches every process of the foreground group, the workers of a
+    ``vec_env: subproc`` training included: they go on answering, and close when told.  (A
+    worker imports stable-baselines3 and torch as it starts: 5-20 s.)"""
+    import functools
+
+    import gymnasium as gym
+
+    from dss14_env.agents.vec_env import make_subproc_vec_env
+
+    venv = make_subproc_vec_env([functools.partial(gym.make, "Pendulum-v1")])  # one worker: seconds
+    try:
+        for p in venv.processes:
+            os.kill(p.pid, signal.SIGINT)
+        obs = venv.reset()
+        assert obs.shape == (1, 3) and all(p.is_alive() for p in venv.processes)
+    finally:
+        venv.close()
+    assert [p.exitcode for p in venv.processes] == [0]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("vec_env", ["dummy", "subproc"])
 def test_a_terminal_session_shows_a_bar_and_ctrl_c_to_its_process_group_keeps_a_checkpoint(
-        tmp_path: Path) -> None:
+        tmp_path: Path, vec_env: str) -> None:
     """``dss14 train`` on a pseudo-terminal, stopped as a terminal's Ctrl-C stops it (SIGINT to
-    the whole foreground process group)."""
+    the whole foreground process group, subprocess workers included)."""
     import fcntl
     import pty
     import select
@@ -273,7 +354,8 @@ def test_a_terminal_session_shows_a_bar_and_ctrl_c_to_its_process_group_keeps_a_
     import time
 
     cfg = tmp_path / "c.yaml"
-    cfg.write_text(yaml.safe_dump({**TINY, "total_timesteps": 1_000_000, "eval_freq": 0}))
+    cfg.write_text(yaml.safe_dump({**TINY, "total_timesteps": 1_000_000, "eval_freq": 0,
+                                   "vec_env": vec_env}))
     master, slave = pty.openpty()
     fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 120, 0, 0))
     proc = subprocess.Popen([sys.executable, "-m", "dss14_env.cli", "train", "ppo", "--config", str(cfg),
@@ -305,6 +387,35 @@ def test_a_terminal_session_shows_a_bar_and_ctrl_c_to_its_process_group_keeps_a_
     (ckpt,) = (tmp_path / "r" / "checkpoints").iterdir()
     lines = text.decode(errors="replace").replace("\r", "\n")
     assert f"kept checkpoint {ckpt}" in " ".join(lines.split())
+    assert "Traceback" not in lines and "Error" not in lines, lines[-3000:]
+
+
+@pytest.mark.slow
+def test_sigterm_to_the_process_group_of_a_subprocess_training_keeps_a_checkpoint(tmp_path: Path) -> None:
+    """A SIGTERM to the whole process group (a service manager's stop) ends the subprocess
+    workers too: the main process keeps a checkpoint where it stopped and says so in one line."""
+    import subprocess
+    import sys
+    import time
+
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(yaml.safe_dump({**TINY, "total_timesteps": 1_000_000, "eval_freq": 0,
+                                   "vec_env": "subproc"}))
+    log = tmp_path / "stderr.txt"
+    with log.open("w") as err:
+        proc = subprocess.Popen([sys.executable, "-m", "dss14_env.cli", "train", "ppo", "--config", str(cfg),
+                                 "--out", str(tmp_path / "r")], stdout=err, stderr=err,
+                                start_new_session=True)
+        deadline = time.monotonic() + 300
+        while time.monotonic() < deadline and "r: 0/1000000 steps (0 %), starting" not in log.read_text():
+            time.sleep(0.5)
+        time.sleep(2.0)  # into the training
+        os.killpg(proc.pid, signal.SIGTERM)
+        assert proc.wait(timeout=300) == 143
+    text = log.read_text()
+    (ckpt,) = (tmp_path / "r" / "checkpoints").iterdir()
+    assert f"training stopped (SIGTERM) at {ckpt.name[:-6]} steps; kept checkpoint {ckpt}" in text, text
+    assert "Traceback" not in text and "Error" not in text, text
 
 
 def test_a_stop_as_a_seed_ends_keeps_it_whole_and_still_stops_the_campaign(tmp_path: Path, monkeypatch,
