@@ -37,6 +37,7 @@ plant; the loop is broken at the rate command of one axis at a time.
     python scripts/policy_margins.py --policy agents/policies/ppo_general \
         --out docs/results/policy_margins.json
     python scripts/policy_margins.py --policy pi_kp1 --out pi_margins.json
+    python scripts/policy_margins.py --out docs/results/policy_margins.json --render docs/stability.md
 """
 
 from __future__ import annotations
@@ -53,6 +54,8 @@ from typing import Any
 import control as ct
 import gymnasium as gym
 import numpy as np
+from scipy import sparse
+from scipy.sparse import linalg as sparse_linalg
 
 import dss14_env  # noqa: F401  (registers the ids)
 from dss14_env.baselines.base import Controller
@@ -66,7 +69,14 @@ AXES = ("az", "el")
 #: observation entries that vary in a hold (4-7, the command, are constant)
 MOVING = (0, 1, 2, 3, 8, 9, 10, 11)
 #: a final value of the impulse response below this share of its largest tap is none
-HELD_FLOOR = 1e-6
+HELD_FLOOR = 1e-4
+#: the generated table's markers and head in docs/stability.md
+MARK_START, MARK_END = "<!-- margins:start -->", "<!-- margins:end -->"
+TABLE_HEAD = ("| controller, hold | axis | gain margin, dB | phase margin, ° | gain crossover, Hz | "
+              "peak sensitivity | largest closed-loop pole | command's dominant peak in the hold / calm: "
+              "Hz, amplitude °/s, share |\n|---|---|---|---|---|---|---|---|")
+#: closed loops up to this many states get all their eigenvalues; larger ones the six largest (ARPACK)
+DENSE_EIG = 1500
 
 
 # ------------------------------------------------------------------ the controller's response
@@ -76,7 +86,8 @@ class ControllerResponse:
 
     :param h: impulse response ``(taps, 2, 12)``, action per unit of observation entry
     :param h_inf: the final value held ``(2, 12)`` (integral action), zero where it is below
-        :data:`HELD_FLOOR` of the largest ``|h|``
+        :data:`HELD_FLOOR` of the largest ``|h|`` or below 10 times its ripple over the last
+        quarter of the taps
     :param tail: largest ``|h[m] - h_inf|`` over the last quarter of the taps, relative to the
         largest ``|h|``: what the model truncates
     """
@@ -122,9 +133,29 @@ def controller_response(ctrl: Controller, obs: np.ndarray, deltas: np.ndarray, t
     last = h[-max(taps // 4, 1):]
     scale = float(np.max(np.abs(h))) or 1.0
     h_inf = last.mean(axis=0)
-    h_inf[np.abs(h_inf) <= HELD_FLOOR * scale] = 0.0  # no integral action: a finite response
+    # integral action only where the response settles on a value clearly above its own ripple
+    # and the differences' rounding (float32 networks): else a finite (decayed) response
+    h_inf[(np.abs(h_inf) <= HELD_FLOOR * scale) | (np.abs(h_inf) <= 10.0 * last.std(axis=0))] = 0.0
     tail = float(np.max(np.abs(last - h_inf))) / scale
     return ControllerResponse(h, h_inf, tail)
+
+
+def explained_share(resp: ControllerResponse, observed: np.ndarray, actions: np.ndarray) -> list[float]:
+    """Share of each action's variance in a recorded hold that the linear model explains,
+    ``1 - var(a - a_lin) / var(a)`` (means removed), ``a_lin`` the model driven by the
+    recorded observations about their mean.
+    """
+    d = observed - observed.mean(axis=0)
+    g = resp.h - resp.h_inf
+    lin = np.zeros_like(actions)
+    for m in range(g.shape[0]):
+        lin[m:] += d[:d.shape[0] - m] @ g[m].T
+    lin += np.cumsum(d, axis=0) @ resp.h_inf.T
+    out = []
+    for i in range(actions.shape[1]):
+        a, b = actions[:, i] - actions[:, i].mean(), lin[:, i] - lin[:, i].mean()
+        out.append(float(1.0 - np.var(a - b) / np.var(a)) if np.var(a) > 0 else math.nan)
+    return out
 
 
 # ------------------------------------------------------------------ plant and observation map
@@ -202,8 +233,9 @@ def axis_margins(K: np.ndarray, f_hz: np.ndarray, dt: float) -> dict[str, Any]:
     return out
 
 
-def closed_loop_radius(resp: ControllerResponse, loop: ObservationLoop) -> float:
-    """Spectral radius of the two-axis loop (plant, observation map, controller model).
+def closed_loop_poles(resp: ControllerResponse, loop: ObservationLoop) -> np.ndarray:
+    """The largest eigenvalues (by magnitude, at least six) of the two-axis loop (plant,
+    observation map, controller model), largest first.
 
     The controller's realisation keeps a delay line of the observation entries it responds to
     and an accumulator of those with integral action, nothing else (an entry it ignores would
@@ -224,31 +256,59 @@ def closed_loop_radius(resp: ControllerResponse, loop: ObservationLoop) -> float
         Ca[:, ns + (k - 1) * m: ns + k * m] = g[k][:, used]
     Ca[:, ns + nd:] = resp.h_inf[:, held]
     Ca *= loop.action_scale
-    A = np.zeros((N, N))
-    A[:ns, :ns] = loop.A
-    A[:ns] += loop.B @ Ca
+    top = np.zeros((ns, N))
+    top[:, :ns] = loop.A
+    top += loop.B @ Ca
+    blocks = [sparse.csr_matrix(top)]
     if nd:
-        A[ns:ns + m, :ns] = Cu
-        A[ns + m:ns + nd, ns:ns + nd - m] = np.eye(nd - m)
-    A[ns + nd:, :ns] = Ch
-    A[ns + nd:, ns + nd:] = np.eye(mh)
-    return float(np.max(np.abs(np.linalg.eigvals(A))))
+        blocks.append(sparse.hstack([sparse.csr_matrix(Cu), sparse.csr_matrix((m, N - ns))]))
+        blocks.append(sparse.hstack([sparse.csr_matrix((nd - m, ns)), sparse.eye(nd - m),
+                                     sparse.csr_matrix((nd - m, m + mh))]))
+    if mh:
+        blocks.append(sparse.hstack([sparse.csr_matrix(Ch), sparse.csr_matrix((mh, nd)), sparse.eye(mh)]))
+    A = sparse.vstack(blocks).tocsr()
+    if N <= DENSE_EIG:
+        lam = np.linalg.eigvals(A.toarray())
+    else:
+        lam = sparse_linalg.eigs(A, k=6, which="LM", return_eigenvectors=False, maxiter=20 * N, tol=1e-10)
+    return lam[np.argsort(-np.abs(lam))]
+
+
+def closed_loop_radius(resp: ControllerResponse, loop: ObservationLoop) -> float:
+    """Spectral radius of the two-axis loop (:func:`closed_loop_poles`)."""
+    return float(np.abs(closed_loop_poles(resp, loop)[0]))
+
+
+def pole_table(lam: np.ndarray, dt: float, n: int = 6) -> list[dict[str, float]]:
+    """The ``n`` largest poles as magnitude and frequency (Hz), one of each conjugate pair."""
+    rows: list[dict[str, float]] = []
+    for v in lam:
+        if v.imag < 0 and np.any(np.isclose(lam, v.conjugate())):
+            continue
+        f = float(abs(np.angle(v)) / (2 * math.pi * dt))
+        rows.append({"magnitude": float(abs(v)), "frequency_hz": f})
+        if len(rows) == n:
+            break
+    return rows
 
 
 # ------------------------------------------------------------------ long holds
-def long_hold(ctrl: Controller, env: Any, seed: int, steps: int) -> tuple[np.ndarray, np.ndarray]:
-    """Observations ``(steps, 12)`` and applied rate commands ``(steps, 2)`` (deg/s) of one hold."""
+def long_hold(ctrl: Controller, env: Any, seed: int, steps: int
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Observations ``(steps, 12)``, actions ``(steps, 2)`` and applied rate commands
+    ``(steps, 2)`` (deg/s) of one hold."""
     cfg = env.unwrapped.config
     obs, _ = env.reset(seed=seed)
     ctrl.reset(seed=seed)
-    observed, rates = np.empty((steps, 12)), np.empty((steps, 2))
+    observed, actions, rates = np.empty((steps, 12)), np.empty((steps, 2)), np.empty((steps, 2))
     for k in range(steps):
         observed[k] = obs
-        obs, _, term, trunc, _ = env.step(ctrl.act(obs))
+        actions[k] = ctrl.act(obs)
+        obs, _, term, trunc, _ = env.step(actions[k].astype(np.float32))
         rates[k] = np.asarray(obs[10:12], float) * cfg.rate_limit_deg_s
         if term:
             raise RuntimeError(f"{ctrl.name}: the hold terminated at step {k}")
-    return observed, rates
+    return observed, actions, rates
 
 
 def limit_cycle(r: np.ndarray, dt: float, min_hz: float) -> dict[str, dict[str, float]]:
@@ -280,7 +340,7 @@ def make_controller(name: str, env: Any) -> Controller:
     return load_policy(name, env=env)
 
 
-def analyse(name: str, seconds: float = 200.0, taps: int = 64, seed: int = 7000,
+def analyse(name: str, seconds: float = 200.0, taps: int = 512, seed: int = 7000,
             rel_delta: float = 0.05, min_hz: float = 0.02,
             env_kwargs: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """Margins and limit cycles of one controller in the two holds (and a calm hold)."""
@@ -294,7 +354,7 @@ def analyse(name: str, seconds: float = 200.0, taps: int = 64, seed: int = 7000,
         dt = env.unwrapped.config.dt
         steps = int(round(seconds / dt))
         ctrl = make_controller(name, env)
-        observed, rates = long_hold(ctrl, env, seed, steps)
+        observed, actions, rates = long_hold(ctrl, env, seed, steps)
         k0 = int(round(preset.warmup_s / dt))
         scored = observed[k0:]
         row: dict[str, Any] = {"seconds": seconds, "seed": seed,
@@ -304,27 +364,70 @@ def analyse(name: str, seconds: float = 200.0, taps: int = 64, seed: int = 7000,
             deltas = rel_delta * np.maximum(scored.std(axis=0), 1e-6)
             resp = controller_response(ctrl, op, deltas, taps)
             loop = observation_loop(env)
+            poles = closed_loop_poles(resp, loop)
             fr = np.logspace(-3, math.log10(0.5 / dt) - 1e-3, 4000)
             row.update({"operating_point": op.tolist(), "deltas": deltas.tolist(), "taps": taps,
                         "tail": resp.tail,
+                        "explained_share": explained_share(resp, observed, actions),
                         "integral_action_entries": np.flatnonzero(np.abs(resp.h_inf).max(axis=0)).tolist(),
+                        "closed_loop_spectral_radius": float(abs(poles[0])),
                         "margins": axis_margins(loop_gains(resp, loop, fr), fr, dt),
-                        "closed_loop_spectral_radius": closed_loop_radius(resp, loop)})
+                        "closed_loop_largest_poles": pole_table(poles, dt)})
         env.close()
         result[hold] = row
     return result
 
 
+def _f(x: float, fmt: str) -> str:
+    return "–" if x is None or not math.isfinite(x) else format(x, fmt)
+
+
+def table(result: Mapping[str, Any]) -> str:
+    """The markdown table of a result file (rows: controller, hold, axis; loop at a time)."""
+    lines = [TABLE_HEAD]
+    for name, c in result["controllers"].items():
+        calm = c["hold_calm"]["limit_cycle"]
+        for hold in HOLDS:
+            r = c[hold]
+            pole = r["closed_loop_largest_poles"][0]
+            for ax in AXES:
+                m = r["margins"][ax]["other_axis_closed"]
+                lc = [r["limit_cycle"][ax], calm[ax]]
+                peaks = " / ".join(f"{x['frequency_hz']:.2f}, {x['amplitude_deg_s']:.1e}, "
+                                   f"{x['share_of_variance']:.2f}" for x in lc)
+                lines.append(f"| {Path(name).name}, {hold} | {ax} | {_f(m['gain_margin_db'], '.1f')} | "
+                             f"{_f(m['phase_margin_deg'], '.1f')} | {_f(m['gain_crossover_hz'], '.3f')} | "
+                             f"{_f(m['peak_sensitivity'], '.2f')} | {pole['magnitude']:.4f} at "
+                             f"{pole['frequency_hz']:.2f} Hz | {peaks} |")
+    return "\n".join(lines) + "\n"
+
+
+def render(result_path: Path, doc: Path) -> bool:
+    """Write :func:`table` of ``result_path`` between ``doc``'s markers; True if it changed."""
+    text = doc.read_text(encoding="utf-8")
+    start, end = text.index(MARK_START) + len(MARK_START) + 1, text.index(MARK_END)
+    new = text[:start] + table(json.loads(result_path.read_text(encoding="utf-8"))) + text[end:]
+    doc.write_text(new, encoding="utf-8")
+    return new != text
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Command line (see the module docstring)."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--policy", action="append", required=True,
+    p.add_argument("--policy", action="append",
                    help="pi_kp1 or a policy folder (repeatable)")
+    p.add_argument("--render", type=Path, metavar="DOC",
+                   help="only write the table of --out (an existing result) into DOC's margins section")
     p.add_argument("--seconds", type=float, default=200.0)
-    p.add_argument("--taps", type=int, default=64)
+    p.add_argument("--taps", type=int, default=512)
     p.add_argument("--seed", type=int, default=7000)
     p.add_argument("--out", type=Path, required=True)
     a = p.parse_args(argv)
+    if a.render is not None:
+        render(a.out, a.render)
+        return 0
+    if not a.policy:
+        p.error("--policy is required (or --render)")
     if not (a.seconds >= 10.0 and a.taps >= 4):
         p.error(f"--seconds must be >= 10 and --taps >= 4, got {a.seconds} and {a.taps}")
     for name in a.policy:

@@ -137,3 +137,9 @@ def test_a_policy_that_is_not_a_folder_is_refused_in_one_line(tmp_path: Path) ->
     done = subprocess.run([sys.executable, str(SCRIPT), "--policy", str(tmp_path / "nope"),
                            "--out", str(tmp_path / "m.json")], capture_output=True, text=True, timeout=120)
     assert done.returncode == 2 and "nope" in done.stderr and not (tmp_path / "m.json").exists()
+
+
+def test_the_committed_table_is_the_committed_result(tmp_path: Path) -> None:
+    doc = tmp_path / "stability.md"
+    doc.write_text((ROOT / "docs" / "stability.md").read_text(encoding="utf-8"), encoding="utf-8")
+    assert not pm.render(ROOT / "docs" / "results" / "policy_margins.json", doc)
