@@ -9,8 +9,13 @@ error, ``DSS14-HoldSide-v0`` on the azimuth: 60-s episodes, 5-s warm-up) on eval
 that no training used; the PI (``pi_kp1``, on the registered ids as they are) plays the same
 seeds.  The JSON written holds every seed's figures, the settings and the command line::
 
-    python scripts/plain_sb3.py --setting snippet --seeds 0 1 2 --steps 200000 \
+    python scripts/plain_sb3.py --setting snippet_std --seeds 0 1 2 --steps 150000 \
         --out docs/results/plain_sb3.json
+
+(the committed file: seed 0 from ``docs/results/plain_sb3_runs/snippet_std_seed0.json`` with
+``--runs-from``, the other settings' single-seed files summarised with ``--explored``; its
+``command`` says which).  ``snippet_std`` is the README's example; ``defaults`` is SB3's PPO
+untouched; :class:`LogCost` prototypes a bounded reward (``log_std``).
 """
 
 from __future__ import annotations
@@ -48,6 +53,9 @@ SETTINGS: dict[str, dict[str, Any]] = {
                     "normalize": True},
     "snippet_sde": {"env": {"action_scale_deg_s": 0.02},
                     "ppo": {"use_sde": True, "policy_kwargs": {"log_std_init": -3.0}}, "normalize": True},
+    "snippet_std_n1024": {"env": {"action_scale_deg_s": 0.02},
+                          "ppo": {"n_steps": 1024, "policy_kwargs": {"log_std_init": -3.0}},
+                          "normalize": True},
     "log_std": {"env": {"action_scale_deg_s": 0.02}, "ppo": {"policy_kwargs": {"log_std_init": -3.0}},
                 "normalize": True, "wrapper": "log"},
 }
