@@ -2,8 +2,9 @@
 
 Every fenced ``python`` block is executed in a fresh namespace, in a temporary working folder;
 a block that raises fails the test.  A block may end with a comment ``# prints: <text>``: then
-``<text>`` must appear in what it printed.  Blocks fenced as ```` ```py ```` need files of the
-reader's own and are shown only.  A block that builds an environment on a user model
+``<text>`` must appear in what it printed.  A training budget ``.learn(total_timesteps=<N>``
+runs shortened to :data:`SHORT_TIMESTEPS` (one rollout).  Blocks fenced as ```` ```py ```` need files
+of the reader's own and are shown only.  A block that builds an environment on a user model
 (``model_config``) calibrates a model and runs in the slow suite.
 """
 
@@ -20,6 +21,8 @@ ROOT = Path(__file__).resolve().parents[1]
 #: the README and every manual
 PAGES = ["README.md"] + sorted(str(p.relative_to(ROOT)) for p in (ROOT / "docs").glob("*.md"))
 _BLOCK = re.compile(r"^```python\n(.*?)^```", re.M | re.S)
+#: the training budget of an example as the test runs it
+SHORT_TIMESTEPS = 64
 
 
 def blocks(page: str) -> list[str]:
@@ -37,7 +40,8 @@ CASES = [_case(page, i, code) for page in PAGES for i, code in enumerate(blocks(
 @pytest.mark.parametrize("page,index", CASES)
 def test_example_runs_standalone(page: str, index: int, tmp_path: Path,
                                  monkeypatch: pytest.MonkeyPatch) -> None:
-    code = blocks(page)[index]
+    code = re.sub(r"\.learn\(total_timesteps=[0-9_]+", f".learn(total_timesteps={SHORT_TIMESTEPS}",
+                  blocks(page)[index])
     monkeypatch.chdir(tmp_path)
     out = io.StringIO()
     with contextlib.redirect_stdout(out):

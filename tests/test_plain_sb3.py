@@ -1,0 +1,73 @@
+"""The README's plain stable-baselines3 example is the setting measured in
+docs/results/plain_sb3.json (scripts/plain_sb3.py), with the budget it states; the measured file
+holds every training seed's figures.  (The example itself runs, shortened, in
+tests/test_docs_examples.py.)"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import re
+import sys
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+_spec = importlib.util.spec_from_file_location("plain_sb3", ROOT / "scripts" / "plain_sb3.py")
+ps = importlib.util.module_from_spec(_spec)
+sys.modules["plain_sb3"] = ps
+_spec.loader.exec_module(ps)
+
+RESULT = json.loads((ROOT / "docs" / "results" / "plain_sb3.json").read_text(encoding="utf-8"))
+
+
+def _example() -> str:
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    blocks = re.findall(r"^```python\n(.*?)^```", text, re.M | re.S)
+    found = [b for b in blocks if "stable_baselines3" in b and "PPO(" in b]
+    assert len(found) == 1, "the README has one plain stable-baselines3 example"
+    return found[0]
+
+
+def test_the_readme_example_is_the_measured_setting() -> None:
+    code = _example()
+    setting = ps.SETTINGS[RESULT["setting"]]
+    assert RESULT["definition"] == json.loads(json.dumps(setting))
+    for key, value in setting["env"].items():
+        assert re.search(rf'"{key}":\s*{value}\b', code), key
+    for key, value in setting["ppo"].get("policy_kwargs", {}).items():
+        assert re.search(rf'"{key}":\s*{value}\b', code), key
+    assert ("VecNormalize(" in code) == setting["normalize"]
+    assert set(setting["ppo"]) <= {"policy_kwargs"}  # nothing else differs from SB3's defaults
+    steps = int(re.search(r"total_timesteps=([0-9_]+)", code).group(1).replace("_", ""))
+    assert steps == RESULT["steps"]
+    assert 'make_vec_env("DSS14-v0"' in code and "torch.set_num_threads(1)" in code
+
+
+def test_the_result_holds_three_training_seeds_scored_on_unseen_seeds() -> None:
+    seeds = [r["seed"] for r in RESULT["runs"]]
+    assert len(set(seeds)) >= 3 and seeds == RESULT["train_seeds"]
+    assert min(RESULT["eval_seeds"]) >= 7000 > max(seeds)
+    for r in RESULT["runs"]:
+        for hold in ps.HOLDS:
+            mine = r["holds"][hold]["mean_three_sigma_mdeg"]
+            assert r["ratio_to_pi"][hold] == mine / RESULT["pi_kp1"][hold]["mean_three_sigma_mdeg"]
+            assert len(r["holds"][hold]["three_sigma_mdeg"]) == len(RESULT["eval_seeds"])
+
+
+def test_the_bounded_reward_prototype_stays_in_its_range() -> None:
+    env = ps.LogCost(gym.make("DSS14-v0", action_scale_deg_s=0.25))
+    env.reset(seed=5)
+    rng = np.random.default_rng(0)
+    rewards = []
+    for _ in range(400):  # full-scale random commands: errors grow towards the bound
+        _, r, term, trunc, _ = env.step(rng.uniform(-1, 1, 2).astype(np.float32))
+        rewards.append(r)
+        if term or trunc:
+            break
+    live = np.array(rewards[:-1] if term else rewards)
+    assert np.all((live <= 0.0) & (live >= -1.0)) and live.min() < live.max()
+    if term:
+        assert -1.0 - ps.LOG_PENALTY <= rewards[-1] <= -ps.LOG_PENALTY
