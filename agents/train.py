@@ -664,6 +664,21 @@ def prepare_run(cfg: TrainConfig, run_dir: str | Path | None, resume: str | Path
     return run, src
 
 
+def check_run_first(run_dir: str | Path | None, resume: str | Path | None, overwrite: bool = False,
+                    trust_pickle: bool = False) -> None:
+    """Refuse an unusable run folder or resume source at once, before the run's first line and
+    its environment check: checked only, nothing made or removed (:func:`prepare_run` claims
+    the folder after the checks).
+
+    :raises ValueError: as :func:`prepare_run`
+    """
+    src = resume_source(resume, trust_pickle)
+    if run_dir is None or (src is not None and Path(run_dir).resolve() == src.run_folder.resolve()):
+        return
+    prepare_output_dir(run_dir, owned=RUN_FILES, overwrite=overwrite, option="--out", dry_run=True,
+                       command=COMMAND)
+
+
 def resume_source(resume: str | Path | None, trust_pickle: bool = False) -> _Resume | None:
     """The checked resume source (None without ``resume``): its files are read and checked
     here (weights, optimiser state, counters, statistics and their fingerprints), before any

@@ -122,7 +122,7 @@ def say_run(cfg: Any, out: str | None, resume: str | None) -> None:
 def _train(args: argparse.Namespace) -> int:
     from dss14_env.agents.campaign import COMMAND, kept_work, owned_files, parse_seeds, train_seeds
     from dss14_env.agents.sweep import train_sweep
-    from dss14_env.agents.train import TrainingInterrupted, config_for_command, train
+    from dss14_env.agents.train import TrainingInterrupted, check_run_first, config_for_command, train
     from dss14_env.core.outdir import prepare_output_dir
     from dss14_env.core.parallel import make_executor, ray_preflight
     from dss14_env.core.stop import exit_status, signal_name, signal_of
@@ -146,6 +146,7 @@ def _train(args: argparse.Namespace) -> int:
                                command=COMMAND)
     if args.train_seeds is None:
         if args.progress:
+            check_run_first(args.out, resume, args.overwrite, args.trust_pickle)
             say_run(cfg, args.out, resume)
         try:
             run = train(cfg, run_dir=args.out, resume=resume, overwrite=args.overwrite,
