@@ -16,26 +16,25 @@ from gymnasium import spaces
 
 from dss14_env.core.units import DEG, KMH_PER_M_S, R2D, R2MD
 from dss14_env.envs.config import EnvConfig, load_env_config
-from dss14_env.envs.core import (
-    OBS_HIGH,
-    OBS_NAMES,
-    EpisodeConstants,
-    ScalarState,
-    StepConstants,
-    as_actions,
-    check_seed,
+from dss14_env.envs.core import OBS_HIGH, OBS_NAMES, StepConstants, StepState, as_actions, check_seed
+from dss14_env.envs.fused import (
+    NON_FINITE,
+    POINTING_ROWS,
+    after_product,
+    constants,
+    episode_rows,
+    limit_commands,
     reset_state,
-    step_1,
-    step_constants,
+    step_outputs,
 )
 from dss14_env.envs.monopulse import (
     MonopulseConstants,
-    ScalarMonopulse,
-    observation_1,
+    MonopulseState,
     observation_high,
+    sensor_constants,
+    sensor_observe,
     sensor_reset,
-    sensor_step_1,
-    step_obs_info,
+    sensor_step,
 )
 from dss14_env.envs.plant import (
     N_STEP_OUTPUTS,
@@ -424,11 +423,15 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         self.constants = StepConstants.from_config(c)
         #: the monopulse sensor's constants (None without it)
         self.monopulse = MonopulseConstants.from_config(c) if "monopulse" in c.sensors else None
-        self._mp: ScalarMonopulse | None = None
-        self._mp_w: list | None = None
+        self._mp: MonopulseState | None = None
+        self._W: np.ndarray | None = None
+        #: the step's constants (:func:`dss14_env.envs.fused.constants`) and the sensor's
+        self._kc = constants(self.constants, self.plants.xel_scale)
+        self._mc = sensor_constants(self.monopulse) if self.monopulse is not None else None
+        self._width = high.size
         self._renderer = Renderer(render_mode, c.dt, c.render_window_s) if render_mode else None
         self.episode: Episode | None = None
-        self._st: ScalarState | None = None
+        self._st: StepState | None = None
         self._block: np.ndarray | None = None
         self._views: list = []
         self._riders: list = []
@@ -472,26 +475,25 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         self.episode = ep
         self._parts = command_parts(ep.traj)
         self._next_block(0, normals)
-        # the state, first observation and info through the batched core (N = 1)
+        # the state, first observation and info through the step's loop (N = 1)
         c, cd = command(ep.traj, np.zeros(1))
-        st, obs, rinfo = reset_state(c, cd, y0[None], ep.start[None], ne[None], ep.r0[None],
-                                     np.array([[ep.wind_speed, ep.wind_direction]]), p.xel_scale, k)
         me = cfg.max_error_deg * DEG * R2MD
-        s_az, s_el = float(ep.start[0]), float(ep.start[1])
-        # everything step() reads that is fixed for the episode
-        self._M = MT  # step_1's form: input @ M^T, the fastest product here
-        self._sc = step_constants(k, (s_az, s_el), me, p.xel_scale, ep.wind_speed, ep.wind_direction)
+        self._episode = episode_rows(ep.start[None], np.array([me]),
+                                     np.array([[ep.wind_speed, ep.wind_direction]]))
+        st, obs, rinfo = reset_state(c, cd, y0[None], ne[None], ep.r0[None], self._episode, self._kc, k,
+                                     self._width)
+        self._M = MT  # input @ M^T, the fastest product here
+        self._clamp_always = k.clamp_always(me)
         self._extras = cfg.info_state or self._renderer is not None
         self._info_state = cfg.info_state
-        self._st = ScalarState.of(st)
+        self._st = st._replace(j=0)
         info = {**episode_info(ep, self.plants.wind_loads), **{key: float(v[0]) for key, v in rinfo.items()}}
-        rp0, rp1 = self._st.r_az, self._st.r_el
+        rp0, rp1 = st.r_prev[0].tolist()
         if self.monopulse is not None:
             p0 = np.column_stack((rinfo["pointing_error_el_mdeg"], rinfo["pointing_error_xel_mdeg"]))
-            mp = sensor_reset(p0, z0[None], self.monopulse)
-            obs = step_obs_info(obs, info, mp, k.error_scale)
-            self._mp = ScalarMonopulse.of(mp)
-            info["monopulse_el_mdeg"], info["monopulse_xel_mdeg"] = self._mp.out_el, self._mp.out_xel
+            self._mp = mp = sensor_reset(p0, z0[None], self.monopulse)
+            sensor_observe(mp.out, 1.0 / k.error_scale, obs)
+            info["monopulse_el_mdeg"], info["monopulse_xel_mdeg"] = mp.out[0].tolist()
         obs = obs[0]
         if cfg.info_state:
             info["plant_state"] = ep.x0.copy()
@@ -516,13 +518,12 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         if normals is None:
             normals = draw_noise_block(self.np_random, self._rank, k.encoder_sigma > 0.0, monopulse=mp)
         if mp:  # the sensor's columns: the last two
-            self._mp_w, normals = normals[:, -2:].tolist(), normals[:, :-2]
+            self._W, normals = normals[:, None, :], normals[:, :-2]
         B = self._block
         if k0:
             B[0, -(self._m + N_STEP_OUTPUTS):] = B[NOISE_BLOCK, -(self._m + N_STEP_OUTPUTS):]
         B[:NOISE_BLOCK, 3:3 + self._rank] = normals[:, :self._rank]
-        self._rows = block_rows(self.episode.traj, k0, k.dt, k.rate_limit, normals, k.encoder_sigma,
-                                parts=self._parts).tolist()
+        self._rows = block_rows(self.episode.traj, k0, k.dt, normals, k.encoder_sigma, parts=self._parts)
         self._k0 = k0
 
     def _plant_state(self) -> np.ndarray:
@@ -551,12 +552,12 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
     @property
     def n_rate_limited(self) -> int:
         """Steps of the current episode in which the rate clip acted."""
-        return self._st.n_rate if self._st is not None else 0
+        return int(self._st.hits[0, 0]) if self._st is not None else 0
 
     @property
     def n_accel_limited(self) -> int:
         """Steps of the current episode in which the acceleration limit acted."""
-        return self._st.n_acc if self._st is not None else 0
+        return int(self._st.hits[0, 1]) if self._st is not None else 0
 
     # ------------------------------------------------------------------ step
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
@@ -575,23 +576,41 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
             as_actions(action, (2,))  # checked before the next noise block changes the generator
             self._next_block(self._k0 + j)
             st, j = st._replace(j=0), 0
-        result, self._st = step_1(action, self._views[j], st, self._M, self._rows[j], self._sc)
+        try:  # fast path: a float32 or float64 array of shape (2,) (finite: checked by the limiter)
+            fast = action.dtype in _FAST and action.shape == (2,)
+        except AttributeError:
+            fast = False
+        A = action.reshape(1, 2) if fast else as_actions(action, (2,)).reshape(1, 2)
+        r, inp, out, y = self._views[j]
+        a, rate_hit, acc_hit = np.empty((1, 2)), np.empty(1, bool), np.empty(1, bool)
+        if limit_commands(A, st.r_prev, self._kc, a, r, rate_hit, acc_hit) >= 0:
+            as_actions(action, (2,))  # raises: not finite
+        inp.dot(self._M, out)  # the plant map (the method: no dispatch of np.dot)
+        obs, rew, term, em, info_f, info_i = o = step_outputs(1, self._width)
+        C, CD, NZ = self._rows
+        if after_product(y, _ROW0, C, CD, NZ, j, self._episode, a, st.a_prev, st.em_prev, r, rate_hit,
+                         acc_hit, st.hits, self._kc, self._clamp_always, *o) & NON_FINITE:
+            raise FloatingPointError(f"the reward became {rew[0]} (servo errors {info_f[0, 0]}, "
+                                     f"{info_f[1, 0]} mdeg): the plant left the range it is meant for")
+        self._st = StepState(r, a, em, st.hits, j + 1)
+        f = info_f.ravel().tolist()
+        n_rate, n_acc = info_i.ravel().tolist()
+        info = {"servo_error_az_mdeg": f[0], "servo_error_el_mdeg": f[1], "measured_error_az_mdeg": f[2],
+                "measured_error_el_mdeg": f[3], "pointing_error_el_mdeg": f[4],
+                "pointing_error_xel_mdeg": f[5], "wind_speed_mps": f[6], "wind_direction_rad": f[7],
+                "action_unclipped": tuple(A[0].tolist()),
+                "rate_command_az_deg_s": f[8], "rate_command_el_deg_s": f[9],
+                "rate_limited": bool(rate_hit[0]), "accel_limited": bool(acc_hit[0]),
+                "n_rate_limited": n_rate, "n_accel_limited": n_acc}
         if self.monopulse is not None:
-            result = self._sense(result, j)
+            mp = self._mp
+            sensor_step(mp.history, mp.out, mp.k, info_f[POINTING_ROWS[0]:POINTING_ROWS[1] + 1], self._W, j,
+                        self._mc, 1.0 / self.constants.error_scale, obs)
+            info["monopulse_el_mdeg"], info["monopulse_xel_mdeg"] = mp.out[0].tolist()
+        result = obs[0], rew.item(), bool(term[0]), False, info
         if self._extras:
-            self._step_extras(result[4])
+            self._step_extras(info)
         return result
-
-    def _sense(self, result: tuple, j: int) -> tuple:
-        """The step's result with the monopulse sensor's observation entries and info keys,
-        from the true pointing errors and row ``j`` of the sensor's noise (the scalar twin).
-        """
-        obs, rew, term, trunc, info = result
-        w_el, w_xel = self._mp_w[j]
-        p_el, p_xel = info["pointing_error_el_mdeg"], info["pointing_error_xel_mdeg"]
-        st = self._mp = sensor_step_1(self._mp, p_el, p_xel, w_el, w_xel, self.monopulse)
-        info["monopulse_el_mdeg"], info["monopulse_xel_mdeg"] = st.out_el, st.out_xel
-        return observation_1(obs, st, self.constants.error_scale), rew, term, trunc, info
 
     def _step_extras(self, info: dict) -> None:
         """``info["plant_state"]`` and the render history, when asked for."""
@@ -599,11 +618,10 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         if self._info_state:
             info["plant_state"] = self._state_map @ x
         if self._renderer is not None:
-            cd = self._rows[self._st.j - 1][4:6]
-            rl = self.constants.rate_limit
+            cd = self._rows[1][self._st.j - 1, 0]
             self._renderer.record(self.elapsed_steps * self.constants.dt, info["servo_error_az_mdeg"],
                                   info["servo_error_el_mdeg"], info["rate_command_az_deg_s"],
-                                  info["rate_command_el_deg_s"], cd[0] * rl * R2D, cd[1] * rl * R2D,
+                                  info["rate_command_el_deg_s"], cd[0] * R2D, cd[1] * R2D,
                                   self.episode.wind_speed + self._gust_of(x))
             if self.render_mode == "human":
                 self._renderer.show()
@@ -611,10 +629,10 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
     # ------------------------------------------------------------------ copies and state
     #: the attributes of the dynamic state (:meth:`get_state`)
     _STATE = ("_block", "_st", "_rows", "_k0", "_parts", "_np_random", "_np_random_seed", "episode", "_M",
-              "_sc", "_m", "_rank", "_state_map", "_C_gust", "_gust_az", "_gust_inv", "_info_state",
-              "_extras", "_mp", "_mp_w")
+              "_episode", "_clamp_always", "_m", "_rank", "_state_map", "_C_gust", "_gust_az", "_gust_inv",
+              "_info_state", "_extras", "_mp", "_W")
     #: the parts of it that never change in place (kept by reference in a snapshot)
-    _SHARED = ("episode", "_M", "_sc", "_rows", "_parts", "_state_map", "_C_gust")
+    _SHARED = ("episode", "_M", "_episode", "_rows", "_W", "_parts", "_state_map", "_C_gust")
 
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()
@@ -671,11 +689,12 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         ok = (m == p.n - p.n_wind and data["_rank"] == p.noise_rank and isinstance(M, np.ndarray)
               and M.shape == (width, m + N_STEP_OUTPUTS)
               and _shape(B) == (NOISE_BLOCK + 1, width + N_STEP_OUTPUTS)
-              and isinstance(st, ScalarState)
-              and isinstance(rows, list) and len(rows) == NOISE_BLOCK and all(len(r) == 8 for r in rows)
+              and isinstance(st, StepState) and all(_shape(v) == (1, 2) for v in st[:4])
+              and isinstance(rows, tuple) and all(_shape(r) == (NOISE_BLOCK, 1, 2) for r in rows)
+              and _shape(data["_episode"]) == (1, 5)
               and _shape(data["_state_map"]) == (p.n, m)
               and _shape(data["_C_gust"]) == (len(OUTPUTS) - N_STEP_OUTPUTS, m)
-              and isinstance(data["episode"], Episode) and isinstance(data["_sc"], EpisodeConstants))
+              and isinstance(data["episode"], Episode))
         if not ok:
             raise ValueError(f"state must hold the plant and step state of this model ({p.n - p.n_wind} "
                              f"one-copy states, {p.noise_rank} noise inputs): its parts have other shapes")
@@ -701,6 +720,11 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
 
 DSS14Env.__doc__ = DSS14Env.__doc__.replace("{registered_ids}",
                                             registered_ids_table().replace("\n", "\n    "))
+
+
+#: the action dtypes of the step's fast path, and the sub-environment order of N = 1
+_FAST = (np.dtype(np.float32), np.dtype(np.float64))
+_ROW0 = np.zeros(1, np.int64)
 
 
 def _shape(x: Any) -> tuple | None:

@@ -1,42 +1,69 @@
-"""The vector environment's step compiled (numba): the batched pieces of
-:mod:`dss14_env.envs.core` fused into two loops over the sub-environments.
+"""The step of the DSS14 environments, written once: the command limiter, encoders, servo and
+pointing errors, episode end, reward, observation and info values, as compiled loops over N
+sub-environments (numba), and the reset's first observation and info through the same loop.
 
-:func:`before_product` is :func:`~dss14_env.envs.core.limit_commands` and the plant product's
-input rows; :func:`after_product` is :func:`~dss14_env.envs.core.read_encoders`,
-:func:`~dss14_env.envs.core.servo_errors`, :func:`~dss14_env.envs.core.terminated`,
-:func:`~dss14_env.envs.core.pointing_errors`, :func:`~dss14_env.envs.core.reward`,
-:func:`~dss14_env.envs.core.observation` and the values of
-:func:`~dss14_env.envs.core.step_info`.  Each makes the same floating-point operations in the
-same order as the pieces, so the results are the same bit for bit (``tests/test_env_fused.py``
-holds them equal on random inputs, limiter edges, signed zeros, quantisation, termination and
-clamping included).
+The single environment (:mod:`dss14_env.envs.env`) runs them with N = 1 on its preallocated
+step buffers; the vector environment (:mod:`dss14_env.envs.vector`) with its N; between the two
+loops each runs the plant map of its own layout, one numpy matrix product
+(:mod:`dss14_env.envs.plant`)::
 
-Why: a batched piece is one numpy call per operation on ``(N, 2)`` arrays, about a microsecond
-each at N = 1 024, and a step makes about a hundred of them (some 75 µs a step); the two
-compiled loops take about 20 µs.  numba is optional (the ``fast`` extra): without it
-:data:`AVAILABLE` is False and the vector environment steps with the batched pieces.  The loops
-are compiled in memory on first use (about a second), never cached to disk.
+    limit_commands            actions -> clipped actions, applied rate commands, limiter flags
+    [plant map]               [x+, y+] = M [x, r, wind, gust noise]
+    after_product             encoders, errors, episode end, reward, observation, info values
 
-Without numba the functions below are plain Python (slow, but the same results): the tests
-run them so where numba is missing.
+Why compiled loops: a step of one environment is a few dozen floating-point operations.  As
+numpy operations on ``(N, 2)`` arrays each costs about a microsecond whatever N (a hundred of
+them per step), so the single environment used to carry a second copy of the step on Python
+floats; a compiled loop serves N = 1 and N = 1 024 alike, with the call's dispatch (well
+under a microsecond per call with these arguments) as its only fixed cost.  The plant product
+stays numpy's (the same BLAS call as before, so the same bits): a product inside the loop would
+sum in another order.  ``NUMBA_DISABLE_JIT=1`` runs this very source as Python (slow; the
+results are the same).  The loops are compiled in memory on first use (about 2 s per process,
+measured by ``scripts/bench_env_speed.py``), not cached to disk: numba's cache writes next to
+the installed package or into a user folder, and its files are pickles.
+
+The step, in order (SI inside; mdeg and deg at the interface)::
+
+    a      = clip(action, -1, 1)                                       action units
+    q      = clip(a * action_scale, +-rate_limit)                      rad/s (rate clip)
+    r      = clip(q, r_prev - rate_step, r_prev + rate_step)           acceleration limit
+    x+, y+ = plant map (exact discretisation, :mod:`dss14_env.envs.plant`)
+    reading = q_enc * floor((start + theta + noise) / q_enc + 1/2)      encoder (absolute angle)
+    e      = (c - theta) * R2MD,   e_meas = (c - (reading - start)) * R2MD      servo errors, mdeg
+    terminated = |e| > max_error on an axis, or the antenna leaves its travel
+    pointing error p = [c_el - point_el, c_az cos(E) - point_xel] * R2MD
+    reward = -((s_1^2 + s_2^2) / error_scale^2 + w ||a - a_prev||^2) [- penalty if terminated]
+             s = e (``reward: servo``, the default) or s = p (``reward: pointing``)
+
+>>> import numpy as np
+>>> from dss14_env.core.units import R2D
+>>> from dss14_env.envs.config import load_env_config
+>>> from dss14_env.envs.core import StepConstants
+>>> kc = constants(StepConstants.from_config(load_env_config()), 0.7)
+>>> a, r, rate_hit, acc_hit = np.empty((1, 2)), np.empty((1, 2)), np.empty(1, bool), np.empty(1, bool)
+>>> limit_commands(np.array([[2.0, -0.01]]), np.zeros((1, 2)), kc, a, r, rate_hit, acc_hit)
+-1
+>>> a.tolist(), (r * R2D).round(6).tolist(), acc_hit.tolist()
+([[1.0, -0.01]], [[0.004, -0.0025]], [True])
 """
 
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
+from numba import njit
 
 from dss14_env.core.units import R2D, R2MD
-from dss14_env.envs.core import OBS_ERROR_BOUND, OBS_ERROR_RATE_BOUND, StepConstants
-
-try:
-    from numba import njit
-except ImportError:  # pragma: no cover - exercised where numba is missing
-    njit = None
-
-#: whether the compiled step is available (numba installed)
-AVAILABLE = njit is not None
+from dss14_env.envs.core import (
+    OBS_ERROR_BOUND,
+    OBS_ERROR_RATE_BOUND,
+    OBS_SIZE,
+    RESET_INFO_KEYS,
+    StepConstants,
+    StepState,
+)
 
 #: the float info values :func:`after_product` writes, one row each, in order
 INFO_FLOAT_ROWS = ("servo_error_az_mdeg", "servo_error_el_mdeg", "measured_error_az_mdeg",
@@ -44,17 +71,24 @@ INFO_FLOAT_ROWS = ("servo_error_az_mdeg", "servo_error_el_mdeg", "measured_error
                    "wind_speed_mps", "wind_direction_rad", "rate_command_az_deg_s", "rate_command_el_deg_s")
 #: the integer info values (the episode's limiter hit counts after the step)
 INFO_INT_ROWS = ("n_rate_limited", "n_accel_limited")
+#: the rows of the pointing errors ``[el, xel]`` in :data:`INFO_FLOAT_ROWS`
+POINTING_ROWS = (INFO_FLOAT_ROWS.index("pointing_error_el_mdeg"),
+                 INFO_FLOAT_ROWS.index("pointing_error_xel_mdeg"))
 
 # the entries of the constants vector (:func:`constants`)
 (_SCALE, _RATE_CLIP, _RL, _DR, _SIGMA, _QUANTUM, _INV_Q, _AZ_CENTRE, _EL_LO, _EL_HI, _AZ_H, _XEL, _INV_ES2,
  _W, _PENALTY, _POINTING, _INV_ES, _RATE_SCALE, _INV_RL, _N_CONSTANTS) = range(20)
+#: :func:`after_product`'s encoder noise where there is none (not read)
+NO_NOISE = np.zeros((1, 1, 2))
 #: :func:`after_product`'s result flags
 ANY_TERMINATED, NON_FINITE = 1, 2
 
 
 def constants(k: StepConstants, xel_scale: float) -> np.ndarray:
-    """The step's constants as one float vector (flags as 0.0 / 1.0), each computed as the
-    batched pieces compute it.
+    """The step's constants as one float vector (flags as 0.0 / 1.0).
+
+    :param xel_scale: ``cos(E)`` of the structure model: the cross-elevation command is the
+        azimuth command times it, as in the structure model's xel output
     """
     c = np.zeros(_N_CONSTANTS)
     c[_SCALE], c[_RATE_CLIP], c[_RL], c[_DR] = k.action_scale, k.rate_clip, k.rate_limit, k.rate_step
@@ -68,40 +102,46 @@ def constants(k: StepConstants, xel_scale: float) -> np.ndarray:
     return c
 
 
+@njit(inline="always")
 def _max(x: float, lo: float) -> float:
-    """``np.maximum`` on two finite floats: the second where they compare equal, as numpy's
-    loops do (it decides the sign of a zero).
+    """The larger of two finite floats, the second where they compare equal (as ``np.maximum``;
+    it decides the sign of a zero).
     """
     return x if x > lo else lo
 
 
+@njit(inline="always")
 def _min(x: float, hi: float) -> float:
-    """``np.minimum`` on two finite floats (the second where equal)."""
+    """The smaller of two finite floats (the second where equal)."""
     return x if x < hi else hi
 
 
-def before_product(A: np.ndarray, r_prev: np.ndarray, kc: np.ndarray, perm: np.ndarray, kappa_s: np.ndarray,
-                   t_mean_s: np.ndarray, normals: np.ndarray, noise_on: bool, n: int, k: int, Z: np.ndarray,
-                   a_out: np.ndarray, r_out: np.ndarray, rate_hit: np.ndarray, acc_hit: np.ndarray) -> None:
-    """The command limiter of every sub-environment (:func:`~dss14_env.envs.core.limit_commands`)
-    and the plant product's input rows ``n ..`` of this step in slot order (sub-environment
-    ``perm[s]`` in slot ``s``): the applied rate commands, the mean wind torques and, with
-    ``noise_on``, the gust normals scaled by the direction factors.
+@njit(inline="always")
+def _clamped(x: float, b: float) -> float:
+    """``x`` clamped to ``[-b, b]``."""
+    return _min(_max(x, -b), b)
 
-    :param A: actions ``(N, 2)`` float64, finite; ``r_prev`` the previous rate commands, rad/s
-    :param kc: :func:`constants`
-    :param kappa_s: direction factors ``(2, N)`` and ``t_mean_s`` mean torques ``(2, N)``, in
-        slot order
-    :param normals: this step's standard normals ``(N, >= k)``, the gust's first
-    :param Z: the product's input ``(n + 4 + 2 k, N)``
-    :param a_out: receives the clipped actions ``(N, 2)``, ``r_out`` the applied rate commands,
-        ``rate_hit`` and ``acc_hit`` ``(N,)`` whether the rate clip / acceleration limit acted
+
+@njit(nogil=True)
+def limit_commands(A: np.ndarray, r_prev: np.ndarray, kc: np.ndarray, a_out: np.ndarray, r_out: np.ndarray,
+                   rate_hit: np.ndarray, acc_hit: np.ndarray) -> int:
+    """The command limiter of every sub-environment.
+
+    :param A: actions ``(N, 2)`` (float32 or float64); ``r_prev`` the previous applied rate
+        commands, rad/s; ``kc`` :func:`constants`
+    :param a_out: receives the actions clipped to [-1, 1] ``(N, 2)``, ``r_out`` the applied
+        rate commands (rad/s), ``rate_hit`` and ``acc_hit`` ``(N,)`` whether the rate clip /
+        acceleration limit acted
+    :return: -1, or the first row with a non-finite action (then nothing is written)
     """
-    scale, rate_clip, rl, dr = kc[_SCALE], kc[_RATE_CLIP] != 0.0, kc[_RL], kc[_DR]
     N = A.shape[0]
     for i in range(N):
-        c0 = _min(_max(A[i, 0], -1.0), 1.0)
-        c1 = _min(_max(A[i, 1], -1.0), 1.0)
+        if not (math.isfinite(A[i, 0]) and math.isfinite(A[i, 1])):
+            return i
+    scale, rate_clip, rl, dr = kc[_SCALE], kc[_RATE_CLIP] != 0.0, kc[_RL], kc[_DR]
+    for i in range(N):
+        c0 = _min(_max(np.float64(A[i, 0]), -1.0), 1.0)
+        c1 = _min(_max(np.float64(A[i, 1]), -1.0), 1.0)
         a_out[i, 0] = c0
         a_out[i, 1] = c1
         q0 = c0 * scale
@@ -117,6 +157,26 @@ def before_product(A: np.ndarray, r_prev: np.ndarray, kc: np.ndarray, perm: np.n
         r_out[i, 0] = r0
         r_out[i, 1] = r1
         acc_hit[i] = (r0 != q0) | (r1 != q1)
+    return -1
+
+
+@njit(nogil=True)
+def before_product(A: np.ndarray, r_prev: np.ndarray, kc: np.ndarray, perm: np.ndarray, kappa_s: np.ndarray,
+                   t_mean_s: np.ndarray, normals: np.ndarray, noise_on: bool, n: int, k: int, Z: np.ndarray,
+                   a_out: np.ndarray, r_out: np.ndarray, rate_hit: np.ndarray, acc_hit: np.ndarray) -> None:
+    """The vector environment's :func:`limit_commands` and its plant product's input rows
+    ``n ..`` in slot order (sub-environment ``perm[s]`` in slot ``s``): the applied rate
+    commands, the mean wind torques and, with ``noise_on``, the gust normals scaled by the
+    direction factors.
+
+    :param A: finite actions ``(N, 2)`` float64 (:func:`dss14_env.envs.core.as_actions`)
+    :param kappa_s: direction factors ``(2, N)`` and ``t_mean_s`` mean torques ``(2, N)``, in
+        slot order
+    :param normals: this step's standard normals ``(N, >= k)``, the gust's first
+    :param Z: the product's input ``(n + 4 + 2 k, N)``
+    """
+    limit_commands(A, r_prev, kc, a_out, r_out, rate_hit, acc_hit)
+    N = A.shape[0]
     for s in range(N):
         i = perm[s]
         Z[n, s] = r_out[i, 0]
@@ -129,32 +189,33 @@ def before_product(A: np.ndarray, r_prev: np.ndarray, kc: np.ndarray, perm: np.n
                 Z[n + 4 + k + m, s] = normals[i, m] * kappa_s[1, s]
 
 
-def after_product(Y: np.ndarray, inv: np.ndarray, c: np.ndarray, cd: np.ndarray, start: np.ndarray,
-                  normals: np.ndarray, k: int, max_e: np.ndarray, a: np.ndarray, a_prev: np.ndarray,
-                  em_prev: np.ndarray, r: np.ndarray, wind: np.ndarray, rate_hit: np.ndarray,
-                  acc_hit: np.ndarray, hits: np.ndarray, kc: np.ndarray, clamp_always: bool, obs: np.ndarray,
-                  rew: np.ndarray, term: np.ndarray, em: np.ndarray, info_f: np.ndarray, info_i: np.ndarray
-                  ) -> int:
+@njit(nogil=True)
+def after_product(Y: np.ndarray, inv: np.ndarray, C: np.ndarray, CD: np.ndarray, NZ: np.ndarray, j: int,
+                  episode: np.ndarray, a: np.ndarray, a_prev: np.ndarray, em_prev: np.ndarray, r: np.ndarray,
+                  rate_hit: np.ndarray, acc_hit: np.ndarray, hits: np.ndarray, kc: np.ndarray,
+                  clamp_always: bool, obs: np.ndarray, rew: np.ndarray, term: np.ndarray, em: np.ndarray,
+                  info_f: np.ndarray, info_i: np.ndarray) -> int:
     """Everything of a step after the plant product, for every sub-environment: encoders,
     servo and pointing errors, episode end, reward, observation (float32), the info values and
     the limiter hit counts.
 
     :param Y: the product's step outputs ``(4, N)`` in slot order (encoder angles az, el;
         pointing angles el, xel; rad), sub-environment ``i`` in slot ``inv[i]``
-    :param c: commands ``(N, 2)``, rad; ``cd`` their rates, rad/s
-    :param normals: this step's standard normals ``(N, k [+ 2])``; with encoder noise its
-        columns ``k``, ``k + 1`` are the encoders' (az, el)
-    :param max_e: the servo error bounds ``(N,)``, mdeg
+    :param C: commands at the step's end ``(T, N, 2)``, rad, of which ``C[j]`` is this step's;
+        ``CD`` their rates (rad/s), ``NZ`` the encoder noise (rad; read only with encoder
+        noise, :data:`NO_NOISE` without)
+    :param episode: per sub-environment ``[start_az, start_el, max_error, wind_speed,
+        wind_direction]`` ``(N, 5)``: absolute start position (rad), servo error bound (mdeg),
+        mean wind (m/s, rad)
     :param a: clipped actions ``(N, 2)``, ``a_prev`` the previous ones; ``em_prev`` the previous
         measured errors (mdeg); ``r`` the applied rate commands (rad/s)
-    :param wind: ``[speed, direction]`` ``(N, 2)``
     :param hits: the episodes' limiter hit counts ``(N, 2)``, advanced by ``rate_hit`` and
         ``acc_hit`` when every reward is finite
     :param clamp_always: clamp the observation's errors whether or not a sub-environment
         terminated (:meth:`~dss14_env.envs.core.StepConstants.clamp_always`)
-    :param obs: receives the observations ``(N, 12)`` float32, ``rew``, ``term`` ``(N,)``, ``em``
-        the measured errors ``(N, 2)``, ``info_f`` the rows :data:`INFO_FLOAT_ROWS` ``(10, N)``,
-        ``info_i`` the rows :data:`INFO_INT_ROWS` ``(2, N)``
+    :param obs: receives the observations' first 12 entries ``(N, >= 12)`` float32, ``rew``,
+        ``term`` ``(N,)``, ``em`` the measured errors ``(N, 2)``, ``info_f`` the rows
+        :data:`INFO_FLOAT_ROWS` ``(10, N)``, ``info_i`` the rows :data:`INFO_INT_ROWS` ``(2, N)``
     :return: flags: :data:`ANY_TERMINATED`, :data:`NON_FINITE` (a reward is NaN or infinite;
         the hit counts are then left as they were)
     """
@@ -168,37 +229,37 @@ def after_product(Y: np.ndarray, inv: np.ndarray, c: np.ndarray, cd: np.ndarray,
     for i in range(N):
         s = inv[i]
         th0, th1 = Y[0, s], Y[1, s]
-        s0, s1 = start[i, 0], start[i, 1]
-        # read_encoders
+        s0, s1 = episode[i, 0], episode[i, 1]
+        # encoders: the absolute angle (plus noise), rounded to the nearest count
         x0 = s0 + th0
         x1 = s1 + th1
         if sigma != 0.0:
-            x0 += normals[i, k] * sigma
-            x1 += normals[i, k + 1] * sigma
-        if quantum != 0.0:
-            x0 = math.floor(x0 * inv_q + 0.5) * quantum
-            x1 = math.floor(x1 * inv_q + 0.5) * quantum
+            x0 += NZ[j, i, 0]
+            x1 += NZ[j, i, 1]
+        if quantum != 0.0:  # (np.floor: a float, NaN for NaN, compiled or not)
+            x0 = np.floor(x0 * inv_q + 0.5) * quantum
+            x1 = np.floor(x1 * inv_q + 0.5) * quantum
         rel0 = x0 - s0
         rel1 = x1 - s1
-        # servo_errors
-        c0, c1 = c[i, 0], c[i, 1]
+        # servo errors, measured and true
+        c0, c1 = C[j, i, 0], C[j, i, 1]
         em0 = (c0 - rel0) * R2MD
         em1 = (c1 - rel1) * R2MD
         e0 = (c0 - th0) * R2MD
         e1 = (c1 - th1) * R2MD
         em[i, 0] = em0
         em[i, 1] = em1
-        # terminated (beyond_bounds)
+        # episode end: an error beyond the bound, or outside the travel
         el = s1 + th1
         az_off = (s0 - az_centre) + th0
-        me = max_e[i]
+        me = episode[i, 2]
         t = (abs(e0) > me) | (abs(e1) > me) | (el < el_lo) | (el > el_hi) | (abs(az_off) > az_h)
         term[i] = t
         any_term |= t
-        # pointing_errors
+        # pointing errors
         pe0 = (c1 - Y[2, s]) * R2MD
         pe1 = (c0 * xel - Y[3, s]) * R2MD
-        # reward: step_cost of the scored errors, the penalty where terminated
+        # reward: the scored errors and the action change, the penalty where terminated
         q0, q1 = (pe0, pe1) if pointing else (e0, e1)
         d0 = a[i, 0] - a_prev[i, 0]
         d1 = a[i, 1] - a_prev[i, 1]
@@ -214,8 +275,8 @@ def after_product(Y: np.ndarray, inv: np.ndarray, c: np.ndarray, cd: np.ndarray,
         obs[i, 3] = (em1 - em_prev[i, 1]) * rate_scale
         obs[i, 4] = c0 * R2D
         obs[i, 5] = c1 * R2D
-        obs[i, 6] = cd[i, 0] * inv_rl
-        obs[i, 7] = cd[i, 1] * inv_rl
+        obs[i, 6] = CD[j, i, 0] * inv_rl
+        obs[i, 7] = CD[j, i, 1] * inv_rl
         obs[i, 8] = rel0 * R2D
         obs[i, 9] = rel1 * R2D
         obs[i, 10] = r[i, 0] * inv_rl
@@ -227,11 +288,11 @@ def after_product(Y: np.ndarray, inv: np.ndarray, c: np.ndarray, cd: np.ndarray,
         info_f[3, i] = em1
         info_f[4, i] = pe0
         info_f[5, i] = pe1
-        info_f[6, i] = wind[i, 0]
-        info_f[7, i] = wind[i, 1]
+        info_f[6, i] = episode[i, 3]
+        info_f[7, i] = episode[i, 4]
         info_f[8, i] = r[i, 0] * R2D
         info_f[9, i] = r[i, 1] * R2D
-    if any_term or clamp_always:  # the clamp of observation(), from the unrounded values
+    if any_term or clamp_always:  # clamped from the unrounded values
         for i in range(N):
             obs[i, 0] = _clamped(em[i, 0] * inv_es, OBS_ERROR_BOUND)
             obs[i, 1] = _clamped(em[i, 1] * inv_es, OBS_ERROR_BOUND)
@@ -247,14 +308,56 @@ def after_product(Y: np.ndarray, inv: np.ndarray, c: np.ndarray, cd: np.ndarray,
     return ANY_TERMINATED * any_term
 
 
-def _clamped(x: float, b: float) -> float:
-    """``x`` clamped to ``[-b, b]`` as :func:`~dss14_env.envs.core.observation` clamps."""
-    return _min(_max(x, -b), b)
+def step_outputs(n: int, width: int = OBS_SIZE) -> tuple[np.ndarray, ...]:
+    """Fresh output arrays of :func:`after_product` for ``n`` sub-environments:
+    ``(obs (n, width) float32, rew, term, em, info_f, info_i)``.
+    """
+    return (np.empty((n, width), np.float32), np.empty(n), np.empty(n, bool), np.empty((n, 2)),
+            np.empty((len(INFO_FLOAT_ROWS), n)), np.empty((len(INFO_INT_ROWS), n), np.int64))
 
 
-if AVAILABLE:
-    _max = njit(inline="always")(_max)
-    _min = njit(inline="always")(_min)
-    _clamped = njit(inline="always")(_clamped)
-    before_product = njit(nogil=True)(before_product)
-    after_product = njit(nogil=True)(after_product)
+def episode_rows(start: np.ndarray, max_error: np.ndarray, wind: np.ndarray) -> np.ndarray:
+    """:func:`after_product`'s per-episode constants ``(N, 5)``: ``[start (2), max_error,
+    wind (2)]`` (rad, mdeg, m/s and rad).
+    """
+    return np.column_stack((start, max_error, wind))
+
+
+def reset_state(c: np.ndarray, cd: np.ndarray, y: np.ndarray, noise: np.ndarray, r0: np.ndarray,
+                episode: np.ndarray, kc: np.ndarray, k: StepConstants, width: int = OBS_SIZE
+                ) -> tuple[StepState, np.ndarray, dict[str, np.ndarray]]:
+    """The reset, for both environments: the step state, first observation and reset info (keys
+    :data:`dss14_env.envs.core.RESET_INFO_KEYS`) of freshly drawn episodes, one row each, made by
+    :func:`after_product` (errors and observation clamped; the error rates 0: no step before).
+
+    :param c: commands at t = 0 relative to the start ``(N, 2)``, rad; ``cd`` their rates, rad/s
+    :param y: plant outputs at t = 0 ``(N, >= 4)``: encoder angles, pointing angles (rad)
+    :param noise: encoder noise of the reading at t = 0 ``(N, 2)``, rad
+    :param r0: the rate commands that hold the start motion ``(N, 2)``, rad/s (clipped to the
+        rate limit here: the previous applied rate command)
+    :param episode: :func:`episode_rows`; ``kc`` :func:`constants` of ``k``
+    :param width: the observation's width (12, or 14 with the monopulse sensor: its entries are
+        the caller's)
+    """
+    n = c.shape[0]
+    rp = np.clip(r0, -k.rate_limit, k.rate_limit)
+    a0 = np.clip(rp / k.action_scale, -1.0, 1.0)  # the action that reproduces rp
+    obs, rew, term, em, info_f, info_i = step_outputs(n, width)
+    no, hits = np.zeros(n, bool), np.zeros((n, 2), np.int64)
+    after_product(np.ascontiguousarray(y[:, :4].T), np.arange(n), c[None], cd[None], noise[None], 0, episode,
+                  a0, a0, np.zeros((n, 2)), rp, no, no, hits, kc, True, obs, rew, term, em, info_f, info_i)
+    obs[:, 2:4] = 0.0
+    info = dict(zip(INFO_FLOAT_ROWS, info_f, strict=True))
+    state = StepState(rp, a0, em, hits, np.zeros(n, np.int64))
+    return state, obs, {key: info[key] for key in RESET_INFO_KEYS}
+
+
+def info_arrays(info_f: np.ndarray, info_i: np.ndarray, actions: np.ndarray, rate_hit: np.ndarray,
+                acc_hit: np.ndarray) -> dict[str, Any]:
+    """The vector environment's step info (keys :data:`dss14_env.envs.core.INFO_KEYS`, in order),
+    arrays ``(N,)`` (``action_unclipped`` ``(N, 2)``: the actions as given).
+    """
+    return {**dict(zip(INFO_FLOAT_ROWS[:8], info_f[:8], strict=True)), "action_unclipped": actions,
+            "rate_command_az_deg_s": info_f[8], "rate_command_el_deg_s": info_f[9],
+            "rate_limited": rate_hit, "accel_limited": acc_hit,
+            "n_rate_limited": info_i[0], "n_accel_limited": info_i[1]}

@@ -405,7 +405,7 @@ def step_block(M: np.ndarray, x0: np.ndarray, y0: np.ndarray, steps: int) -> np.
     ``[u, y]``.  Row 0 holds the one-copy start state ``x0`` and its outputs ``y0``; the noise
     columns ``xi`` are filled a block of steps at a time, so that a step writes only its rate
     command.  :func:`block_views` makes the views the steps read and write
-    (:func:`dss14_env.envs.core.step_1`).
+    (:mod:`dss14_env.envs.fused`).
     """
     n_in = M.shape[1]
     B = np.zeros((steps + 1, n_in + N_STEP_OUTPUTS))
@@ -417,12 +417,14 @@ def step_block(M: np.ndarray, x0: np.ndarray, y0: np.ndarray, steps: int) -> np.
 
 def block_views(B: np.ndarray, m: int) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
     """Per step ``j`` of a :func:`step_block` ``B`` of an episode with ``m`` one-copy states:
-    ``(z_j, input_j [r, 1, xi, u], [u, y] of row j + 1, y of row j + 1)``, views, so that
+    ``(r_j (1, 2), input_j [r, 1, xi, u], [u, y] of row j + 1, y of row j + 1 (N_STEP_OUTPUTS, 1))``,
+    views, so that the step's limiter writes its rate command into the input and
     ``input_j @ M^T`` is written in place into the next row (one matrix-vector product per step,
-    no copies).
+    no copies), where the step reads its outputs (:mod:`dss14_env.envs.fused`, N = 1).
     """
     n_in = B.shape[1] - N_STEP_OUTPUTS
-    return [(B[j], B[j, :n_in], B[j + 1, n_in - m:], B[j + 1, n_in:]) for j in range(B.shape[0] - 1)]
+    return [(B[j, 0:2].reshape(1, 2), B[j, :n_in], B[j + 1, n_in - m:],
+             B[j + 1, n_in:].reshape(N_STEP_OUTPUTS, 1)) for j in range(B.shape[0] - 1)]
 
 
 # ---------------------------------------------------------------------- plants of one model
