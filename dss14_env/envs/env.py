@@ -20,6 +20,8 @@ from dss14_env.envs.core import OBS_HIGH, OBS_NAMES, StepConstants, StepState, a
 from dss14_env.envs.fused import (
     NON_FINITE,
     POINTING_ROWS,
+    REWARD_ROW,
+    TERMINATED_ROW,
     after_product,
     constants,
     episode_rows,
@@ -581,33 +583,33 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         except AttributeError:
             fast = False
         A = action.reshape(1, 2) if fast else as_actions(action, (2,)).reshape(1, 2)
-        r, inp, out, y = self._views[j]
-        a, rate_hit, acc_hit = np.empty((1, 2)), np.empty(1, bool), np.empty(1, bool)
-        if limit_commands(A, st.r_prev, self._kc, a, r, rate_hit, acc_hit) >= 0:
+        r, inp, nxt, y = self._views[j]
+        a, hit = np.empty((1, 2)), np.empty((2, 1), bool)
+        if limit_commands(A, st.r_prev, self._kc, a, r, hit) >= 0:
             as_actions(action, (2,))  # raises: not finite
-        inp.dot(self._M, out)  # the plant map (the method: no dispatch of np.dot)
-        obs, rew, term, em, info_f, info_i = o = step_outputs(1, self._width)
+        inp.dot(self._M, nxt)  # the plant map (the method: no dispatch of np.dot)
+        obs, em, out = step_outputs(1, self._width)
         C, CD, NZ = self._rows
-        if after_product(y, _ROW0, C, CD, NZ, j, self._episode, a, st.a_prev, st.em_prev, r, rate_hit,
-                         acc_hit, st.hits, self._kc, self._clamp_always, *o) & NON_FINITE:
-            raise FloatingPointError(f"the reward became {rew[0]} (servo errors {info_f[0, 0]}, "
-                                     f"{info_f[1, 0]} mdeg): the plant left the range it is meant for")
-        self._st = StepState(r, a, em, st.hits, j + 1)
-        f = info_f.ravel().tolist()
-        n_rate, n_acc = info_i.ravel().tolist()
+        if after_product(y, _ROW0, C, CD, NZ, j, self._episode, a, st.a_prev, st.em_prev, r, hit, st.hits,
+                         self._kc, self._clamp_always, obs, em, out) & NON_FINITE:
+            raise FloatingPointError(f"the reward became {out[REWARD_ROW, 0]} (servo errors {out[0, 0]}, "
+                                     f"{out[1, 0]} mdeg): the plant left the range it is meant for")
+        self._st = _tuple_new(StepState, (r, a, em, st.hits, j + 1))
+        f = out.ravel().tolist()
+        rate_hit, acc_hit = hit.ravel().tolist()
         info = {"servo_error_az_mdeg": f[0], "servo_error_el_mdeg": f[1], "measured_error_az_mdeg": f[2],
                 "measured_error_el_mdeg": f[3], "pointing_error_el_mdeg": f[4],
                 "pointing_error_xel_mdeg": f[5], "wind_speed_mps": f[6], "wind_direction_rad": f[7],
                 "action_unclipped": tuple(A[0].tolist()),
                 "rate_command_az_deg_s": f[8], "rate_command_el_deg_s": f[9],
-                "rate_limited": bool(rate_hit[0]), "accel_limited": bool(acc_hit[0]),
-                "n_rate_limited": n_rate, "n_accel_limited": n_acc}
+                "rate_limited": rate_hit, "accel_limited": acc_hit,
+                "n_rate_limited": int(f[12]), "n_accel_limited": int(f[13])}
         if self.monopulse is not None:
             mp = self._mp
-            sensor_step(mp.history, mp.out, mp.k, info_f[POINTING_ROWS[0]:POINTING_ROWS[1] + 1], self._W, j,
+            sensor_step(mp.history, mp.out, mp.k, out[POINTING_ROWS[0]:POINTING_ROWS[1] + 1], self._W, j,
                         self._mc, 1.0 / self.constants.error_scale, obs)
             info["monopulse_el_mdeg"], info["monopulse_xel_mdeg"] = mp.out[0].tolist()
-        result = obs[0], rew.item(), bool(term[0]), False, info
+        result = obs[0], f[REWARD_ROW], f[TERMINATED_ROW] != 0.0, False, info
         if self._extras:
             self._step_extras(info)
         return result
@@ -725,6 +727,7 @@ DSS14Env.__doc__ = DSS14Env.__doc__.replace("{registered_ids}",
 #: the action dtypes of the step's fast path, and the sub-environment order of N = 1
 _FAST = (np.dtype(np.float32), np.dtype(np.float64))
 _ROW0 = np.zeros(1, np.int64)
+_tuple_new = tuple.__new__  # a StepState without the NamedTuple constructor's call overhead
 
 
 def _shape(x: Any) -> tuple | None:

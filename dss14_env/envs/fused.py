@@ -40,11 +40,11 @@ The step, in order (SI inside; mdeg and deg at the interface)::
 >>> from dss14_env.envs.config import load_env_config
 >>> from dss14_env.envs.core import StepConstants
 >>> kc = constants(StepConstants.from_config(load_env_config()), 0.7)
->>> a, r, rate_hit, acc_hit = np.empty((1, 2)), np.empty((1, 2)), np.empty(1, bool), np.empty(1, bool)
->>> limit_commands(np.array([[2.0, -0.01]]), np.zeros((1, 2)), kc, a, r, rate_hit, acc_hit)
+>>> a, r, hit = np.empty((1, 2)), np.empty((1, 2)), np.empty((2, 1), bool)
+>>> limit_commands(np.array([[2.0, -0.01]]), np.zeros((1, 2)), kc, a, r, hit)
 -1
->>> a.tolist(), (r * R2D).round(6).tolist(), acc_hit.tolist()
-([[1.0, -0.01]], [[0.004, -0.0025]], [True])
+>>> a.tolist(), (r * R2D).round(6).tolist(), hit.ravel().tolist()
+([[1.0, -0.01]], [[0.004, -0.0025]], [False, True])
 """
 
 from __future__ import annotations
@@ -71,6 +71,10 @@ INFO_FLOAT_ROWS = ("servo_error_az_mdeg", "servo_error_el_mdeg", "measured_error
                    "wind_speed_mps", "wind_direction_rad", "rate_command_az_deg_s", "rate_command_el_deg_s")
 #: the integer info values (the episode's limiter hit counts after the step)
 INFO_INT_ROWS = ("n_rate_limited", "n_accel_limited")
+#: the rows of :func:`after_product`'s ``out``: :data:`INFO_FLOAT_ROWS`, the reward, whether the
+#: episode terminated (1.0 or 0.0) and :data:`INFO_INT_ROWS` (as floats)
+REWARD_ROW, TERMINATED_ROW = len(INFO_FLOAT_ROWS), len(INFO_FLOAT_ROWS) + 1
+OUT_ROWS = len(INFO_FLOAT_ROWS) + 2 + len(INFO_INT_ROWS)
 #: the rows of the pointing errors ``[el, xel]`` in :data:`INFO_FLOAT_ROWS`
 POINTING_ROWS = (INFO_FLOAT_ROWS.index("pointing_error_el_mdeg"),
                  INFO_FLOAT_ROWS.index("pointing_error_xel_mdeg"))
@@ -124,14 +128,14 @@ def _clamped(x: float, b: float) -> float:
 
 @njit(nogil=True)
 def limit_commands(A: np.ndarray, r_prev: np.ndarray, kc: np.ndarray, a_out: np.ndarray, r_out: np.ndarray,
-                   rate_hit: np.ndarray, acc_hit: np.ndarray) -> int:
+                   hit: np.ndarray) -> int:
     """The command limiter of every sub-environment.
 
     :param A: actions ``(N, 2)`` (float32 or float64); ``r_prev`` the previous applied rate
         commands, rad/s; ``kc`` :func:`constants`
     :param a_out: receives the actions clipped to [-1, 1] ``(N, 2)``, ``r_out`` the applied
-        rate commands (rad/s), ``rate_hit`` and ``acc_hit`` ``(N,)`` whether the rate clip /
-        acceleration limit acted
+        rate commands (rad/s), ``hit`` ``(2, N)`` whether the rate clip (row 0) / the
+        acceleration limit (row 1) acted
     :return: -1, or the first row with a non-finite action (then nothing is written)
     """
     N = A.shape[0]
@@ -147,23 +151,23 @@ def limit_commands(A: np.ndarray, r_prev: np.ndarray, kc: np.ndarray, a_out: np.
         q0 = c0 * scale
         q1 = c1 * scale
         if rate_clip:
-            rate_hit[i] = (abs(q0) > rl) | (abs(q1) > rl)
+            hit[0, i] = (abs(q0) > rl) | (abs(q1) > rl)
             q0 = _min(_max(q0, -rl), rl)
             q1 = _min(_max(q1, -rl), rl)
         else:
-            rate_hit[i] = False
+            hit[0, i] = False
         r0 = _min(_max(q0, r_prev[i, 0] - dr), r_prev[i, 0] + dr)
         r1 = _min(_max(q1, r_prev[i, 1] - dr), r_prev[i, 1] + dr)
         r_out[i, 0] = r0
         r_out[i, 1] = r1
-        acc_hit[i] = (r0 != q0) | (r1 != q1)
+        hit[1, i] = (r0 != q0) | (r1 != q1)
     return -1
 
 
 @njit(nogil=True)
 def before_product(A: np.ndarray, r_prev: np.ndarray, kc: np.ndarray, perm: np.ndarray, kappa_s: np.ndarray,
                    t_mean_s: np.ndarray, normals: np.ndarray, noise_on: bool, n: int, k: int, Z: np.ndarray,
-                   a_out: np.ndarray, r_out: np.ndarray, rate_hit: np.ndarray, acc_hit: np.ndarray) -> None:
+                   a_out: np.ndarray, r_out: np.ndarray, hit: np.ndarray) -> None:
     """The vector environment's :func:`limit_commands` and its plant product's input rows
     ``n ..`` in slot order (sub-environment ``perm[s]`` in slot ``s``): the applied rate
     commands, the mean wind torques and, with ``noise_on``, the gust normals scaled by the
@@ -175,7 +179,7 @@ def before_product(A: np.ndarray, r_prev: np.ndarray, kc: np.ndarray, perm: np.n
     :param normals: this step's standard normals ``(N, >= k)``, the gust's first
     :param Z: the product's input ``(n + 4 + 2 k, N)``
     """
-    limit_commands(A, r_prev, kc, a_out, r_out, rate_hit, acc_hit)
+    limit_commands(A, r_prev, kc, a_out, r_out, hit)
     N = A.shape[0]
     for s in range(N):
         i = perm[s]
@@ -192,9 +196,8 @@ def before_product(A: np.ndarray, r_prev: np.ndarray, kc: np.ndarray, perm: np.n
 @njit(nogil=True)
 def after_product(Y: np.ndarray, inv: np.ndarray, C: np.ndarray, CD: np.ndarray, NZ: np.ndarray, j: int,
                   episode: np.ndarray, a: np.ndarray, a_prev: np.ndarray, em_prev: np.ndarray, r: np.ndarray,
-                  rate_hit: np.ndarray, acc_hit: np.ndarray, hits: np.ndarray, kc: np.ndarray,
-                  clamp_always: bool, obs: np.ndarray, rew: np.ndarray, term: np.ndarray, em: np.ndarray,
-                  info_f: np.ndarray, info_i: np.ndarray) -> int:
+                  hit: np.ndarray, hits: np.ndarray, kc: np.ndarray, clamp_always: bool, obs: np.ndarray,
+                  em: np.ndarray, out: np.ndarray) -> int:
     """Everything of a step after the plant product, for every sub-environment: encoders,
     servo and pointing errors, episode end, reward, observation (float32), the info values and
     the limiter hit counts.
@@ -209,13 +212,13 @@ def after_product(Y: np.ndarray, inv: np.ndarray, C: np.ndarray, CD: np.ndarray,
         mean wind (m/s, rad)
     :param a: clipped actions ``(N, 2)``, ``a_prev`` the previous ones; ``em_prev`` the previous
         measured errors (mdeg); ``r`` the applied rate commands (rad/s)
-    :param hits: the episodes' limiter hit counts ``(N, 2)``, advanced by ``rate_hit`` and
-        ``acc_hit`` when every reward is finite
+    :param hit: :func:`limit_commands`'s flags ``(2, N)``; ``hits`` the episodes' limiter hit
+        counts ``(N, 2)``, advanced by them when every reward is finite
     :param clamp_always: clamp the observation's errors whether or not a sub-environment
         terminated (:meth:`~dss14_env.envs.core.StepConstants.clamp_always`)
-    :param obs: receives the observations' first 12 entries ``(N, >= 12)`` float32, ``rew``,
-        ``term`` ``(N,)``, ``em`` the measured errors ``(N, 2)``, ``info_f`` the rows
-        :data:`INFO_FLOAT_ROWS` ``(10, N)``, ``info_i`` the rows :data:`INFO_INT_ROWS` ``(2, N)``
+    :param obs: receives the observations' first 12 entries ``(N, >= 12)`` float32, ``em`` the
+        measured errors ``(N, 2)`` (the next step's ``em_prev``), ``out`` the rows
+        ``(OUT_ROWS, N)``: :data:`INFO_FLOAT_ROWS`, reward, terminated, :data:`INFO_INT_ROWS`
     :return: flags: :data:`ANY_TERMINATED`, :data:`NON_FINITE` (a reward is NaN or infinite;
         the hit counts are then left as they were)
     """
@@ -254,7 +257,7 @@ def after_product(Y: np.ndarray, inv: np.ndarray, C: np.ndarray, CD: np.ndarray,
         az_off = (s0 - az_centre) + th0
         me = episode[i, 2]
         t = (abs(e0) > me) | (abs(e1) > me) | (el < el_lo) | (el > el_hi) | (abs(az_off) > az_h)
-        term[i] = t
+        out[TERMINATED_ROW, i] = t
         any_term |= t
         # pointing errors
         pe0 = (c1 - Y[2, s]) * R2MD
@@ -266,7 +269,7 @@ def after_product(Y: np.ndarray, inv: np.ndarray, C: np.ndarray, CD: np.ndarray,
         cost = (q0 * q0 + q1 * q1) * inv_es2 + w * (d0 * d0 + d1 * d1)
         if t:
             cost += penalty
-        rew[i] = -cost
+        out[REWARD_ROW, i] = -cost
         total += cost
         # observation (layout OBS); the errors and error rates clamped below
         obs[i, 0] = em0 * inv_es
@@ -282,16 +285,16 @@ def after_product(Y: np.ndarray, inv: np.ndarray, C: np.ndarray, CD: np.ndarray,
         obs[i, 10] = r[i, 0] * inv_rl
         obs[i, 11] = r[i, 1] * inv_rl
         # info
-        info_f[0, i] = e0
-        info_f[1, i] = e1
-        info_f[2, i] = em0
-        info_f[3, i] = em1
-        info_f[4, i] = pe0
-        info_f[5, i] = pe1
-        info_f[6, i] = episode[i, 3]
-        info_f[7, i] = episode[i, 4]
-        info_f[8, i] = r[i, 0] * R2D
-        info_f[9, i] = r[i, 1] * R2D
+        out[0, i] = e0
+        out[1, i] = e1
+        out[2, i] = em0
+        out[3, i] = em1
+        out[4, i] = pe0
+        out[5, i] = pe1
+        out[6, i] = episode[i, 3]
+        out[7, i] = episode[i, 4]
+        out[8, i] = r[i, 0] * R2D
+        out[9, i] = r[i, 1] * R2D
     if any_term or clamp_always:  # clamped from the unrounded values
         for i in range(N):
             obs[i, 0] = _clamped(em[i, 0] * inv_es, OBS_ERROR_BOUND)
@@ -301,19 +304,18 @@ def after_product(Y: np.ndarray, inv: np.ndarray, C: np.ndarray, CD: np.ndarray,
     if not math.isfinite(total):  # NaN or infinite: some reward is
         return ANY_TERMINATED * any_term + NON_FINITE
     for i in range(N):
-        hits[i, 0] += rate_hit[i]
-        hits[i, 1] += acc_hit[i]
-        info_i[0, i] = hits[i, 0]
-        info_i[1, i] = hits[i, 1]
+        hits[i, 0] += hit[0, i]
+        hits[i, 1] += hit[1, i]
+        out[OUT_ROWS - 2, i] = hits[i, 0]
+        out[OUT_ROWS - 1, i] = hits[i, 1]
     return ANY_TERMINATED * any_term
 
 
-def step_outputs(n: int, width: int = OBS_SIZE) -> tuple[np.ndarray, ...]:
+def step_outputs(n: int, width: int = OBS_SIZE) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Fresh output arrays of :func:`after_product` for ``n`` sub-environments:
-    ``(obs (n, width) float32, rew, term, em, info_f, info_i)``.
+    ``(obs (n, width) float32, em (n, 2), out (OUT_ROWS, n))``.
     """
-    return (np.empty((n, width), np.float32), np.empty(n), np.empty(n, bool), np.empty((n, 2)),
-            np.empty((len(INFO_FLOAT_ROWS), n)), np.empty((len(INFO_INT_ROWS), n), np.int64))
+    return np.empty((n, width), np.float32), np.empty((n, 2)), np.empty((OUT_ROWS, n))
 
 
 def episode_rows(start: np.ndarray, max_error: np.ndarray, wind: np.ndarray) -> np.ndarray:
@@ -342,22 +344,23 @@ def reset_state(c: np.ndarray, cd: np.ndarray, y: np.ndarray, noise: np.ndarray,
     n = c.shape[0]
     rp = np.clip(r0, -k.rate_limit, k.rate_limit)
     a0 = np.clip(rp / k.action_scale, -1.0, 1.0)  # the action that reproduces rp
-    obs, rew, term, em, info_f, info_i = step_outputs(n, width)
-    no, hits = np.zeros(n, bool), np.zeros((n, 2), np.int64)
+    obs, em, out = step_outputs(n, width)
+    hits = np.zeros((n, 2), np.int64)
     after_product(np.ascontiguousarray(y[:, :4].T), np.arange(n), c[None], cd[None], noise[None], 0, episode,
-                  a0, a0, np.zeros((n, 2)), rp, no, no, hits, kc, True, obs, rew, term, em, info_f, info_i)
+                  a0, a0, np.zeros((n, 2)), rp, np.zeros((2, n), bool), hits, kc, True, obs, em, out)
     obs[:, 2:4] = 0.0
-    info = dict(zip(INFO_FLOAT_ROWS, info_f, strict=True))
+    info = dict(zip(INFO_FLOAT_ROWS, out, strict=False))
     state = StepState(rp, a0, em, hits, np.zeros(n, np.int64))
     return state, obs, {key: info[key] for key in RESET_INFO_KEYS}
 
 
-def info_arrays(info_f: np.ndarray, info_i: np.ndarray, actions: np.ndarray, rate_hit: np.ndarray,
-                acc_hit: np.ndarray) -> dict[str, Any]:
-    """The vector environment's step info (keys :data:`dss14_env.envs.core.INFO_KEYS`, in order),
-    arrays ``(N,)`` (``action_unclipped`` ``(N, 2)``: the actions as given).
+def info_arrays(out: np.ndarray, actions: np.ndarray, hit: np.ndarray) -> dict[str, Any]:
+    """The vector environment's step info (keys :data:`dss14_env.envs.core.INFO_KEYS`, in order)
+    from :func:`after_product`'s ``out`` and :func:`limit_commands`'s ``hit``: arrays ``(N,)``
+    (``action_unclipped`` ``(N, 2)``: the actions as given).
     """
-    return {**dict(zip(INFO_FLOAT_ROWS[:8], info_f[:8], strict=True)), "action_unclipped": actions,
-            "rate_command_az_deg_s": info_f[8], "rate_command_el_deg_s": info_f[9],
-            "rate_limited": rate_hit, "accel_limited": acc_hit,
-            "n_rate_limited": info_i[0], "n_accel_limited": info_i[1]}
+    counts = out[OUT_ROWS - 2:].astype(np.int64)
+    return {**dict(zip(INFO_FLOAT_ROWS[:8], out[:8], strict=True)), "action_unclipped": actions,
+            "rate_command_az_deg_s": out[8], "rate_command_el_deg_s": out[9],
+            "rate_limited": hit[0], "accel_limited": hit[1],
+            "n_rate_limited": counts[0], "n_accel_limited": counts[1]}

@@ -461,32 +461,31 @@ class DSS14VectorEnv(VectorEnv):
             raise RuntimeError("call reset() before step()")
         A = as_actions(actions, (self.num_envs, 2))
         N, n, k, s = self.num_envs, self._n, self._k_rank, self._s
-        a, R = np.empty((N, 2)), np.empty((N, 2))
-        rate_hit, acc_hit = np.empty(N, bool), np.empty(N, bool)
+        a, R, hit = np.empty((N, 2)), np.empty((N, 2)), np.empty((2, N), bool)
         normals = self._normals(self._prev_done)
         perm = self._arange if self._perm is None else self._perm
         fused.before_product(A, s.r_prev, self._kc, perm, self._kappa_s, self._t_mean_s, normals,
-                             self._any_noise, n, k, self._Z[self._cur], a, R, rate_hit, acc_hit)
+                             self._any_noise, n, k, self._Z[self._cur], a, R, hit)
         c, cd = self._commands()
         y = self._product()
         self._k += 1
         sigma = self.constants.encoder_sigma
         noise = (normals[:, k:k + 2] * sigma)[None] if sigma else fused.NO_NOISE
-        obs, rew, term, em, info_f, info_i = out = fused.step_outputs(N, self._width)
+        obs, em, out = fused.step_outputs(N, self._width)
         inv = self._arange if self._inv is None else self._inv
         flags = fused.after_product(y, inv, c[None], cd[None], noise, 0, self._episode, a, s.a_prev,
-                                    s.em_prev, R, rate_hit, acc_hit, s.hits, self._kc, self._clamp_always,
-                                    *out)
+                                    s.em_prev, R, hit, s.hits, self._kc, self._clamp_always, obs, em, out)
+        rew, term = out[fused.REWARD_ROW], out[fused.TERMINATED_ROW] != 0.0
         if flags & fused.NON_FINITE:
             bad = np.flatnonzero(~np.isfinite(rew)).tolist()
             raise FloatingPointError(f"the reward became non-finite in sub-environment(s) {bad}: the plant "
                                      "left the range it is meant for")
         trunc = self._truncated()
         self._s = StepState(R, a, em, s.hits, s.j)
-        info = fused.info_arrays(info_f, info_i, A, rate_hit, acc_hit)
+        info = fused.info_arrays(out, A, hit)
         if self.monopulse is not None:
             mp = self._mp
-            sensor_step(mp.history, mp.out, mp.k, info_f[fused.POINTING_ROWS[0]:fused.POINTING_ROWS[1] + 1],
+            sensor_step(mp.history, mp.out, mp.k, out[fused.POINTING_ROWS[0]:fused.POINTING_ROWS[1] + 1],
                         normals[None], 0, self._mc, 1.0 / self.constants.error_scale, obs)
             info["monopulse_el_mdeg"], info["monopulse_xel_mdeg"] = mp.out[:, 0].copy(), mp.out[:, 1].copy()
         return self._autoreset(obs, rew, term, trunc, info, bool(flags & fused.ANY_TERMINATED))
