@@ -16,18 +16,21 @@ from gymnasium import spaces
 
 from dss14_env.core.units import DEG, KMH_PER_M_S, R2D, R2MD
 from dss14_env.envs.config import EnvConfig, load_env_config
-from dss14_env.envs.core import OBS_HIGH, OBS_NAMES, StepConstants, StepState, as_actions, check_seed
+from dss14_env.envs.core import OBS_HIGH, OBS_NAMES, StepConstants, as_actions, check_seed
 from dss14_env.envs.fused import (
     NON_FINITE,
+    ONE_HITS,
+    ONE_INFO,
+    ONE_SIZE,
     POINTING_ROWS,
     REWARD_ROW,
     TERMINATED_ROW,
-    after_product,
+    after_one,
     constants,
     episode_rows,
-    limit_commands,
+    limit_one,
+    pack_one,
     reset_state,
-    step_outputs,
 )
 from dss14_env.envs.monopulse import (
     MonopulseConstants,
@@ -433,7 +436,10 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         self._width = high.size
         self._renderer = Renderer(render_mode, c.dt, c.render_window_s) if render_mode else None
         self.episode: Episode | None = None
-        self._st: StepState | None = None
+        #: the step's state, constants and outputs (:func:`dss14_env.envs.fused.pack_one`) and the
+        #: step's row in its noise block
+        self._S: np.ndarray | None = None
+        self._j = 0
         self._block: np.ndarray | None = None
         self._views: list = []
         self._riders: list = []
@@ -480,15 +486,14 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         # the state, first observation and info through the step's loop (N = 1)
         c, cd = command(ep.traj, np.zeros(1))
         me = cfg.max_error_deg * DEG * R2MD
-        self._episode = episode_rows(ep.start[None], np.array([me]),
+        episode = episode_rows(ep.start[None], np.array([me]),
                                      np.array([[ep.wind_speed, ep.wind_direction]]))
-        st, obs, rinfo = reset_state(c, cd, y0[None], ne[None], ep.r0[None], self._episode, self._kc, k,
+        st, obs, rinfo = reset_state(c, cd, y0[None], ne[None], ep.r0[None], episode, self._kc, k,
                                      self._width)
         self._M = MT  # input @ M^T, the fastest product here
-        self._clamp_always = k.clamp_always(me)
         self._extras = cfg.info_state or self._renderer is not None
         self._info_state = cfg.info_state
-        self._st = st._replace(j=0)
+        self._S, self._j = pack_one(self._kc, episode, st, k.clamp_always(me)), 0
         info = {**episode_info(ep, self.plants.wind_loads), **{key: float(v[0]) for key, v in rinfo.items()}}
         rp0, rp1 = st.r_prev[0].tolist()
         if self.monopulse is not None:
@@ -531,14 +536,14 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
     def _plant_state(self) -> np.ndarray:
         """The current one-copy plant state (a view into the step block)."""
         n_in = self._block.shape[1] - N_STEP_OUTPUTS
-        return self._block[self._st.j, n_in - self._m:n_in]
+        return self._block[self._j, n_in - self._m:n_in]
 
     def wind_gust(self) -> float:
         """The current gust speed about the mean wind speed, m/s (0 without wind).
 
         Read from the gust torque of the axis with the larger direction factor.
         """
-        if self._st is None:
+        if self._S is None:
             raise RuntimeError("call reset() before wind_gust()")
         return self._gust_of(self._plant_state())
 
@@ -549,17 +554,17 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
     @property
     def elapsed_steps(self) -> int:
         """Steps taken in the current episode."""
-        return self._k0 + self._st.j
+        return self._k0 + self._j
 
     @property
     def n_rate_limited(self) -> int:
         """Steps of the current episode in which the rate clip acted."""
-        return int(self._st.hits[0, 0]) if self._st is not None else 0
+        return int(self._S[ONE_HITS][0]) if self._S is not None else 0
 
     @property
     def n_accel_limited(self) -> int:
         """Steps of the current episode in which the acceleration limit acted."""
-        return int(self._st.hits[0, 1]) if self._st is not None else 0
+        return int(self._S[ONE_HITS][1]) if self._S is not None else 0
 
     # ------------------------------------------------------------------ step
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
@@ -570,43 +575,42 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         :raises ValueError: a bad action (:func:`dss14_env.envs.core.as_actions`), before
             anything changes
         """
-        st = self._st
-        if st is None:
+        S, j = self._S, self._j
+        if S is None:
             raise RuntimeError("call reset() before step()")
-        j = st.j
         if j == NOISE_BLOCK:
             as_actions(action, (2,))  # checked before the next noise block changes the generator
             self._next_block(self._k0 + j)
-            st, j = st._replace(j=0), 0
+            j = 0
         try:  # fast path: a float32 or float64 array of shape (2,) (finite: checked by the limiter)
             fast = action.dtype in _FAST and action.shape == (2,)
         except AttributeError:
             fast = False
         A = action.reshape(1, 2) if fast else as_actions(action, (2,)).reshape(1, 2)
-        r, inp, nxt, y = self._views[j]
-        a, hit = np.empty((1, 2)), np.empty((2, 1), bool)
-        if limit_commands(A, st.r_prev, self._kc, a, r, hit) >= 0:
+        B = self._block
+        if limit_one(A, B, j, S) >= 0:
             as_actions(action, (2,))  # raises: not finite
+        inp, nxt = self._views[j]
         inp.dot(self._M, nxt)  # the plant map (the method: no dispatch of np.dot)
-        obs, em, out = step_outputs(1, self._width)
-        C, CD, NZ = self._rows
-        if after_product(y, _ROW0, C, CD, NZ, j, self._episode, a, st.a_prev, st.em_prev, r, hit, st.hits,
-                         self._kc, self._clamp_always, obs, em, out) & NON_FINITE:
-            raise FloatingPointError(f"the reward became {out[REWARD_ROW, 0]} (servo errors {out[0, 0]}, "
-                                     f"{out[1, 0]} mdeg): the plant left the range it is meant for")
-        self._st = _tuple_new(StepState, (r, a, em, st.hits, j + 1))
-        f = out.ravel().tolist()
-        rate_hit, acc_hit = hit.ravel().tolist()
+        obs = np.empty((1, self._width), np.float32)
+        if after_one(B, j, self._rows, S, obs) & NON_FINITE:
+            f = S[ONE_INFO].tolist()[2:]
+            raise FloatingPointError(f"the reward became {f[REWARD_ROW]} (servo errors {f[0]}, {f[1]} mdeg): "
+                                     "the plant left the range it is meant for")
+        self._j = j + 1
+        v = S[ONE_INFO].tolist()
+        f = v[2:]
         info = {"servo_error_az_mdeg": f[0], "servo_error_el_mdeg": f[1], "measured_error_az_mdeg": f[2],
                 "measured_error_el_mdeg": f[3], "pointing_error_el_mdeg": f[4],
                 "pointing_error_xel_mdeg": f[5], "wind_speed_mps": f[6], "wind_direction_rad": f[7],
                 "action_unclipped": tuple(A[0].tolist()),
                 "rate_command_az_deg_s": f[8], "rate_command_el_deg_s": f[9],
-                "rate_limited": rate_hit, "accel_limited": acc_hit,
+                "rate_limited": v[0] != 0.0, "accel_limited": v[1] != 0.0,
                 "n_rate_limited": int(f[12]), "n_accel_limited": int(f[13])}
         if self.monopulse is not None:
             mp = self._mp
-            sensor_step(mp.history, mp.out, mp.k, out[POINTING_ROWS[0]:POINTING_ROWS[1] + 1], self._W, j,
+            p = S[ONE_INFO][2 + POINTING_ROWS[0]:2 + POINTING_ROWS[1] + 1, None]
+            sensor_step(mp.history, mp.out, mp.k, p, self._W, j,
                         self._mc, 1.0 / self.constants.error_scale, obs)
             info["monopulse_el_mdeg"], info["monopulse_xel_mdeg"] = mp.out[0].tolist()
         result = obs[0], f[REWARD_ROW], f[TERMINATED_ROW] != 0.0, False, info
@@ -620,7 +624,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         if self._info_state:
             info["plant_state"] = self._state_map @ x
         if self._renderer is not None:
-            cd = self._rows[1][self._st.j - 1, 0]
+            cd = self._rows[self._j - 1, 0, 2:4]
             self._renderer.record(self.elapsed_steps * self.constants.dt, info["servo_error_az_mdeg"],
                                   info["servo_error_el_mdeg"], info["rate_command_az_deg_s"],
                                   info["rate_command_el_deg_s"], cd[0] * R2D, cd[1] * R2D,
@@ -630,11 +634,11 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
 
     # ------------------------------------------------------------------ copies and state
     #: the attributes of the dynamic state (:meth:`get_state`)
-    _STATE = ("_block", "_st", "_rows", "_k0", "_parts", "_np_random", "_np_random_seed", "episode", "_M",
-              "_episode", "_clamp_always", "_m", "_rank", "_state_map", "_C_gust", "_gust_az", "_gust_inv",
-              "_info_state", "_extras", "_mp", "_W")
+    _STATE = ("_block", "_S", "_j", "_rows", "_k0", "_parts", "_np_random", "_np_random_seed", "episode",
+              "_M", "_m", "_rank", "_state_map", "_C_gust", "_gust_az", "_gust_inv", "_info_state", "_extras",
+              "_mp", "_W")
     #: the parts of it that never change in place (kept by reference in a snapshot)
-    _SHARED = ("episode", "_M", "_episode", "_rows", "_W", "_parts", "_state_map", "_C_gust")
+    _SHARED = ("episode", "_M", "_rows", "_W", "_parts", "_state_map", "_C_gust")
 
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()
@@ -664,7 +668,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
 
         :raises RuntimeError: before the first reset
         """
-        if self._st is None:
+        if self._S is None:
             raise RuntimeError("call reset() before get_state()")
         state = self.__getstate__()
         return snapshot(self, state, self._STATE, tuple(state[n] for n in self._SHARED), tuple(self._riders))
@@ -686,14 +690,13 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         model (:meth:`set_state`).
         """
         p = self.plants.plant(0.0, self.config.dt)  # sizes only
-        m, M, B, st, rows = data["_m"], data["_M"], data["_block"], data["_st"], data["_rows"]
+        m, M, B, S, rows = data["_m"], data["_M"], data["_block"], data["_S"], data["_rows"]
         width = 3 + p.noise_rank + m
         ok = (m == p.n - p.n_wind and data["_rank"] == p.noise_rank and isinstance(M, np.ndarray)
               and M.shape == (width, m + N_STEP_OUTPUTS)
               and _shape(B) == (NOISE_BLOCK + 1, width + N_STEP_OUTPUTS)
-              and isinstance(st, StepState) and all(_shape(v) == (1, 2) for v in st[:4])
-              and isinstance(rows, tuple) and all(_shape(r) == (NOISE_BLOCK, 1, 2) for r in rows)
-              and _shape(data["_episode"]) == (1, 5)
+              and _shape(S) == (ONE_SIZE,) and isinstance(data["_j"], int) and 0 <= data["_j"] <= NOISE_BLOCK
+              and _shape(rows) == (NOISE_BLOCK, 1, 6)
               and _shape(data["_state_map"]) == (p.n, m)
               and _shape(data["_C_gust"]) == (len(OUTPUTS) - N_STEP_OUTPUTS, m)
               and isinstance(data["episode"], Episode))
@@ -724,10 +727,9 @@ DSS14Env.__doc__ = DSS14Env.__doc__.replace("{registered_ids}",
                                             registered_ids_table().replace("\n", "\n    "))
 
 
-#: the action dtypes of the step's fast path, and the sub-environment order of N = 1
+#: the action dtypes of the step's fast path
 _FAST = (np.dtype(np.float32), np.dtype(np.float64))
-_ROW0 = np.zeros(1, np.int64)
-_tuple_new = tuple.__new__  # a StepState without the NamedTuple constructor's call overhead
+
 
 
 def _shape(x: Any) -> tuple | None:

@@ -64,6 +64,7 @@ from dss14_env.envs.core import (
     StepConstants,
     StepState,
 )
+from dss14_env.envs.plant import N_STEP_OUTPUTS
 
 #: the float info values :func:`after_product` writes, one row each, in order
 INFO_FLOAT_ROWS = ("servo_error_az_mdeg", "servo_error_el_mdeg", "measured_error_az_mdeg",
@@ -309,6 +310,70 @@ def after_product(Y: np.ndarray, inv: np.ndarray, C: np.ndarray, CD: np.ndarray,
         out[OUT_ROWS - 2, i] = hits[i, 0]
         out[OUT_ROWS - 1, i] = hits[i, 1]
     return ANY_TERMINATED * any_term
+
+
+# ------------------------------------------------------------------ the single environment (N = 1)
+# Its step state, constants and outputs are one float vector (:func:`pack_one`): the loops above
+# run on views of it made inside the compiled code, so that a step makes two calls of four and
+# five arguments (each argument costs the call some 0.1 us to check and unpack).
+_FIELDS = (("kc", _N_CONSTANTS), ("episode", 5), ("r_prev", 2), ("a_prev", 2), ("em_prev", 2), ("a", 2),
+           ("em", 2), ("hits", 2), ("hit", 2), ("out", OUT_ROWS), ("clamp", 1))
+_AT = dict(zip([f for f, _ in _FIELDS], np.cumsum([0] + [n for _, n in _FIELDS]).tolist(), strict=False))
+(_KC, _EPISODE, _R_PREV, _A_PREV, _EM_PREV, _A, _EM, _HITS, _HIT, _OUT, _CLAMP) = (_AT[f] for f, _ in _FIELDS)
+#: the length of :func:`pack_one`'s vector
+ONE_SIZE = _CLAMP + 1
+#: where :func:`pack_one`'s vector holds the episode's hit counts, and what the step tells: the
+#: limiter's flags (rate, acceleration) and the ``out`` rows
+ONE_HITS, ONE_INFO = slice(_HITS, _HITS + 2), slice(_HIT, _OUT + OUT_ROWS)
+_ROW0 = np.zeros(1, np.int64)
+
+
+def pack_one(kc: np.ndarray, episode: np.ndarray, state: StepState, clamp_always: bool) -> np.ndarray:
+    """The single environment's vector: constants :func:`constants`, :func:`episode_rows` ``(1, 5)``,
+    the step state of :func:`reset_state` (N = 1) and whether every step clamps.
+    """
+    S = np.zeros(ONE_SIZE)
+    S[_KC:_KC + _N_CONSTANTS], S[_EPISODE:_EPISODE + 5] = kc, episode[0]
+    for at, v in ((_R_PREV, state.r_prev), (_A_PREV, state.a_prev), (_EM_PREV, state.em_prev),
+                  (_HITS, state.hits)):
+        S[at:at + 2] = v[0]
+    S[_CLAMP] = clamp_always
+    return S
+
+
+@njit(nogil=True)
+def limit_one(A: np.ndarray, B: np.ndarray, j: int, S: np.ndarray) -> int:
+    """:func:`limit_commands` of the single environment: the action ``A`` ``(1, 2)``, its state
+    vector ``S`` (:func:`pack_one`), the rate command written into row ``j`` of its step block
+    ``B`` (:func:`dss14_env.envs.plant.step_block`), the plant map's input.
+    """
+    return limit_commands(A, S[_R_PREV:_R_PREV + 2].reshape((1, 2)), S[_KC:_KC + _N_CONSTANTS],
+                          S[_A:_A + 2].reshape((1, 2)), B[j, 0:2].reshape((1, 2)),
+                          S[_HIT:_HIT + 2].reshape((2, 1)))
+
+
+@njit(nogil=True)
+def after_one(B: np.ndarray, j: int, R: np.ndarray, S: np.ndarray, obs: np.ndarray) -> int:
+    """:func:`after_product` of the single environment, after the plant map wrote row ``j + 1`` of
+    its step block ``B``: the step's rows ``R`` ``(T, 1, 6)`` (command, its rate, encoder noise:
+    :func:`dss14_env.envs.scenarios.block_rows`), its vector ``S`` (:func:`pack_one`: the outputs
+    into its ``out`` rows, the state advanced unless a reward is not finite), the observation
+    into ``obs`` ``(1, >= 12)``.
+    """
+    n_in = B.shape[1] - N_STEP_OUTPUTS
+    flags = after_product(B[j + 1, n_in:].reshape((N_STEP_OUTPUTS, 1)), _ROW0, R[:, :, 0:2], R[:, :, 2:4],
+                          R[:, :, 4:6], j,
+                          S[_EPISODE:_EPISODE + 5].reshape((1, 5)), S[_A:_A + 2].reshape((1, 2)),
+                          S[_A_PREV:_A_PREV + 2].reshape((1, 2)), S[_EM_PREV:_EM_PREV + 2].reshape((1, 2)),
+                          B[j, 0:2].reshape((1, 2)), S[_HIT:_HIT + 2].reshape((2, 1)),
+                          S[_HITS:_HITS + 2].reshape((1, 2)), S[_KC:_KC + _N_CONSTANTS], S[_CLAMP] != 0.0,
+                          obs, S[_EM:_EM + 2].reshape((1, 2)), S[_OUT:_OUT + OUT_ROWS].reshape((OUT_ROWS, 1)))
+    if not flags & NON_FINITE:
+        for m in range(2):
+            S[_R_PREV + m] = B[j, m]
+            S[_A_PREV + m] = S[_A + m]
+            S[_EM_PREV + m] = S[_EM + m]
+    return flags
 
 
 def step_outputs(n: int, width: int = OBS_SIZE) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -415,16 +415,14 @@ def step_block(M: np.ndarray, x0: np.ndarray, y0: np.ndarray, steps: int) -> np.
     return B
 
 
-def block_views(B: np.ndarray, m: int) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+def block_views(B: np.ndarray, m: int) -> list[tuple[np.ndarray, np.ndarray]]:
     """Per step ``j`` of a :func:`step_block` ``B`` of an episode with ``m`` one-copy states:
-    ``(r_j (1, 2), input_j [r, 1, xi, u], [u, y] of row j + 1, y of row j + 1 (N_STEP_OUTPUTS, 1))``,
-    views, so that the step's limiter writes its rate command into the input and
-    ``input_j @ M^T`` is written in place into the next row (one matrix-vector product per step,
-    no copies), where the step reads its outputs (:mod:`dss14_env.envs.fused`, N = 1).
+    ``(input_j [r, 1, xi, u], [u, y] of row j + 1)``, views, so that ``input_j @ M^T`` is written
+    in place into the next row (one matrix-vector product per step, no copies), where the step
+    reads its outputs (:func:`dss14_env.envs.fused.after_one`).
     """
     n_in = B.shape[1] - N_STEP_OUTPUTS
-    return [(B[j, 0:2].reshape(1, 2), B[j, :n_in], B[j + 1, n_in - m:],
-             B[j + 1, n_in:].reshape(N_STEP_OUTPUTS, 1)) for j in range(B.shape[0] - 1)]
+    return [(B[j, :n_in], B[j + 1, n_in - m:]) for j in range(B.shape[0] - 1)]
 
 
 # ---------------------------------------------------------------------- plants of one model

@@ -299,7 +299,7 @@ def start_elevation(cfg: EnvConfig, rng: np.random.Generator, plants: PlantFacto
 
 
 def block_rows(tr: Mapping[str, np.ndarray], k0: int, dt: float, normals: np.ndarray, encoder_sigma: float,
-               parts: tuple[bool, bool, bool] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+               parts: tuple[bool, bool, bool] | None = None) -> np.ndarray:
     """The per-step inputs of the steps ``k0 .. k0 + NOISE_BLOCK - 1`` of one episode, as the
     step's loop reads them (:func:`dss14_env.envs.fused.after_product`, N = 1).
 
@@ -317,15 +317,17 @@ def block_rows(tr: Mapping[str, np.ndarray], k0: int, dt: float, normals: np.nda
         monopulse columns (its last two columns are the encoder's, with encoder noise)
     :param encoder_sigma: encoder noise std, rad (0: the normals have no encoder columns)
     :param parts: :func:`command_parts` of ``tr`` (computed here if None)
-    :return: ``(c, c_dot, noise)``, each ``(NOISE_BLOCK, 1, 2)``
+    :return: ``(NOISE_BLOCK, 1, 6)``: ``[c (2), c_dot (2), noise (2)]`` per step
     """
     t = np.arange(k0 + 1, k0 + 1 + NOISE_BLOCK) * dt
     # the axes first, so that every operation runs along the block
     c, cd = command({key: v[:, None, None] for key, v in tr.items()}, t, parts)
-    noise = np.zeros((NOISE_BLOCK, 1, 2))
+    rows = np.zeros((NOISE_BLOCK, 1, 6))
+    rows[:, 0, 0:2] = c[..., 0].T
+    rows[:, 0, 2:4] = cd[..., 0].T
     if encoder_sigma:
-        np.multiply(normals[:, -2:], encoder_sigma, out=noise[:, 0])
-    return np.ascontiguousarray(c.transpose(1, 2, 0)), np.ascontiguousarray(cd.transpose(1, 2, 0)), noise
+        np.multiply(normals[:, -2:], encoder_sigma, out=rows[:, 0, 4:6])
+    return rows
 
 
 def draw_noise_block(rng: np.random.Generator, noise_rank: int, encoder_noise: bool,
