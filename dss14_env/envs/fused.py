@@ -18,9 +18,11 @@ floats; a compiled loop serves N = 1 and N = 1 024 alike, with the call's dispat
 under a microsecond per call with these arguments) as its only fixed cost.  The plant product
 stays numpy's (the same BLAS call as before, so the same bits): a product inside the loop would
 sum in another order.  ``NUMBA_DISABLE_JIT=1`` runs this very source as Python (slow; the
-results are the same).  The loops are compiled in memory on first use (about 2 s per process,
-measured by ``scripts/bench_env_speed.py``), not cached to disk: numba's cache writes next to
-the installed package or into a user folder, and its files are pickles.
+results are the same).  The loops are compiled in memory on first use, once per process and
+kind of environment (10-12 s measured on a 2-core machine at load average 8, by
+``scripts/bench_env_speed.py``); they are not cached to disk: numba's cache (``cache=True``)
+writes next to the installed package or into a user folder, and reads its index back with
+pickle, which nothing this package writes may need.
 
 The step, in order (SI inside; mdeg and deg at the interface)::
 

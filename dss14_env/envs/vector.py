@@ -9,8 +9,8 @@ per-sub-environment factor, see :mod:`dss14_env.envs.plant`) are stepped by ONE 
 
 Everything else -- command limiter, encoders, errors, episode end, reward, observation, info
 -- is the step of :mod:`dss14_env.envs.fused`, the compiled loops over the sub-environments
-that the single environment runs with N = 1 (the first step compiles them, about 2 s per
-process).
+that the single environment runs with N = 1 (the first reset and step compile them, some
+seconds per process).
 
 Seeding rule (the one of ``gymnasium.vector.SyncVectorEnv``): sub-environment ``i`` owns its
 own ``numpy.random.Generator``, seeded with ``seed + i`` by ``reset(seed=seed)`` (or ``seed[i]``
