@@ -34,7 +34,7 @@ def _k(**kw) -> StepConstants:
 
 def _limit(a: list, r_prev: list, k: StepConstants) -> tuple:
     A, out = np.array([a], float), np.full((1, 2), -7.0)
-    r, hit = np.full((1, 2), -7.0), np.zeros((2, 1), bool)
+    r, hit = np.full((1, 2), -7.0), np.zeros((2, 1))
     bad = fused.limit_commands(A, np.array([r_prev], float), fused.constants(k, 1.0), out, r, hit)
     return bad, out[0].tolist(), r[0].tolist(), bool(hit[0, 0]), bool(hit[1, 0])
 
@@ -64,7 +64,7 @@ def test_without_rate_clip_the_rate_limit_is_never_flagged() -> None:
 @pytest.mark.parametrize("a, row", [([[0.0, 0.0], [math.nan, 0.0]], 1), ([[0.0, math.inf], [0.0, 0.0]], 0)])
 def test_limiter_refuses_a_non_finite_action_before_writing(a: list, row: int) -> None:
     A, out, r = np.array(a), np.full((2, 2), -7.0), np.full((2, 2), -7.0)
-    kc, hit = fused.constants(_k(), 1.0), np.zeros((2, 2), bool)
+    kc, hit = fused.constants(_k(), 1.0), np.zeros((2, 2))
     assert fused.limit_commands(A, np.zeros((2, 2)), kc, out, r, hit) == row
     assert (out == -7.0).all() and (r == -7.0).all()
 
@@ -76,11 +76,11 @@ def _after(k: StepConstants, theta=(0.0, 0.0), point=(0.0, 0.0), c=(0.0, 0.0), c
     Y = np.array([[theta[0]], [theta[1]], [point[0]], [point[1]]])
     ep = fused.episode_rows(np.array([start]), np.array([me]), np.array([[3.0, 0.25]]))
     obs, em, out = fused.step_outputs(1)
-    h = np.array([hits], np.int64)
+    h = np.array([hits], float)
     flags = fused.after_product(Y, np.zeros(1, np.int64), np.array([[c]]), np.array([[cd]]),
                                 np.array([[noise]]), 0, ep, np.array([a]), np.array([a_prev]),
-                                np.array([em_prev]), np.array([r]), np.array([[rate_hit], [acc_hit]]), h,
-                                fused.constants(k, xel), clamp_always, obs, em, out)
+                                np.array([em_prev]), np.array([r]), np.array([[rate_hit], [acc_hit]], float),
+                                h, fused.constants(k, xel), clamp_always, obs, em, out)
     v = out[:, 0].tolist()
     info = dict(zip(fused.INFO_FLOAT_ROWS + fused.INFO_INT_ROWS, v[:10] + v[12:], strict=True))
     return dict(obs=obs[0], rew=v[fused.REWARD_ROW], term=v[fused.TERMINATED_ROW] == 1.0, em=em[0].tolist(),

@@ -246,7 +246,7 @@ class StepState(NamedTuple):
     a_prev: Any
     #: previous measured servo error ``[az, el]``, mdeg (the observed error rate)
     em_prev: Any
-    #: the episode's limiter hit counts ``[rate, accel]``
+    #: the episode's limiter hit counts ``[rate, accel]`` (floats: whole numbers)
     hits: Any
     #: the next step's row in its noise block
     j: Any

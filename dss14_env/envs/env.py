@@ -624,7 +624,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         if self._info_state:
             info["plant_state"] = self._state_map @ x
         if self._renderer is not None:
-            cd = self._rows[self._j - 1, 0, 2:4]
+            cd = self._rows[1, self._j - 1, 0]
             self._renderer.record(self.elapsed_steps * self.constants.dt, info["servo_error_az_mdeg"],
                                   info["servo_error_el_mdeg"], info["rate_command_az_deg_s"],
                                   info["rate_command_el_deg_s"], cd[0] * R2D, cd[1] * R2D,
@@ -696,7 +696,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
               and M.shape == (width, m + N_STEP_OUTPUTS)
               and _shape(B) == (NOISE_BLOCK + 1, width + N_STEP_OUTPUTS)
               and _shape(S) == (ONE_SIZE,) and isinstance(data["_j"], int) and 0 <= data["_j"] <= NOISE_BLOCK
-              and _shape(rows) == (NOISE_BLOCK, 1, 6)
+              and _shape(rows) == (3, NOISE_BLOCK, 1, 2)
               and _shape(data["_state_map"]) == (p.n, m)
               and _shape(data["_C_gust"]) == (len(OUTPUTS) - N_STEP_OUTPUTS, m)
               and isinstance(data["episode"], Episode))

@@ -42,11 +42,11 @@ The step, in order (SI inside; mdeg and deg at the interface)::
 >>> from dss14_env.envs.config import load_env_config
 >>> from dss14_env.envs.core import StepConstants
 >>> kc = constants(StepConstants.from_config(load_env_config()), 0.7)
->>> a, r, hit = np.empty((1, 2)), np.empty((1, 2)), np.empty((2, 1), bool)
+>>> a, r, hit = np.empty((1, 2)), np.empty((1, 2)), np.empty((2, 1))
 >>> limit_commands(np.array([[2.0, -0.01]]), np.zeros((1, 2)), kc, a, r, hit)
 -1
 >>> a.tolist(), (r * R2D).round(6).tolist(), hit.ravel().tolist()
-([[1.0, -0.01]], [[0.004, -0.0025]], [False, True])
+([[1.0, -0.01]], [[0.004, -0.0025]], [0.0, 1.0])
 """
 
 from __future__ import annotations
@@ -134,11 +134,11 @@ def limit_commands(A: np.ndarray, r_prev: np.ndarray, kc: np.ndarray, a_out: np.
                    hit: np.ndarray) -> int:
     """The command limiter of every sub-environment.
 
-    :param A: actions ``(N, 2)`` (float32 or float64); ``r_prev`` the previous applied rate
-        commands, rad/s; ``kc`` :func:`constants`
+    :param A: actions ``(N, 2)`` float64; ``r_prev`` the previous applied rate commands, rad/s;
+        ``kc`` :func:`constants`
     :param a_out: receives the actions clipped to [-1, 1] ``(N, 2)``, ``r_out`` the applied
         rate commands (rad/s), ``hit`` ``(2, N)`` whether the rate clip (row 0) / the
-        acceleration limit (row 1) acted
+        acceleration limit (row 1) acted (1.0 or 0.0)
     :return: -1, or the first row with a non-finite action (then nothing is written)
     """
     N = A.shape[0]
@@ -147,8 +147,8 @@ def limit_commands(A: np.ndarray, r_prev: np.ndarray, kc: np.ndarray, a_out: np.
             return i
     scale, rate_clip, rl, dr = kc[_SCALE], kc[_RATE_CLIP] != 0.0, kc[_RL], kc[_DR]
     for i in range(N):
-        c0 = _min(_max(np.float64(A[i, 0]), -1.0), 1.0)
-        c1 = _min(_max(np.float64(A[i, 1]), -1.0), 1.0)
+        c0 = _min(_max(A[i, 0], -1.0), 1.0)
+        c1 = _min(_max(A[i, 1], -1.0), 1.0)
         a_out[i, 0] = c0
         a_out[i, 1] = c1
         q0 = c0 * scale
@@ -216,7 +216,7 @@ def after_product(Y: np.ndarray, inv: np.ndarray, C: np.ndarray, CD: np.ndarray,
     :param a: clipped actions ``(N, 2)``, ``a_prev`` the previous ones; ``em_prev`` the previous
         measured errors (mdeg); ``r`` the applied rate commands (rad/s)
     :param hit: :func:`limit_commands`'s flags ``(2, N)``; ``hits`` the episodes' limiter hit
-        counts ``(N, 2)``, advanced by them when every reward is finite
+        counts ``(N, 2)`` (floats: whole numbers), advanced by them when every reward is finite
     :param clamp_always: clamp the observation's errors whether or not a sub-environment
         terminated (:meth:`~dss14_env.envs.core.StepConstants.clamp_always`)
     :param obs: receives the observations' first 12 entries ``(N, >= 12)`` float32, ``em`` the
@@ -317,7 +317,8 @@ def after_product(Y: np.ndarray, inv: np.ndarray, C: np.ndarray, CD: np.ndarray,
 # ------------------------------------------------------------------ the single environment (N = 1)
 # Its step state, constants and outputs are one float vector (:func:`pack_one`): the loops above
 # run on views of it made inside the compiled code, so that a step makes two calls of four and
-# five arguments (each argument costs the call some 0.1 us to check and unpack).
+# five arguments (each argument costs the call some 0.1 us to check and unpack).  The views have
+# the types the vector environment's arrays have, so that each loop is compiled once.
 _FIELDS = (("kc", _N_CONSTANTS), ("episode", 5), ("r_prev", 2), ("a_prev", 2), ("em_prev", 2), ("a", 2),
            ("em", 2), ("hits", 2), ("hit", 2), ("out", OUT_ROWS), ("clamp", 1))
 _AT = dict(zip([f for f, _ in _FIELDS], np.cumsum([0] + [n for _, n in _FIELDS]).tolist(), strict=False))
@@ -327,7 +328,6 @@ ONE_SIZE = _CLAMP + 1
 #: where :func:`pack_one`'s vector holds the episode's hit counts, and what the step tells: the
 #: limiter's flags (rate, acceleration) and the ``out`` rows
 ONE_HITS, ONE_INFO = slice(_HITS, _HITS + 2), slice(_HIT, _OUT + OUT_ROWS)
-_ROW0 = np.zeros(1, np.int64)
 
 
 def pack_one(kc: np.ndarray, episode: np.ndarray, state: StepState, clamp_always: bool) -> np.ndarray:
@@ -345,11 +345,13 @@ def pack_one(kc: np.ndarray, episode: np.ndarray, state: StepState, clamp_always
 
 @njit(nogil=True)
 def limit_one(A: np.ndarray, B: np.ndarray, j: int, S: np.ndarray) -> int:
-    """:func:`limit_commands` of the single environment: the action ``A`` ``(1, 2)``, its state
-    vector ``S`` (:func:`pack_one`), the rate command written into row ``j`` of its step block
-    ``B`` (:func:`dss14_env.envs.plant.step_block`), the plant map's input.
+    """:func:`limit_commands` of the single environment: the action ``A`` ``(1, 2)`` (float32 or
+    float64), its state vector ``S`` (:func:`pack_one`), the rate command written into row ``j``
+    of its step block ``B`` (:func:`dss14_env.envs.plant.step_block`), the plant map's input.
     """
-    return limit_commands(A, S[_R_PREV:_R_PREV + 2].reshape((1, 2)), S[_KC:_KC + _N_CONSTANTS],
+    a = np.empty((1, 2))
+    a[0, 0], a[0, 1] = A[0, 0], A[0, 1]
+    return limit_commands(a, S[_R_PREV:_R_PREV + 2].reshape((1, 2)), S[_KC:_KC + _N_CONSTANTS],
                           S[_A:_A + 2].reshape((1, 2)), B[j, 0:2].reshape((1, 2)),
                           S[_HIT:_HIT + 2].reshape((2, 1)))
 
@@ -357,14 +359,14 @@ def limit_one(A: np.ndarray, B: np.ndarray, j: int, S: np.ndarray) -> int:
 @njit(nogil=True)
 def after_one(B: np.ndarray, j: int, R: np.ndarray, S: np.ndarray, obs: np.ndarray) -> int:
     """:func:`after_product` of the single environment, after the plant map wrote row ``j + 1`` of
-    its step block ``B``: the step's rows ``R`` ``(T, 1, 6)`` (command, its rate, encoder noise:
-    :func:`dss14_env.envs.scenarios.block_rows`), its vector ``S`` (:func:`pack_one`: the outputs
+    its step block ``B``: the step's rows ``R`` ``(3, T, 1, 2)`` (command, its rate, encoder
+    noise: :func:`dss14_env.envs.scenarios.block_rows`), its vector ``S`` (:func:`pack_one`: the outputs
     into its ``out`` rows, the state advanced unless a reward is not finite), the observation
     into ``obs`` ``(1, >= 12)``.
     """
     n_in = B.shape[1] - N_STEP_OUTPUTS
-    flags = after_product(B[j + 1, n_in:].reshape((N_STEP_OUTPUTS, 1)), _ROW0, R[:, :, 0:2], R[:, :, 2:4],
-                          R[:, :, 4:6], j,
+    flags = after_product(B[j + 1, n_in:].reshape((N_STEP_OUTPUTS, 1)), np.zeros(1, np.int64), R[0], R[1],
+                          R[2], j,
                           S[_EPISODE:_EPISODE + 5].reshape((1, 5)), S[_A:_A + 2].reshape((1, 2)),
                           S[_A_PREV:_A_PREV + 2].reshape((1, 2)), S[_EM_PREV:_EM_PREV + 2].reshape((1, 2)),
                           B[j, 0:2].reshape((1, 2)), S[_HIT:_HIT + 2].reshape((2, 1)),
@@ -412,9 +414,9 @@ def reset_state(c: np.ndarray, cd: np.ndarray, y: np.ndarray, noise: np.ndarray,
     rp = np.clip(r0, -k.rate_limit, k.rate_limit)
     a0 = np.clip(rp / k.action_scale, -1.0, 1.0)  # the action that reproduces rp
     obs, em, out = step_outputs(n, width)
-    hits = np.zeros((n, 2), np.int64)
+    hits = np.zeros((n, 2))
     after_product(np.ascontiguousarray(y[:, :4].T), np.arange(n), c[None], cd[None], noise[None], 0, episode,
-                  a0, a0, np.zeros((n, 2)), rp, np.zeros((2, n), bool), hits, kc, True, obs, em, out)
+                  a0, a0, np.zeros((n, 2)), rp, np.zeros((2, n)), hits, kc, True, obs, em, out)
     obs[:, 2:4] = 0.0
     info = dict(zip(INFO_FLOAT_ROWS, out, strict=False))
     state = StepState(rp, a0, em, hits, np.zeros(n, np.int64))
@@ -429,5 +431,5 @@ def info_arrays(out: np.ndarray, actions: np.ndarray, hit: np.ndarray) -> dict[s
     counts = out[OUT_ROWS - 2:].astype(np.int64)
     return {**dict(zip(INFO_FLOAT_ROWS[:8], out[:8], strict=True)), "action_unclipped": actions,
             "rate_command_az_deg_s": out[8], "rate_command_el_deg_s": out[9],
-            "rate_limited": hit[0], "accel_limited": hit[1],
+            "rate_limited": hit[0] != 0.0, "accel_limited": hit[1] != 0.0,
             "n_rate_limited": counts[0], "n_accel_limited": counts[1]}

@@ -317,16 +317,16 @@ def block_rows(tr: Mapping[str, np.ndarray], k0: int, dt: float, normals: np.nda
         monopulse columns (its last two columns are the encoder's, with encoder noise)
     :param encoder_sigma: encoder noise std, rad (0: the normals have no encoder columns)
     :param parts: :func:`command_parts` of ``tr`` (computed here if None)
-    :return: ``(NOISE_BLOCK, 1, 6)``: ``[c (2), c_dot (2), noise (2)]`` per step
+    :return: ``(3, NOISE_BLOCK, 1, 2)``: ``c``, ``c_dot`` and the noise, ``[az, el]`` per step
     """
     t = np.arange(k0 + 1, k0 + 1 + NOISE_BLOCK) * dt
     # the axes first, so that every operation runs along the block
     c, cd = command({key: v[:, None, None] for key, v in tr.items()}, t, parts)
-    rows = np.zeros((NOISE_BLOCK, 1, 6))
-    rows[:, 0, 0:2] = c[..., 0].T
-    rows[:, 0, 2:4] = cd[..., 0].T
+    rows = np.zeros((3, NOISE_BLOCK, 1, 2))
+    rows[0, :, 0] = c[..., 0].T
+    rows[1, :, 0] = cd[..., 0].T
     if encoder_sigma:
-        np.multiply(normals[:, -2:], encoder_sigma, out=rows[:, 0, 4:6])
+        np.multiply(normals[:, -2:], encoder_sigma, out=rows[2, :, 0])
     return rows
 
 

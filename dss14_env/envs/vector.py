@@ -215,7 +215,7 @@ class DSS14VectorEnv(VectorEnv):
         self._jmax = 0  # the largest row j, kept without a pass over j
         self._parts = (False, False, False)
         #: the step state of every sub-environment (:class:`~dss14_env.envs.core.StepState`)
-        self._s = StepState(np.zeros((N, 2)), np.zeros((N, 2)), np.zeros((N, 2)), np.zeros((N, 2), np.int64),
+        self._s = StepState(np.zeros((N, 2)), np.zeros((N, 2)), np.zeros((N, 2)), np.zeros((N, 2)),
                             np.zeros(N, np.int64))
         self._r0 = np.zeros((N, 2))  # the drawn start rate commands and t = 0 encoder noise,
         self._ne0 = np.zeros((N, 2))  # until _reset_rows makes the state of them
@@ -355,12 +355,12 @@ class DSS14VectorEnv(VectorEnv):
     @property
     def n_rate_limited(self) -> np.ndarray:
         """Steps of the current episodes in which the rate clip acted, per sub-environment."""
-        return self._s.hits[:, 0].copy()
+        return self._s.hits[:, 0].astype(np.int64)
 
     @property
     def n_accel_limited(self) -> np.ndarray:
         """Steps of the current episodes in which the acceleration limit acted."""
-        return self._s.hits[:, 1].copy()
+        return self._s.hits[:, 1].astype(np.int64)
 
     def plant_states(self) -> np.ndarray:
         """Plant states ``(N, n)`` (balanced coordinates of each sub-environment's plant)."""
@@ -461,7 +461,7 @@ class DSS14VectorEnv(VectorEnv):
             raise RuntimeError("call reset() before step()")
         A = as_actions(actions, (self.num_envs, 2))
         N, n, k, s = self.num_envs, self._n, self._k_rank, self._s
-        a, R, hit = np.empty((N, 2)), np.empty((N, 2)), np.empty((2, N), bool)
+        a, R, hit = np.empty((N, 2)), np.empty((N, 2)), np.empty((2, N))
         normals = self._normals(self._prev_done)
         perm = self._arange if self._perm is None else self._perm
         fused.before_product(A, s.r_prev, self._kc, perm, self._kappa_s, self._t_mean_s, normals,
