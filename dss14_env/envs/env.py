@@ -583,10 +583,13 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
             self._next_block(self._k0 + j)
             j = 0
         try:  # fast path: a float32 or float64 array of shape (2,) (finite: checked by the limiter)
-            fast = action.dtype in _FAST and action.shape == (2,)
+            dt = action.dtype
+            fast = (dt is _F32 or dt is _F64) and action.shape == (2,)
         except AttributeError:
             fast = False
-        A = action.reshape(1, 2) if fast else as_actions(action, (2,)).reshape(1, 2)
+        if not fast:
+            action = as_actions(action, (2,))
+        A = action.reshape(1, 2)
         B = self._block
         if limit_one(A, B, j, S) >= 0:
             as_actions(action, (2,))  # raises: not finite
@@ -603,7 +606,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         info = {"servo_error_az_mdeg": f[0], "servo_error_el_mdeg": f[1], "measured_error_az_mdeg": f[2],
                 "measured_error_el_mdeg": f[3], "pointing_error_el_mdeg": f[4],
                 "pointing_error_xel_mdeg": f[5], "wind_speed_mps": f[6], "wind_direction_rad": f[7],
-                "action_unclipped": tuple(A[0].tolist()),
+                "action_unclipped": tuple(action.tolist()),
                 "rate_command_az_deg_s": f[8], "rate_command_el_deg_s": f[9],
                 "rate_limited": v[0] != 0.0, "accel_limited": v[1] != 0.0,
                 "n_rate_limited": int(f[12]), "n_accel_limited": int(f[13])}
@@ -728,7 +731,7 @@ DSS14Env.__doc__ = DSS14Env.__doc__.replace("{registered_ids}",
 
 
 #: the action dtypes of the step's fast path
-_FAST = (np.dtype(np.float32), np.dtype(np.float64))
+_F32, _F64 = np.dtype(np.float32), np.dtype(np.float64)
 
 
 
