@@ -13,14 +13,11 @@ from dss14_env.envs.config import load_env_config
 from dss14_env.envs.env import DSS14Env
 from dss14_env.envs.monopulse import (
     MonopulseConstants,
-    ScalarMonopulse,
     half_power_beamwidth_mdeg,
     jitter_mdeg,
-    observation_1,
-    sensor_observation,
+    sensor_constants,
     sensor_reset,
     sensor_step,
-    sensor_step_1,
 )
 from dss14_env.envs.vector import DSS14VectorEnv
 
@@ -67,10 +64,10 @@ def test_loop_output_noise_has_the_specified_std_and_correlation(update_s: float
     n, steps = 4000, 30 * k.n_update
     zero = np.zeros((n, 2))
     st = sensor_reset(zero, rng.standard_normal((n, 2)), k)
-    outs = [st.out]
+    outs, mc, obs = [st.out.copy()], sensor_constants(k), np.empty((n, 14), np.float32)
     for _ in range(steps):
-        st = sensor_step(st, zero, rng.standard_normal((n, 2)), k)
-        outs.append(st.out)
+        sensor_step(st.history, st.out, st.k, zero.T.copy(), rng.standard_normal((1, n, 2)), 0, mc, 0.1, obs)
+        outs.append(st.out.copy())
     x = np.array(outs)[::k.n_update]  # one sample per update (held in between)
     dof = n * 2
     lo, hi = (stats.chi2.ppf(q, dof) / dof for q in (0.0005, 0.9995))  # 99.9 % for each of 31 steps x 2
@@ -168,21 +165,48 @@ def test_snapshots_and_copies_continue_the_sensor_bit_for_bit(vector: bool) -> N
     assert np.array_equal(np.array(a), np.array(b)) and np.array_equal(np.array(a), np.array(c))
 
 
-@pytest.mark.parametrize("kw", [dict(), dict(monopulse_update_s=0.06, monopulse_latency_s=0.1),
-                                dict(monopulse_bandwidth_hz=None, monopulse_latency_s=0.02),
-                                dict(monopulse_cnr_dbhz=None, monopulse_update_s=0.04)])
-def test_scalar_twin_equals_the_batched_sensor_bit_for_bit(kw: dict) -> None:
+def _sense(p: np.ndarray, **kw: object) -> tuple[np.ndarray, np.ndarray, MonopulseConstants]:
+    """The sensor's outputs ``(T, 2)`` and observation entries ``(T, 2)`` for the true pointing
+    errors ``p`` ``(T, 2)`` (mdeg; ``p[0]`` at the reset), with zero noise normals.
+    """
     k = MonopulseConstants.from_config(load_env_config(sensors=MONO, **kw))
-    rng = np.random.default_rng(11)
-    scale = 10.0 ** rng.uniform(-3, 5.5, 400)  # up to beyond the observation bound, 1e4 x 10 mdeg
-    st = sensor_reset(rng.normal(size=(1, 2)) * scale[0], rng.normal(size=(1, 2)), k)
-    s1 = ScalarMonopulse.of(st)
-    obs12 = rng.normal(size=12).astype(np.float32)
-    for i in range(1, 400):
-        p, w = rng.normal(size=(1, 2)) * scale[i], rng.normal(size=(1, 2))
-        st = sensor_step(st, p, w, k)
-        s1 = sensor_step_1(s1, *p[0].tolist(), *w[0].tolist(), k)
-        assert (s1.out_el, s1.out_xel) == tuple(st.out[0].tolist()) and s1.k == int(st.k[0])
-        assert s1.history == tuple(map(tuple, st.history[0].tolist()))
-        o = observation_1(obs12, s1, 10.0)
-        assert np.array_equal(o[12:], sensor_observation(st, 10.0)[0]) and np.array_equal(o[:12], obs12)
+    st = sensor_reset(p[:1], np.zeros((1, 2)), k)
+    outs, obs = [st.out[0].copy()], np.zeros((1, 14), np.float32)
+    o = [obs[0, 12:].copy()]
+    for pk in p[1:]:
+        sensor_step(st.history, st.out, st.k, pk[:, None].copy(), np.zeros((1, 1, 2)), 0, sensor_constants(k),
+                    0.1, obs)
+        outs.append(st.out[0].copy())
+        o.append(obs[0, 12:].copy())
+    return np.array(outs), np.array(o), k
+
+
+def test_noiseless_sensor_without_loop_is_the_error_late_by_its_latency_and_held_between_updates() -> None:
+    # f[k] = p[k - d] (the delay line starts full of p[0]), updated every n_u steps, held between
+    p = np.random.default_rng(3).normal(size=(40, 2)) * 5.0
+    f, _, k = _sense(p, monopulse_cnr_dbhz=None, monopulse_bandwidth_hz=None, monopulse_latency_s=0.04,
+                     monopulse_update_s=0.06)
+    assert (k.n_delay, k.n_update, k.a, k.sigma) == (2, 3, 0.0, 0.0)
+    for step in range(1, 40):
+        last_update = step - step % 3
+        want = p[0] if last_update == 0 else p[max(last_update - 2, 0)]
+        assert np.array_equal(f[step], want), step
+
+
+def test_noiseless_loop_is_a_first_order_filter_of_pole_exp_minus_4_bl_t() -> None:
+    p = np.random.default_rng(4).normal(size=(30, 2))
+    f, _, k = _sense(p, monopulse_cnr_dbhz=None, monopulse_bandwidth_hz=2.0)
+    a = math.exp(-4.0 * 2.0 * 0.02)
+    assert k.a == pytest.approx(a, rel=1e-15)
+    want = [p[0]]
+    for pk in p[1:]:
+        want.append(a * want[-1] + (1.0 - a) * pk)
+    np.testing.assert_allclose(f, np.array(want), rtol=1e-13, atol=1e-15)
+
+
+def test_sensor_observation_is_the_measurement_in_error_scale_units_clamped_to_1e4() -> None:
+    p = np.array([[0.0, 0.0], [3.0, -4.0], [2.0e5, -3.0e5], [-1.0e6, 99_990.0]])
+    _, o, _ = _sense(p, monopulse_cnr_dbhz=None, monopulse_bandwidth_hz=None)
+    assert o.dtype == np.float32
+    assert o[1].tolist() == [pytest.approx(0.3), pytest.approx(-0.4)]
+    assert o[2].tolist() == [1.0e4, -1.0e4] and o[3].tolist() == [-1.0e4, 9999.0]

@@ -16,7 +16,8 @@ SCRIPT = ROOT / "scripts" / "bench_env_speed.py"
 def test_the_speed_script_reports_its_ratios_and_checks_them(tmp_path: Path) -> None:
     out = tmp_path / "speed.json"
     cmd = [sys.executable, str(SCRIPT), "--steps", "200", "--vec-steps", "5", "--num-envs", "8",
-           "--repeats", "3", "--clock", "cpu", "--blas-threads", "1", "--json", str(out), "--check"]
+           "--repeats", "3", "--clock", "cpu", "--blas-threads", "1", "--ppo-steps", "0", "--json", str(out),
+           "--check"]
     done = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
     res = json.loads(out.read_text())
     for env_id, r in res["ratio_to_matmul"].items():
@@ -29,6 +30,7 @@ def test_the_speed_script_reports_its_ratios_and_checks_them(tmp_path: Path) -> 
         assert r["target"] == 0.5 and r["meets_target"] == (r["ci95"][0] >= 0.5)
         # which step ran is recorded: compiled where numba is installed
         assert vec["compiled"] is (importlib.util.find_spec("numba") is not None)
+    assert "ppo_env_share" not in res and res["compile_s"] > 0.0  # --ppo-steps 0: not measured
     missed = [s for kind in ("ratio_to_pendulum", "ratio_to_matmul") for s in res[kind].values()
               if not s["meets_target"]]
     assert done.returncode == (1 if missed else 0), done.stderr

@@ -127,6 +127,8 @@ def test_vector_env_rejects_bad_actions(actions: np.ndarray, match: str) -> None
     (dict(num_envs=2, max_episode_steps=0), "max_episode_steps"),
     (dict(num_envs=2, render_mode="rgb_array"), "render"),
     (dict(num_envs=2, dt=-1.0), "dt"),
+    (dict(num_envs=2, compiled=False), "^compiled must be None or True"),
+    (dict(num_envs=2, compiled="yes"), "^compiled must be None or True"),
 ])
 def test_vector_env_rejects_bad_arguments(kw: dict, match: str) -> None:
     with pytest.raises(ValueError, match=match):

@@ -16,26 +16,30 @@ from gymnasium import spaces
 
 from dss14_env.core.units import DEG, KMH_PER_M_S, R2D, R2MD
 from dss14_env.envs.config import EnvConfig, load_env_config
-from dss14_env.envs.core import (
-    OBS_HIGH,
-    OBS_NAMES,
-    EpisodeConstants,
-    ScalarState,
-    StepConstants,
-    as_actions,
-    check_seed,
+from dss14_env.envs.core import OBS_HIGH, OBS_NAMES, StepConstants, as_actions, check_seed
+from dss14_env.envs.fused import (
+    NON_FINITE,
+    ONE_HITS,
+    ONE_INFO,
+    ONE_SIZE,
+    POINTING_ROWS,
+    REWARD_ROW,
+    TERMINATED_ROW,
+    after_one,
+    constants,
+    episode_rows,
+    limit_one,
+    pack_one,
     reset_state,
-    step_1,
-    step_constants,
 )
 from dss14_env.envs.monopulse import (
     MonopulseConstants,
-    ScalarMonopulse,
-    observation_1,
+    MonopulseState,
     observation_high,
+    sensor_constants,
+    sensor_observe,
     sensor_reset,
-    sensor_step_1,
-    step_obs_info,
+    sensor_step,
 )
 from dss14_env.envs.plant import (
     N_STEP_OUTPUTS,
@@ -424,11 +428,18 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         self.constants = StepConstants.from_config(c)
         #: the monopulse sensor's constants (None without it)
         self.monopulse = MonopulseConstants.from_config(c) if "monopulse" in c.sensors else None
-        self._mp: ScalarMonopulse | None = None
-        self._mp_w: list | None = None
+        self._mp: MonopulseState | None = None
+        self._W: np.ndarray | None = None
+        #: the step's constants (:func:`dss14_env.envs.fused.constants`) and the sensor's
+        self._kc = constants(self.constants, self.plants.xel_scale)
+        self._mc = sensor_constants(self.monopulse) if self.monopulse is not None else None
+        self._width = high.size
         self._renderer = Renderer(render_mode, c.dt, c.render_window_s) if render_mode else None
         self.episode: Episode | None = None
-        self._st: ScalarState | None = None
+        #: the step's state, constants and outputs (:func:`dss14_env.envs.fused.pack_one`) and the
+        #: step's row in its noise block
+        self._S: np.ndarray | None = None
+        self._j = 0
         self._block: np.ndarray | None = None
         self._views: list = []
         self._riders: list = []
@@ -472,26 +483,24 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         self.episode = ep
         self._parts = command_parts(ep.traj)
         self._next_block(0, normals)
-        # the state, first observation and info through the batched core (N = 1)
+        # the state, first observation and info through the step's loop (N = 1)
         c, cd = command(ep.traj, np.zeros(1))
-        st, obs, rinfo = reset_state(c, cd, y0[None], ep.start[None], ne[None], ep.r0[None],
-                                     np.array([[ep.wind_speed, ep.wind_direction]]), p.xel_scale, k)
         me = cfg.max_error_deg * DEG * R2MD
-        s_az, s_el = float(ep.start[0]), float(ep.start[1])
-        # everything step() reads that is fixed for the episode
-        self._M = MT  # step_1's form: input @ M^T, the fastest product here
-        self._sc = step_constants(k, (s_az, s_el), me, p.xel_scale, ep.wind_speed, ep.wind_direction)
+        episode = episode_rows(ep.start[None], np.array([me]),
+                                     np.array([[ep.wind_speed, ep.wind_direction]]))
+        st, obs, rinfo = reset_state(c, cd, y0[None], ne[None], ep.r0[None], episode, self._kc, k,
+                                     self._width)
+        self._M = MT  # input @ M^T, the fastest product here
         self._extras = cfg.info_state or self._renderer is not None
         self._info_state = cfg.info_state
-        self._st = ScalarState.of(st)
+        self._S, self._j = pack_one(self._kc, episode, st, k.clamp_always(me)), 0
         info = {**episode_info(ep, self.plants.wind_loads), **{key: float(v[0]) for key, v in rinfo.items()}}
-        rp0, rp1 = self._st.r_az, self._st.r_el
+        rp0, rp1 = st.r_prev[0].tolist()
         if self.monopulse is not None:
             p0 = np.column_stack((rinfo["pointing_error_el_mdeg"], rinfo["pointing_error_xel_mdeg"]))
-            mp = sensor_reset(p0, z0[None], self.monopulse)
-            obs = step_obs_info(obs, info, mp, k.error_scale)
-            self._mp = ScalarMonopulse.of(mp)
-            info["monopulse_el_mdeg"], info["monopulse_xel_mdeg"] = self._mp.out_el, self._mp.out_xel
+            self._mp = mp = sensor_reset(p0, z0[None], self.monopulse)
+            sensor_observe(mp.out, 1.0 / k.error_scale, obs)
+            info["monopulse_el_mdeg"], info["monopulse_xel_mdeg"] = mp.out[0].tolist()
         obs = obs[0]
         if cfg.info_state:
             info["plant_state"] = ep.x0.copy()
@@ -516,26 +525,25 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         if normals is None:
             normals = draw_noise_block(self.np_random, self._rank, k.encoder_sigma > 0.0, monopulse=mp)
         if mp:  # the sensor's columns: the last two
-            self._mp_w, normals = normals[:, -2:].tolist(), normals[:, :-2]
+            self._W, normals = normals[:, None, :], normals[:, :-2]
         B = self._block
         if k0:
             B[0, -(self._m + N_STEP_OUTPUTS):] = B[NOISE_BLOCK, -(self._m + N_STEP_OUTPUTS):]
         B[:NOISE_BLOCK, 3:3 + self._rank] = normals[:, :self._rank]
-        self._rows = block_rows(self.episode.traj, k0, k.dt, k.rate_limit, normals, k.encoder_sigma,
-                                parts=self._parts).tolist()
+        self._rows = block_rows(self.episode.traj, k0, k.dt, normals, k.encoder_sigma, parts=self._parts)
         self._k0 = k0
 
     def _plant_state(self) -> np.ndarray:
         """The current one-copy plant state (a view into the step block)."""
         n_in = self._block.shape[1] - N_STEP_OUTPUTS
-        return self._block[self._st.j, n_in - self._m:n_in]
+        return self._block[self._j, n_in - self._m:n_in]
 
     def wind_gust(self) -> float:
         """The current gust speed about the mean wind speed, m/s (0 without wind).
 
         Read from the gust torque of the axis with the larger direction factor.
         """
-        if self._st is None:
+        if self._S is None:
             raise RuntimeError("call reset() before wind_gust()")
         return self._gust_of(self._plant_state())
 
@@ -546,17 +554,17 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
     @property
     def elapsed_steps(self) -> int:
         """Steps taken in the current episode."""
-        return self._k0 + self._st.j
+        return self._k0 + self._j
 
     @property
     def n_rate_limited(self) -> int:
         """Steps of the current episode in which the rate clip acted."""
-        return self._st.n_rate if self._st is not None else 0
+        return int(self._S[ONE_HITS][0]) if self._S is not None else 0
 
     @property
     def n_accel_limited(self) -> int:
         """Steps of the current episode in which the acceleration limit acted."""
-        return self._st.n_acc if self._st is not None else 0
+        return int(self._S[ONE_HITS][1]) if self._S is not None else 0
 
     # ------------------------------------------------------------------ step
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
@@ -567,31 +575,51 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         :raises ValueError: a bad action (:func:`dss14_env.envs.core.as_actions`), before
             anything changes
         """
-        st = self._st
-        if st is None:
+        S, j = self._S, self._j
+        if S is None:
             raise RuntimeError("call reset() before step()")
-        j = st.j
         if j == NOISE_BLOCK:
             as_actions(action, (2,))  # checked before the next noise block changes the generator
             self._next_block(self._k0 + j)
-            st, j = st._replace(j=0), 0
-        result, self._st = step_1(action, self._views[j], st, self._M, self._rows[j], self._sc)
+            j = 0
+        try:  # fast path: a float32 or float64 array of shape (2,) (finite: checked by the limiter)
+            dt = action.dtype
+            fast = (dt is _F32 or dt is _F64) and action.shape == (2,)
+        except AttributeError:
+            fast = False
+        if not fast:
+            action = as_actions(action, (2,))
+        A = action.reshape(1, 2)
+        B = self._block
+        if limit_one(A, B, j, S) >= 0:
+            as_actions(action, (2,))  # raises: not finite
+        inp, nxt = self._views[j]
+        inp.dot(self._M, nxt)  # the plant map (the method: no dispatch of np.dot)
+        obs = np.empty((1, self._width), np.float32)
+        if after_one(B, j, self._rows, S, obs) & NON_FINITE:
+            f = S[ONE_INFO].tolist()[2:]
+            raise FloatingPointError(f"the reward became {f[REWARD_ROW]} (servo errors {f[0]}, {f[1]} mdeg): "
+                                     "the plant left the range it is meant for")
+        self._j = j + 1
+        v = S[ONE_INFO].tolist()
+        f = v[2:]
+        info = {"servo_error_az_mdeg": f[0], "servo_error_el_mdeg": f[1], "measured_error_az_mdeg": f[2],
+                "measured_error_el_mdeg": f[3], "pointing_error_el_mdeg": f[4],
+                "pointing_error_xel_mdeg": f[5], "wind_speed_mps": f[6], "wind_direction_rad": f[7],
+                "action_unclipped": tuple(action.tolist()),
+                "rate_command_az_deg_s": f[8], "rate_command_el_deg_s": f[9],
+                "rate_limited": v[0] != 0.0, "accel_limited": v[1] != 0.0,
+                "n_rate_limited": int(f[12]), "n_accel_limited": int(f[13])}
         if self.monopulse is not None:
-            result = self._sense(result, j)
+            mp = self._mp
+            p = S[ONE_INFO][2 + POINTING_ROWS[0]:2 + POINTING_ROWS[1] + 1, None]
+            sensor_step(mp.history, mp.out, mp.k, p, self._W, j,
+                        self._mc, 1.0 / self.constants.error_scale, obs)
+            info["monopulse_el_mdeg"], info["monopulse_xel_mdeg"] = mp.out[0].tolist()
+        result = obs[0], f[REWARD_ROW], f[TERMINATED_ROW] != 0.0, False, info
         if self._extras:
-            self._step_extras(result[4])
+            self._step_extras(info)
         return result
-
-    def _sense(self, result: tuple, j: int) -> tuple:
-        """The step's result with the monopulse sensor's observation entries and info keys,
-        from the true pointing errors and row ``j`` of the sensor's noise (the scalar twin).
-        """
-        obs, rew, term, trunc, info = result
-        w_el, w_xel = self._mp_w[j]
-        p_el, p_xel = info["pointing_error_el_mdeg"], info["pointing_error_xel_mdeg"]
-        st = self._mp = sensor_step_1(self._mp, p_el, p_xel, w_el, w_xel, self.monopulse)
-        info["monopulse_el_mdeg"], info["monopulse_xel_mdeg"] = st.out_el, st.out_xel
-        return observation_1(obs, st, self.constants.error_scale), rew, term, trunc, info
 
     def _step_extras(self, info: dict) -> None:
         """``info["plant_state"]`` and the render history, when asked for."""
@@ -599,22 +627,21 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         if self._info_state:
             info["plant_state"] = self._state_map @ x
         if self._renderer is not None:
-            cd = self._rows[self._st.j - 1][4:6]
-            rl = self.constants.rate_limit
+            cd = self._rows[1, self._j - 1, 0]
             self._renderer.record(self.elapsed_steps * self.constants.dt, info["servo_error_az_mdeg"],
                                   info["servo_error_el_mdeg"], info["rate_command_az_deg_s"],
-                                  info["rate_command_el_deg_s"], cd[0] * rl * R2D, cd[1] * rl * R2D,
+                                  info["rate_command_el_deg_s"], cd[0] * R2D, cd[1] * R2D,
                                   self.episode.wind_speed + self._gust_of(x))
             if self.render_mode == "human":
                 self._renderer.show()
 
     # ------------------------------------------------------------------ copies and state
     #: the attributes of the dynamic state (:meth:`get_state`)
-    _STATE = ("_block", "_st", "_rows", "_k0", "_parts", "_np_random", "_np_random_seed", "episode", "_M",
-              "_sc", "_m", "_rank", "_state_map", "_C_gust", "_gust_az", "_gust_inv", "_info_state",
-              "_extras", "_mp", "_mp_w")
+    _STATE = ("_block", "_S", "_j", "_rows", "_k0", "_parts", "_np_random", "_np_random_seed", "episode",
+              "_M", "_m", "_rank", "_state_map", "_C_gust", "_gust_az", "_gust_inv", "_info_state", "_extras",
+              "_mp", "_W")
     #: the parts of it that never change in place (kept by reference in a snapshot)
-    _SHARED = ("episode", "_M", "_sc", "_rows", "_parts", "_state_map", "_C_gust")
+    _SHARED = ("episode", "_M", "_rows", "_W", "_parts", "_state_map", "_C_gust")
 
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()
@@ -644,7 +671,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
 
         :raises RuntimeError: before the first reset
         """
-        if self._st is None:
+        if self._S is None:
             raise RuntimeError("call reset() before get_state()")
         state = self.__getstate__()
         return snapshot(self, state, self._STATE, tuple(state[n] for n in self._SHARED), tuple(self._riders))
@@ -666,16 +693,16 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         model (:meth:`set_state`).
         """
         p = self.plants.plant(0.0, self.config.dt)  # sizes only
-        m, M, B, st, rows = data["_m"], data["_M"], data["_block"], data["_st"], data["_rows"]
+        m, M, B, S, rows = data["_m"], data["_M"], data["_block"], data["_S"], data["_rows"]
         width = 3 + p.noise_rank + m
         ok = (m == p.n - p.n_wind and data["_rank"] == p.noise_rank and isinstance(M, np.ndarray)
               and M.shape == (width, m + N_STEP_OUTPUTS)
               and _shape(B) == (NOISE_BLOCK + 1, width + N_STEP_OUTPUTS)
-              and isinstance(st, ScalarState)
-              and isinstance(rows, list) and len(rows) == NOISE_BLOCK and all(len(r) == 8 for r in rows)
+              and _shape(S) == (ONE_SIZE,) and isinstance(data["_j"], int) and 0 <= data["_j"] <= NOISE_BLOCK
+              and _shape(rows) == (3, NOISE_BLOCK, 1, 2)
               and _shape(data["_state_map"]) == (p.n, m)
               and _shape(data["_C_gust"]) == (len(OUTPUTS) - N_STEP_OUTPUTS, m)
-              and isinstance(data["episode"], Episode) and isinstance(data["_sc"], EpisodeConstants))
+              and isinstance(data["episode"], Episode))
         if not ok:
             raise ValueError(f"state must hold the plant and step state of this model ({p.n - p.n_wind} "
                              f"one-copy states, {p.noise_rank} noise inputs): its parts have other shapes")
@@ -701,6 +728,11 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
 
 DSS14Env.__doc__ = DSS14Env.__doc__.replace("{registered_ids}",
                                             registered_ids_table().replace("\n", "\n    "))
+
+
+#: the action dtypes of the step's fast path
+_F32, _F64 = np.dtype(np.float32), np.dtype(np.float64)
+
 
 
 def _shape(x: Any) -> tuple | None:

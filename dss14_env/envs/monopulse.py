@@ -24,10 +24,9 @@ stationary state about the true error: ``f[0] = p[0] + sigma w_0``, the delay li
 ``p[0]``.  ``monopulse_cnr_dbhz: null`` makes the sensor noiseless, ``monopulse_bandwidth_hz:
 null`` removes the loop filter (``a = 0``): with both, and no latency, ``f = p`` exactly.
 
-The functions take arrays of ``N`` rows (the vector environment's step; the resets of both);
-the single environment steps the sensor with the scalar twin :func:`sensor_step_1` and
-:func:`observation_1` (the same formulas on Python floats in the same order of operations,
-held equal to the batched ones bit for bit by ``tests/test_env_monopulse.py``).
+The functions take arrays of ``N`` rows; both environments step the sensor with the compiled
+loop :func:`sensor_step` (the single one with N = 1), as they step the rest
+(:mod:`dss14_env.envs.fused`).
 
 >>> from dss14_env.envs.config import load_env_config
 >>> k = MonopulseConstants.from_config(load_env_config(sensors=["encoders", "monopulse"]))
@@ -42,9 +41,10 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
+from numba import njit
 
 from dss14_env.envs.config import EnvConfig, whole_steps
-from dss14_env.envs.core import OBS_ERROR_BOUND, OBS_HIGH
+from dss14_env.envs.core import OBS_ERROR_BOUND, OBS_HIGH, OBS_SIZE
 
 #: the observation entries the sensor adds (12, 13), in units of ``error_scale_mdeg``
 OBS_NAMES = ("monopulse_el", "monopulse_xel")
@@ -136,43 +136,6 @@ def sensor_reset(p0: np.ndarray, z0: np.ndarray, k: MonopulseConstants) -> Monop
     return MonopulseState(hist, p0 + k.sigma * z0, np.zeros(p0.shape[0], np.int64))
 
 
-def sensor_step(st: MonopulseState, p: np.ndarray, w: np.ndarray, k: MonopulseConstants) -> MonopulseState:
-    """The sensor after one step (the module's equations).
-
-    :param p: true pointing errors ``(N, 2)`` at the step's end, mdeg
-    :param w: the step's standard normals ``(N, 2)``
-    """
-    hist = np.concatenate((st.history[:, 1:], p[:, None, :]), axis=1)
-    n = st.k + 1
-    new = hist[:, 0] + k.sigma_w * w
-    new *= 1.0 - k.a
-    new += k.a * st.out
-    if k.n_update > 1:
-        new = np.where((n % k.n_update == 0)[:, None], new, st.out)
-    return MonopulseState(hist, new, n)
-
-
-def sensor_rows(st: MonopulseState, idx: np.ndarray, rows: MonopulseState) -> MonopulseState:
-    """``st`` with the rows ``idx`` replaced by ``rows`` (the state of freshly reset ones)."""
-    hist, out, n = st.history.copy(), st.out.copy(), st.k.copy()
-    hist[idx], out[idx], n[idx] = rows
-    return MonopulseState(hist, out, n)
-
-
-def sensor_observation(st: MonopulseState, error_scale: float) -> np.ndarray:
-    """The observation's monopulse entries ``(N, 2)`` float32: the measurement ``[el, xel]`` in
-    units of ``error_scale`` (mdeg), clamped to +-:data:`dss14_env.envs.core.OBS_ERROR_BOUND`.
-    """
-    o = st.out * (1.0 / error_scale)
-    np.clip(o, -OBS_ERROR_BOUND, OBS_ERROR_BOUND, out=o)
-    return o.astype(np.float32)
-
-
-def sensor_info(st: MonopulseState) -> dict[str, np.ndarray]:
-    """The info's monopulse entries (keys :data:`INFO_KEYS`), arrays ``(N,)``, mdeg."""
-    return {INFO_KEYS[0]: st.out[:, 0].copy(), INFO_KEYS[1]: st.out[:, 1].copy()}
-
-
 def observation_high(sensors: tuple[str, ...]) -> np.ndarray:
     """The observation's bounds: :data:`dss14_env.envs.core.OBS_HIGH`, then with the monopulse
     sensor its two entries' (:data:`OBS_NAMES`).
@@ -182,55 +145,48 @@ def observation_high(sensors: tuple[str, ...]) -> np.ndarray:
     return np.concatenate((OBS_HIGH, np.full(2, OBS_ERROR_BOUND, np.float32)))
 
 
-def step_obs_info(obs: np.ndarray, info: dict, st: MonopulseState, error_scale: float) -> np.ndarray:
-    """A step's observation ``(N, 12)`` with the monopulse entries appended (returned), and its
-    info with the monopulse keys added (in place).
+def sensor_constants(k: MonopulseConstants) -> np.ndarray:
+    """:func:`sensor_step`'s constants ``[sigma_w, a, n_update]``."""
+    return np.array([k.sigma_w, k.a, k.n_update])
+
+
+@njit(nogil=True)
+def sensor_observe(out: np.ndarray, inv_scale: float, obs: np.ndarray) -> None:
+    """The observation's monopulse entries (12, 13) of every row: the measurement ``out``
+    ``(N, 2)`` ``[el, xel]`` (mdeg) times ``inv_scale = 1 / error_scale_mdeg``, clamped to
+    +-:data:`dss14_env.envs.core.OBS_ERROR_BOUND`, into ``obs`` ``(N, 14)`` float32.
     """
-    info.update(sensor_info(st))
-    return np.concatenate((obs, sensor_observation(st, error_scale)), axis=1)
-
-
-# ------------------------------------------------------------------------------ scalar twin
-class ScalarMonopulse(NamedTuple):
-    """The :class:`MonopulseState` of one environment on Python floats (:func:`sensor_step_1`)."""
-
-    #: true pointing errors ``(el, xel)`` of the last ``n_delay + 1`` steps, oldest first, mdeg
-    history: tuple
-    #: the loop output (the measurement), mdeg
-    out_el: float
-    out_xel: float
-    #: steps since the reset
-    k: int
-
-    @classmethod
-    def of(cls, st: MonopulseState) -> ScalarMonopulse:
-        """Row 0 of a batched state."""
-        return cls(tuple(map(tuple, st.history[0].tolist())), *st.out[0].tolist(), int(st.k[0]))
-
-
-def sensor_step_1(st: ScalarMonopulse, p_el: float, p_xel: float, w_el: float, w_xel: float,
-                  k: MonopulseConstants) -> ScalarMonopulse:
-    """:func:`sensor_step` of one environment on floats (the same operations in the same order)."""
-    hist = st.history[1:] + ((p_el, p_xel),)
-    n = st.k + 1
-    if k.n_update > 1 and n % k.n_update:
-        return ScalarMonopulse(hist, st.out_el, st.out_xel, n)
-    h_el, h_xel = hist[0]
-    sw, a = k.sigma_w, k.a
-    b = 1.0 - a
-    out_el = (h_el + sw * w_el) * b + a * st.out_el
-    out_xel = (h_xel + sw * w_xel) * b + a * st.out_xel
-    return ScalarMonopulse(hist, out_el, out_xel, n)
-
-
-def observation_1(obs: np.ndarray, st: ScalarMonopulse, error_scale: float) -> np.ndarray:
-    """The single environment's observation ``(14,)``: ``obs`` ``(12,)`` and the monopulse
-    entries of :func:`sensor_observation`, on floats.
-    """
-    inv = 1.0 / error_scale
     b = OBS_ERROR_BOUND
-    o = np.empty(OBS_HIGH.size + 2, np.float32)
-    o[:OBS_HIGH.size] = obs
-    for i, x in enumerate((st.out_el * inv, st.out_xel * inv)):
-        o[OBS_HIGH.size + i] = b if x > b else (-b if x < -b else x)
-    return o
+    for i in range(out.shape[0]):
+        for m in range(2):
+            x = out[i, m] * inv_scale
+            obs[i, OBS_SIZE + m] = b if x > b else (-b if x < -b else x)
+
+
+@njit(nogil=True)
+def sensor_step(history: np.ndarray, out: np.ndarray, steps: np.ndarray, p: np.ndarray, W: np.ndarray, j: int,
+                mc: np.ndarray, inv_scale: float, obs: np.ndarray) -> None:
+    """The sensor of every row after one step (the module's equations), in place, and its
+    observation entries (:func:`sensor_observe`).
+
+    :param history: :attr:`MonopulseState.history`, ``out`` and ``steps`` its other fields
+    :param p: true pointing errors ``(2, N)`` ``[el, xel]`` at the step's end, mdeg
+    :param W: standard normals ``(T, N, >= 2)``: this step's are the last two columns of ``W[j]``
+    :param mc: :func:`sensor_constants`
+    """
+    sw, a, n_update = mc[0], mc[1], int(mc[2])
+    b = 1.0 - a
+    d = history.shape[1] - 1
+    c = W.shape[2] - 2
+    for i in range(out.shape[0]):
+        for m in range(d):
+            history[i, m, 0] = history[i, m + 1, 0]
+            history[i, m, 1] = history[i, m + 1, 1]
+        history[i, d, 0] = p[0, i]
+        history[i, d, 1] = p[1, i]
+        steps[i] += 1
+        if n_update > 1 and steps[i] % n_update != 0:
+            continue  # held between updates
+        out[i, 0] = (history[i, 0, 0] + sw * W[j, i, c]) * b + a * out[i, 0]
+        out[i, 1] = (history[i, 0, 1] + sw * W[j, i, c + 1]) * b + a * out[i, 1]
+    sensor_observe(out, inv_scale, obs)

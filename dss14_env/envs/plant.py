@@ -405,7 +405,7 @@ def step_block(M: np.ndarray, x0: np.ndarray, y0: np.ndarray, steps: int) -> np.
     ``[u, y]``.  Row 0 holds the one-copy start state ``x0`` and its outputs ``y0``; the noise
     columns ``xi`` are filled a block of steps at a time, so that a step writes only its rate
     command.  :func:`block_views` makes the views the steps read and write
-    (:func:`dss14_env.envs.core.step_1`).
+    (:mod:`dss14_env.envs.fused`).
     """
     n_in = M.shape[1]
     B = np.zeros((steps + 1, n_in + N_STEP_OUTPUTS))
@@ -415,14 +415,14 @@ def step_block(M: np.ndarray, x0: np.ndarray, y0: np.ndarray, steps: int) -> np.
     return B
 
 
-def block_views(B: np.ndarray, m: int) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+def block_views(B: np.ndarray, m: int) -> list[tuple[np.ndarray, np.ndarray]]:
     """Per step ``j`` of a :func:`step_block` ``B`` of an episode with ``m`` one-copy states:
-    ``(z_j, input_j [r, 1, xi, u], [u, y] of row j + 1, y of row j + 1)``, views, so that
-    ``input_j @ M^T`` is written in place into the next row (one matrix-vector product per step,
-    no copies).
+    ``(input_j [r, 1, xi, u], [u, y] of row j + 1)``, views, so that ``input_j @ M^T`` is written
+    in place into the next row (one matrix-vector product per step, no copies), where the step
+    reads its outputs (:func:`dss14_env.envs.fused.after_one`).
     """
     n_in = B.shape[1] - N_STEP_OUTPUTS
-    return [(B[j], B[j, :n_in], B[j + 1, n_in - m:], B[j + 1, n_in:]) for j in range(B.shape[0] - 1)]
+    return [(B[j, :n_in], B[j + 1, n_in - m:]) for j in range(B.shape[0] - 1)]
 
 
 # ---------------------------------------------------------------------- plants of one model

@@ -298,15 +298,14 @@ def start_elevation(cfg: EnvConfig, rng: np.random.Generator, plants: PlantFacto
     return (e + rng.uniform(-MODEL_EL_SPREAD_DEG, MODEL_EL_SPREAD_DEG)) * DEG
 
 
-def block_rows(tr: Mapping[str, np.ndarray], k0: int, dt: float, rate_limit: float,
-               normals: np.ndarray, encoder_sigma: float,
+def block_rows(tr: Mapping[str, np.ndarray], k0: int, dt: float, normals: np.ndarray, encoder_sigma: float,
                parts: tuple[bool, bool, bool] | None = None) -> np.ndarray:
-    """Per-step rows of the steps ``k0 .. k0 + NOISE_BLOCK - 1`` of one episode.
+    """The per-step inputs of the steps ``k0 .. k0 + NOISE_BLOCK - 1`` of one episode, as the
+    step's loop reads them (:func:`dss14_env.envs.fused.after_product`, N = 1).
 
-    Row ``j`` is ``[c (2), c in deg (2), c_dot / rate_limit (2), encoder noise (2)]``: the
-    command at the end of step ``k0 + j`` (``t = (k0 + j + 1) dt``; rad, deg and scaled rate)
-    and the step's encoder noise (rad; zeros when there is none).  The single environment steps
-    through these rows (the gust noise's standard normals, the first ``k`` columns of
+    Row ``j`` is the step ``k0 + j``: the command at its end (``t = (k0 + j + 1) dt``, rad), its
+    rate (rad/s) and the encoder noise (rad; zeros when there is none).  The single environment
+    steps through these rows (the gust noise's standard normals, the first ``k`` columns of
     ``normals``, go into its step block, :func:`dss14_env.envs.plant.step_block`); the vector
     environment evaluates :func:`command` at each step's ``t`` for all its sub-environments with
     the same operations, so they agree exactly.
@@ -314,25 +313,21 @@ def block_rows(tr: Mapping[str, np.ndarray], k0: int, dt: float, rate_limit: flo
     :param tr: trajectory parameters, arrays ``(2,)``
     :param k0: first step of the block
     :param dt: control period, s
-    :param rate_limit: rate limit, rad/s (scales c_dot)
     :param normals: :func:`draw_noise_block` output ``(NOISE_BLOCK, k [+ 2])`` without the
         monopulse columns (its last two columns are the encoder's, with encoder noise)
     :param encoder_sigma: encoder noise std, rad (0: the normals have no encoder columns)
     :param parts: :func:`command_parts` of ``tr`` (computed here if None)
-    :return: ``(NOISE_BLOCK, 8)``, a transposed view (its rows are read as lists)
+    :return: ``(3, NOISE_BLOCK, 1, 2)``: ``c``, ``c_dot`` and the noise, ``[az, el]`` per step
     """
     t = np.arange(k0 + 1, k0 + 1 + NOISE_BLOCK) * dt
     # the axes first, so that every operation runs along the block
     c, cd = command({key: v[:, None, None] for key, v in tr.items()}, t, parts)
-    rows = np.empty((8, NOISE_BLOCK))
-    rows[0:2] = c[..., 0]
-    np.multiply(c[..., 0], R2D, out=rows[2:4])
-    np.multiply(cd[..., 0], 1.0 / rate_limit, out=rows[4:6])
+    rows = np.zeros((3, NOISE_BLOCK, 1, 2))
+    rows[0, :, 0] = c[..., 0].T
+    rows[1, :, 0] = cd[..., 0].T
     if encoder_sigma:
-        np.multiply(normals[:, -2:].T, encoder_sigma, out=rows[6:8])
-    else:
-        rows[6:8] = 0.0
-    return rows.T
+        np.multiply(normals[:, -2:], encoder_sigma, out=rows[2, :, 0])
+    return rows
 
 
 def draw_noise_block(rng: np.random.Generator, noise_rank: int, encoder_noise: bool,

@@ -7,13 +7,10 @@ per-sub-environment factor, see :mod:`dss14_env.envs.plant`) are stepped by ONE 
 
     [X+, Y+] = [X, R, T_mean, kappa_az Xi, kappa_el Xi] @ M^T
 
-Everything else -- input checks, command limiter, encoders, errors, episode end, reward,
-observation, info -- is the batched step of :mod:`dss14_env.envs.core`, the one the single
-environment's scalar twin is held to.  With numba installed (the ``fast`` extra) its pieces run
-as two compiled loops over the sub-environments (:mod:`dss14_env.envs.fused`), the same
-operations in the same order: the results are the same bit for bit, in about 13 % less time
-per step at N = 1 024 (the first step compiles them, about a second).  ``compiled=False``
-keeps the numpy pieces; :attr:`DSS14VectorEnv.compiled` tells which run.
+Everything else -- command limiter, encoders, errors, episode end, reward, observation, info
+-- is the step of :mod:`dss14_env.envs.fused`, the compiled loops over the sub-environments
+that the single environment runs with N = 1 (the first reset and step compile them, some
+seconds per process).
 
 Seeding rule (the one of ``gymnasium.vector.SyncVectorEnv``): sub-environment ``i`` owns its
 own ``numpy.random.Generator``, seeded with ``seed + i`` by ``reset(seed=seed)`` (or ``seed[i]``
@@ -49,36 +46,19 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from dss14_env.core.units import DEG, R2D, R2MD
+from dss14_env.core.units import DEG, R2MD
 from dss14_env.envs import fused
 from dss14_env.envs.config import EnvConfig, load_env_config
-from dss14_env.envs.core import (
-    INFO_KEYS,
-    OBS_SIZE,
-    StepConstants,
-    StepState,
-    as_actions,
-    check_seeds,
-    limit_commands,
-    observation,
-    pointing_errors,
-    read_encoders,
-    reset_state,
-    reward,
-    scored_errors,
-    servo_errors,
-    step_info,
-    terminated,
-)
+from dss14_env.envs.core import StepConstants, StepState, as_actions, check_seeds
 from dss14_env.envs.env import EnvState, check_snapshot, restore, snapshot
 from dss14_env.envs.monopulse import (
     MonopulseConstants,
     MonopulseState,
     observation_high,
+    sensor_constants,
+    sensor_observe,
     sensor_reset,
-    sensor_rows,
     sensor_step,
-    step_obs_info,
 )
 from dss14_env.envs.plant import N_STEP_OUTPUTS, Plant, PlantFactory, resolve_factory
 from dss14_env.envs.scenarios import (
@@ -132,10 +112,8 @@ class DSS14VectorEnv(VectorEnv):
     :param model_config: as for :class:`dss14_env.envs.env.DSS14Env` (one model for all)
     :param recalibrate_wind: as for :class:`dss14_env.envs.env.DSS14Env` (the wind-load choice
         is ``self.plants.wind_loads``)
-    :param compiled: step with the compiled loops of :mod:`dss14_env.envs.fused` (True; needs
-        numba, the ``fast`` extra) or with the batched numpy pieces (False): the same results,
-        bit for bit; None (the default): compiled where numba is installed.  :attr:`compiled`
-        tells which.
+    :param compiled: None or True (the step is always the compiled loops of
+        :mod:`dss14_env.envs.fused`; kept for callers that name it); False is refused
     :param overrides: configuration keys
     """
 
@@ -151,11 +129,8 @@ class DSS14VectorEnv(VectorEnv):
                 max_episode_steps, (int, np.integer)) or max_episode_steps < 1):
             raise ValueError(f"max_episode_steps must be None or a positive integer, got "
                              f"{max_episode_steps!r}")
-        if not (compiled is None or isinstance(compiled, (bool, np.bool_))):
-            raise ValueError(f"compiled must be None, True or False, got {compiled!r}")
-        if compiled and not fused.AVAILABLE:
-            raise ValueError("compiled=True needs numba, which is not installed: pip install "
-                             "'dss14-env[fast]' (or compiled=None to step with numpy)")
+        if not (compiled is None or compiled is True or compiled is np.True_):
+            raise ValueError(f"compiled must be None or True (the step is always compiled), got {compiled!r}")
         if render_mode is not None:
             raise ValueError(f"render_mode must be None (DSS14VectorEnv does not render; use the single "
                              f"environment), got {render_mode!r}")
@@ -178,9 +153,11 @@ class DSS14VectorEnv(VectorEnv):
                           else None)
         self._rngs: list[np.random.Generator | None] = [None] * self.num_envs
         self._Z = None
-        #: whether the step runs compiled (:mod:`dss14_env.envs.fused`) or as numpy pieces
-        self.compiled: bool = fused.AVAILABLE if compiled is None else bool(compiled)
-        self._fused_constants = fused.constants(self.constants, self.plants.xel_scale)
+        #: the step runs compiled (:mod:`dss14_env.envs.fused`): always True
+        self.compiled = True
+        self._kc = fused.constants(self.constants, self.plants.xel_scale)
+        self._mc = sensor_constants(self.monopulse) if self.monopulse is not None else None
+        self._width = high.size
 
     # ------------------------------------------------------------------ reset
     def reset(self, *, seed: int | Sequence[int | None] | None = None,
@@ -238,7 +215,7 @@ class DSS14VectorEnv(VectorEnv):
         self._jmax = 0  # the largest row j, kept without a pass over j
         self._parts = (False, False, False)
         #: the step state of every sub-environment (:class:`~dss14_env.envs.core.StepState`)
-        self._s = StepState(np.zeros((N, 2)), np.zeros((N, 2)), np.zeros((N, 2)), np.zeros((N, 2), np.int64),
+        self._s = StepState(np.zeros((N, 2)), np.zeros((N, 2)), np.zeros((N, 2)), np.zeros((N, 2)),
                             np.zeros(N, np.int64))
         self._r0 = np.zeros((N, 2))  # the drawn start rate commands and t = 0 encoder noise,
         self._ne0 = np.zeros((N, 2))  # until _reset_rows makes the state of them
@@ -246,6 +223,7 @@ class DSS14VectorEnv(VectorEnv):
         #: the monopulse sensor's state (None without it)
         self._mp: MonopulseState | None = None
         self._max_e = np.zeros(N)
+        self._episode = np.zeros((N, 5))  # fused.episode_rows of _start, _max_e and _wind
         self._wind = np.zeros((N, 2))  # speed (m/s), direction (rad)
         self._pid = np.zeros(N, np.int64)
         self._plants: list[Plant] = []
@@ -276,6 +254,7 @@ class DSS14VectorEnv(VectorEnv):
         self._ne0[idx] = [ne for _, ne, _, _ in draws]
         self._z0[idx] = [z0 for _, _, z0, _ in draws]
         self._max_e[idx] = cfg.max_error_deg * DEG * R2MD
+        self._episode = fused.episode_rows(self._start, self._max_e, self._wind)
         self._k[idx] = 0
         self._s.j[idx] = 0
         self._jmax = int(self._s.j.max())
@@ -337,16 +316,20 @@ class DSS14VectorEnv(VectorEnv):
         """Observation rows and info of freshly reset sub-environments ``idx`` (as DSS14Env.reset)."""
         tr = {key: v[idx] for key, v in self._traj.items()}
         c, cd = command(tr, np.zeros(idx.size))
-        st, obs, info = reset_state(c, cd, self._Y[idx], self._start[idx], self._ne0[idx], self._r0[idx],
-                                    self._wind[idx], self.plants.xel_scale, self.constants)
+        st, obs, info = fused.reset_state(c, cd, self._Y[idx], self._ne0[idx], self._r0[idx],
+                                          self._episode[idx], self._kc, self.constants, self._width)
         for name in ("r_prev", "a_prev", "em_prev", "hits"):
             getattr(self._s, name)[idx] = getattr(st, name)
         if self.monopulse is not None:
             p0 = np.column_stack((info["pointing_error_el_mdeg"], info["pointing_error_xel_mdeg"]))
             rows = sensor_reset(p0, self._z0[idx], self.monopulse)
-            all_rows = self._mp is None or idx.size == self.num_envs
-            self._mp = rows if all_rows else sensor_rows(self._mp, idx, rows)
-            obs = step_obs_info(obs, info, rows, self.constants.error_scale)
+            if self._mp is None or idx.size == self.num_envs:
+                self._mp = rows
+            else:
+                for mine, new in zip(self._mp, rows, strict=True):
+                    mine[idx] = new
+            sensor_observe(rows.out, 1.0 / self.constants.error_scale, obs)
+            info["monopulse_el_mdeg"], info["monopulse_xel_mdeg"] = rows.out.T.copy()
         return obs, info
 
     def _reset_obs(self, idx: np.ndarray) -> np.ndarray:
@@ -372,12 +355,12 @@ class DSS14VectorEnv(VectorEnv):
     @property
     def n_rate_limited(self) -> np.ndarray:
         """Steps of the current episodes in which the rate clip acted, per sub-environment."""
-        return self._s.hits[:, 0].copy()
+        return self._s.hits[:, 0].astype(np.int64)
 
     @property
     def n_accel_limited(self) -> np.ndarray:
         """Steps of the current episodes in which the acceleration limit acted."""
-        return self._s.hits[:, 1].copy()
+        return self._s.hits[:, 1].astype(np.int64)
 
     def plant_states(self) -> np.ndarray:
         """Plant states ``(N, n)`` (balanced coordinates of each sub-environment's plant)."""
@@ -471,94 +454,47 @@ class DSS14VectorEnv(VectorEnv):
         :param actions: ``(N, 2)`` finite real numbers
         :raises ValueError: a bad action (:func:`dss14_env.envs.core.as_actions`), before
             anything changes
+        :raises FloatingPointError: a reward became NaN or infinite (the plant left the range
+            it is meant for)
         """
         if self._Z is None:
             raise RuntimeError("call reset() before step()")
-        kc = self.constants
         A = as_actions(actions, (self.num_envs, 2))
-        if self.compiled:
-            return self._autoreset(*self._step_fused(A))
-        done, s = self._prev_done, self._s
-        a, R, rate_hit, acc_hit = limit_commands(A, s.r_prev, kc)
-        normals = self._normals(done)
+        N, n, k, s = self.num_envs, self._n, self._k_rank, self._s
+        a, R, hit = np.empty((N, 2)), np.empty((N, 2)), np.empty((2, N))
+        normals = self._normals(self._prev_done)
+        perm = self._arange if self._perm is None else self._perm
+        fused.before_product(A, s.r_prev, self._kc, perm, self._kappa_s, self._t_mean_s, normals,
+                             self._any_noise, n, k, self._Z[self._cur], a, R, hit)
         c, cd = self._commands()
-        theta, point = self._advance(R, normals[:, :self._k_rank])
+        y = self._product()
         self._k += 1
-        # encoders, errors, episode end, reward, observation and info at t[k+1]
-        k = self._k_rank
-        noise = normals[:, k:k + 2] * kc.encoder_sigma if kc.encoder_sigma else None
-        rel = read_encoders(theta, self._start, noise, kc)
-        em, e = servo_errors(c, rel), servo_errors(c, theta)
-        term = terminated(e, theta, self._start, self._max_e, kc)
-        any_term = bool(term.any())
-        pe = pointing_errors(c, point, self.plants.xel_scale)
-        rew = reward(scored_errors(e, pe, kc), a, s.a_prev, term, kc)
-        obs = observation(em, s.em_prev, c * R2D, cd * (1.0 / kc.rate_limit), rel, R,
-                          any_term or self._clamp_always, kc)
-        if not np.isfinite(rew.sum()):
-            self._refuse_non_finite(rew)
+        sigma = self.constants.encoder_sigma
+        noise = (normals[:, k:k + 2] * sigma)[None] if sigma else fused.NO_NOISE
+        obs, em, out = fused.step_outputs(N, self._width)
+        inv = self._arange if self._inv is None else self._inv
+        flags = fused.after_product(y, inv, c[None], cd[None], noise, 0, self._episode, a, s.a_prev,
+                                    s.em_prev, R, hit, s.hits, self._kc, self._clamp_always, obs, em, out)
+        rew, term = out[fused.REWARD_ROW], out[fused.TERMINATED_ROW] != 0.0
+        if flags & fused.NON_FINITE:
+            bad = np.flatnonzero(~np.isfinite(rew)).tolist()
+            raise FloatingPointError(f"the reward became non-finite in sub-environment(s) {bad}: the plant "
+                                     "left the range it is meant for")
         trunc = self._truncated()
-        s.hits[:, 0] += rate_hit
-        s.hits[:, 1] += acc_hit
-        self._s = s = StepState(R, a, em, s.hits, s.j)
-        info = step_info(e, em, pe, self._wind, A, R, rate_hit, acc_hit, s.hits)
+        self._s = StepState(R, a, em, s.hits, s.j)
+        info = fused.info_arrays(out, A, hit)
         if self.monopulse is not None:
-            obs = self._sense(obs, info, normals)
-        return self._autoreset(obs, rew, term, trunc, info, any_term)
-
-    def _sense(self, obs: np.ndarray, info: dict, normals: np.ndarray) -> np.ndarray:
-        """The step's observation with the monopulse sensor's entries (info: its keys added),
-        from the true pointing errors and the last two columns of this step's normals.
-        """
-        p = np.column_stack((info["pointing_error_el_mdeg"], info["pointing_error_xel_mdeg"]))
-        self._mp = sensor_step(self._mp, p, normals[:, -2:], self.monopulse)
-        return step_obs_info(obs, info, self._mp, self.constants.error_scale)
-
-    def _refuse_non_finite(self, rew: np.ndarray) -> None:
-        """Raise for the sub-environments whose reward is NaN or infinite."""
-        bad = np.flatnonzero(~np.isfinite(rew)).tolist()
-        raise FloatingPointError(f"the reward became non-finite in sub-environment(s) {bad}: the plant "
-                                 "left the range it is meant for")
+            mp = self._mp
+            sensor_step(mp.history, mp.out, mp.k, out[fused.POINTING_ROWS[0]:fused.POINTING_ROWS[1] + 1],
+                        normals[None], 0, self._mc, 1.0 / self.constants.error_scale, obs)
+            info["monopulse_el_mdeg"], info["monopulse_xel_mdeg"] = mp.out[:, 0].copy(), mp.out[:, 1].copy()
+        return self._autoreset(obs, rew, term, trunc, info, bool(flags & fused.ANY_TERMINATED))
 
     def _truncated(self) -> np.ndarray:
         """Which sub-environments reach ``max_episode_steps`` with this step."""
         if self.max_episode_steps is None:
             return np.zeros(self.num_envs, bool)
         return self._k >= self.max_episode_steps
-
-    def _step_fused(self, A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict, bool]:
-        """The step of :meth:`step` before the autoreset, compiled (:mod:`dss14_env.envs.fused`):
-        the same results, bit for bit (and whether a sub-environment terminated).
-        """
-        N, n, k, s = self.num_envs, self._n, self._k_rank, self._s
-        a, R = np.empty((N, 2)), np.empty((N, 2))
-        rate_hit, acc_hit = np.empty(N, bool), np.empty(N, bool)
-        normals = self._normals(self._prev_done)
-        perm = self._arange if self._perm is None else self._perm
-        fused.before_product(A, s.r_prev, self._fused_constants, perm, self._kappa_s, self._t_mean_s, normals,
-                             self._any_noise, n, k, self._Z[self._cur], a, R, rate_hit, acc_hit)
-        c, cd = self._commands()
-        y = self._product()
-        self._k += 1
-        obs, rew, term = np.empty((N, OBS_SIZE), np.float32), np.empty(N), np.empty(N, bool)
-        em = np.empty((N, 2))
-        info_f, info_i = np.empty((len(fused.INFO_FLOAT_ROWS), N)), np.empty((2, N), np.int64)
-        inv = self._arange if self._inv is None else self._inv
-        flags = fused.after_product(y, inv, c, cd, self._start, normals, k, self._max_e, a, s.a_prev,
-                                    s.em_prev, R, self._wind, rate_hit, acc_hit, s.hits,
-                                    self._fused_constants, self._clamp_always, obs, rew, term, em, info_f,
-                                    info_i)
-        if flags & fused.NON_FINITE:
-            self._refuse_non_finite(rew)
-        trunc = self._truncated()
-        self._s = StepState(R, a, em, s.hits, s.j)
-        info = {**dict(zip(fused.INFO_FLOAT_ROWS, info_f, strict=True)),
-                **dict(zip(fused.INFO_INT_ROWS, info_i, strict=True)),
-                "action_unclipped": A, "rate_limited": rate_hit, "accel_limited": acc_hit}
-        info = {key: info[key] for key in INFO_KEYS}
-        if self.monopulse is not None:
-            obs = self._sense(obs, info, normals)
-        return obs, rew, term, trunc, info, bool(flags & fused.ANY_TERMINATED)
 
     def _autoreset(self, obs: np.ndarray, rew: np.ndarray, term: np.ndarray, trunc: np.ndarray, info: dict,
                    any_term: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
@@ -588,8 +524,8 @@ class DSS14VectorEnv(VectorEnv):
     # ------------------------------------------------------------------ copies and state
     #: the attributes of the dynamic state (:meth:`get_state`)
     _STATE = ("_Z", "_cur", "_t_mean_s", "_Y", "_kappa", "_kappa_s", "_start", "_traj", "_parts", "_k", "_s",
-              "_noise", "_g", "_jmax", "_r0", "_ne0", "_z0", "_mp", "_max_e", "_wind", "_pid", "_plants",
-              "_groups",
+              "_noise", "_g", "_jmax", "_r0", "_ne0", "_z0", "_mp", "_max_e", "_episode", "_wind", "_pid",
+              "_plants", "_groups",
               "_prev_done", "_any_noise", "_clamp_always", "_perm", "_inv", "_rngs", "_np_random",
               "_np_random_seed")
 
@@ -625,7 +561,8 @@ class DSS14VectorEnv(VectorEnv):
         s = data["_s"]
         shapes = {"_Z": (2, n + 4 + 2 * k, N), "_t_mean_s": (2, N), "_Y": (N, N_STEP_OUTPUTS),
                   "_noise": (NOISE_BLOCK, N, self._noise_width()), "_start": (N, 2), "_k": (N,),
-                  "_wind": (N, 2), "_max_e": (N,), "_r0": (N, 2), "_ne0": (N, 2), "_z0": (N, 2),
+                  "_wind": (N, 2), "_max_e": (N,), "_episode": (N, 5), "_r0": (N, 2), "_ne0": (N, 2),
+                  "_z0": (N, 2),
                   "_prev_done": (N,), "_pid": (N,),
                   "_kappa": (N, 2), "_kappa_s": (2, N)}
         bad = [name for name, shape in shapes.items()
