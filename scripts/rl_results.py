@@ -156,11 +156,11 @@ def scenario_references(out: Path) -> None:
     """
     from dss14_env.agents.campaign_report import REFERENCES as CAMPAIGN_REFERENCES
     from dss14_env.agents.campaign_report import reference_scores
-    from dss14_env.agents.evaluation import dss14_tasks
+    from dss14_env.agents.evaluation import FINAL_SCORING, dss14_tasks
     from dss14_env.agents.results import SCENARIO_COLUMNS
 
     tasks = dss14_tasks(scenarios=list(SCENARIO_COLUMNS))
-    scores = reference_scores(tasks, TEST_SEEDS, None)
+    scores = reference_scores(tasks, TEST_SEEDS, None, FINAL_SCORING)
     doc = {"what": "figures per test seed of the reference controllers in the track, step and slew "
                    "(dss14_env.agents.campaign_report.reference_scores: the bench's episode loop "
                    "and figures, the default bench run's episode lengths)",
@@ -323,11 +323,12 @@ def _reference(ref: dict, key: str) -> tuple:
 def _score_shipped(folder: str, test_seeds: list[int]) -> tuple[dict, dict]:
     """A shipped policy's 3σ servo and pointing errors per test seed in both holds, scored as
     the campaigns score (the seeds at once through the batched controller)."""
-    from dss14_env.agents.evaluation import DSS14_TASKS, run_task
+    from dss14_env.agents.evaluation import DSS14_TASKS, FINAL_SCORING, run_task
     from dss14_env.agents.policy import load_policy, shipped_policy
 
     ctrl = load_policy(shipped_policy(folder))
-    res = {t.name: run_task(ctrl, t, test_seeds, 3000) for t in DSS14_TASKS}
+    res = {t.name: run_task(ctrl, t, test_seeds, 3000, access=FINAL_SCORING)
+           for t in DSS14_TASKS}
     return ({h: r["three_sigma_mdeg"].tolist() for h, r in res.items()},
             {h: r["pointing_three_sigma_mdeg"].tolist() for h, r in res.items()})
 

@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 import dss14_env  # noqa: F401
 from dss14_env.agents.config import TrainConfig, load_config
 from dss14_env.agents.envs import check_env
-from dss14_env.agents.evaluation import DSS14_TASKS, run_task
+from dss14_env.agents.evaluation import DSS14_TASKS, FINAL_SCORING, run_task
 from dss14_env.agents.hyperparams import hyperparams_path, load_hyperparams
 from dss14_env.agents.interface import (
     LQG_FEATURE_WIDTHS,
@@ -292,7 +292,7 @@ def test_campaign_scoring_equals_the_benchmark_runner() -> None:
     stats = NormStats(np.zeros(40), np.full(40, 1e-2), 1.0, 1.0, 1e-8)
     ctrl = PolicyController(policy, cfg, stats, "test")
     steps = 400
-    res = run_task(ctrl, DSS14_TASKS[1], [0, 1], steps)
+    res = run_task(ctrl, DSS14_TASKS[1], [0, 1], steps, access=FINAL_SCORING)
     bench = run([("test", lambda env: PolicyController(policy, cfg, stats, "test", env))],
                 ["hold_side"], seeds=[0, 1], steps=steps)
     ref = [e["servo_error_mdeg"]["az"]["three_sigma"] for e in bench["episodes"]]
