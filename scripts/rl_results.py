@@ -535,7 +535,7 @@ def grid(report_path: Path) -> None:
         conditions.append(c)
         print(f"{speed:g} km/h {direction:g} deg: " + ", ".join(f"{k} {v:.2f}" for k, v in
                                                                c["pointing_mdeg"].items()), flush=True)
-    doc = json.loads(report_path.read_text())
+    doc = json.loads(report_path.read_text()) if report_path.is_file() else {}
     doc["grid"] = {"what": f"holds, test seeds {TEST_SEEDS[0]}-{TEST_SEEDS[-1]}, {RECIPE_GRID_STEPS} steps, "
                            "5-s warm-up; the worse axis's 3-sigma pointing error (mdeg), mean over the "
                            "seeds; ratios of means with 95 % paired percentile-bootstrap intervals",
