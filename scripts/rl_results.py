@@ -67,6 +67,8 @@ RECIPE_SHIPPED = "ppo_general"
 RECIPE_GRID = tuple((50.0, d) for d in (0.0, 45.0, 90.0, 135.0, 180.0)) + tuple(
     (v, d) for v in (10.0, 70.0) for d in (0.0, 90.0))
 RECIPE_GRID_STEPS = 1500
+#: the shipped policies trained on the drive before the settled one, re-scored on it
+STALE = ROOT / "docs" / "results" / "rl_stale.json"
 #: the reference controllers: runner name -> label
 REFERENCE_CONTROLLERS = {"pi_kp1": "PI (report: kp 1, ki 0.3)", "lqg": "LQG", "mpc": "MPC",
                          "yardstick": "yardstick (H2-optimal, knows the wind)"}
@@ -544,6 +546,30 @@ def grid(report_path: Path) -> None:
     print(f"wrote the grid into {report_path}")
 
 
+def stale(results_path: Path, out: Path) -> None:
+    """Score the results file's shipped policies (those whose folder the recipe did not take)
+    again on the test seeds on the shipped drive: their per-test-seed hold figures there (the
+    regression checks' figures for the policies marked stale, docs/rl.md)."""
+    results = json.loads(results_path.read_text())
+    taken = json.loads(RECIPE.read_text()).get("shipped", {}).get("folder") if RECIPE.is_file() else None
+    rows = {}
+    for key, row in results["rows"].items():
+        if not row.get("shipped") or row["shipped"]["folder"] == taken:
+            continue
+        servo, pointing = _score_shipped(Path(row["shipped"]["folder"]).name, TEST_SEEDS)
+        rows[key] = {"folder": row["shipped"]["folder"],
+                     "holds": {h: {"per_test_seed": servo[h], "pointing": {"per_test_seed": pointing[h]}}
+                               for h in HOLDS}}
+        print(key, {h: round(float(np.mean(pointing[h])), 2) for h in HOLDS}, flush=True)
+    doc = {"what": "the shipped policies trained on the earlier drive, re-scored on the shipped drive: "
+                   "3-sigma servo (loaded axis) and pointing (swung axis) errors per test seed, 3000-step "
+                   "holds (the regression checks' figures; they are marked stale in docs/rl.md)",
+           "date_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"), "machine": _machine(),
+           "test_seeds": TEST_SEEDS, "rows": rows}
+    out.write_text(json.dumps(doc, indent=1) + "\n")
+    print(f"wrote {out}")
+
+
 def render(results_path: Path, check: bool) -> int:
     """Fill the generated blocks of the documents; with ``check`` only report stale ones."""
     from dss14_env.agents.recipe_report import recipe_markdown
@@ -597,6 +623,7 @@ def main(argv: list[str] | None = None) -> int:
     sh = sub.add_parser("ship-recipe", help="ship the recipe's best-validation seed")
     sh.add_argument("--campaign", type=Path, default=Path("runs") / "ppo_general_lqg")
     sub.add_parser("grid", help="the shipped general policy on the wind direction/speed grid")
+    sub.add_parser("stale", help="re-score the stale shipped policies on the shipped drive")
     d = sub.add_parser("render", help="the tables of docs/results/rl_results.md")
     d.add_argument("--results", type=Path, default=RESULTS)
     d.add_argument("--check", action="store_true", help="only check; exit 1 if out of date")
@@ -616,6 +643,8 @@ def main(argv: list[str] | None = None) -> int:
         ship_recipe(args.campaign, RECIPE)
     elif args.cmd == "grid":
         grid(RECIPE)
+    elif args.cmd == "stale":
+        stale(RESULTS, STALE)
     else:
         return render(args.results, args.check)
     return 0

@@ -159,6 +159,7 @@ def test_committed_results_follow_the_protocol(results: dict) -> None:
 
 
 RECIPE = ROOT / "docs" / "results" / "rl_recipe.json"
+STALE = ROOT / "docs" / "results" / "rl_stale.json"
 
 
 def _recipe() -> dict:
@@ -221,13 +222,19 @@ def test_regression_shipped_policies_reproduce_their_test_scores(results: dict, 
     file's numbers -- its campaign row's, or, when that row is kept from earlier results (scored
     on the code of its time), the shipped policy's own row (``<key>_shipped``, scored when the
     file was built), servo and pointing errors -- within the scatter between CPU kinds
-    (``tests/conftest.py``)."""
+    (``tests/conftest.py``); a policy marked stale (trained on the earlier drive) against its
+    re-scoring on the shipped drive (``rl_stale.json``, ``scripts/rl_results.py stale``)."""
     shipped = _shipped(results)
     assert shipped
+    stale = json.loads(STALE.read_text())["rows"] if STALE.is_file() else {}
     groups = {}
     for key, row in shipped:
         ctrl = load_policy(ROOT / row["shipped"]["folder"])
-        if row.get("kept_from"):
+        if key in stale:
+            want = stale[key]["holds"]
+            pick = {t.name: (want[t.name]["per_test_seed"], want[t.name]["pointing"]["per_test_seed"])
+                    for t in DSS14_TASKS}
+        elif row.get("kept_from"):
             want = results["rows"][f"{key}_shipped"]["holds"]
             pick = {t.name: (want[t.name]["per_test_seed"], want[t.name]["pointing"]["per_test_seed"])
                     for t in DSS14_TASKS}
