@@ -60,7 +60,16 @@ from dss14_env.agents.campaign_report import (
 )
 from dss14_env.agents.config import MAX_SEED, TrainConfig, as_config
 from dss14_env.agents.envs import check_env, resolve_env
-from dss14_env.agents.evaluation import DEFAULT_SCENARIOS, TEST_SEEDS, TEST_STEPS, EvalTask, dss14_tasks
+from dss14_env.agents.evaluation import (
+    DEFAULT_SCENARIOS,
+    FINAL_SCORING,
+    TEST_SEEDS,
+    TEST_STEPS,
+    EvalTask,
+    FinalScoring,
+    check_unsealed,
+    dss14_tasks,
+)
 from dss14_env.agents.policy import load_policy
 from dss14_env.agents.results import SCENARIO_COLUMNS, column_summary, column_values
 from dss14_env.agents.train import evaluation_ranks, last_checkpoint, train, validation_tasks
@@ -140,8 +149,8 @@ def campaign_tasks(cfg: TrainConfig) -> list[EvalTask]:
 
 
 def _score(policy_dir: Path, tasks: list[EvalTask], seeds: Sequence[int],
-           steps: int | None) -> dict[str, Any]:
-    return task_scores(load_policy(policy_dir), tasks, seeds, steps)
+           steps: int | None, access: FinalScoring | None) -> dict[str, Any]:
+    return task_scores(load_policy(policy_dir), tasks, seeds, steps, access)
 
 
 def _aggregate(values: list[float]) -> dict[str, Any]:
@@ -267,15 +276,18 @@ def open_campaign(cfg: TrainConfig, out: str | Path, seeds: Sequence[int], overw
 
 def seed_items(cfg: TrainConfig, folder: Path, seeds: Sequence[int], finished: set[int],
                test_seeds: Sequence[int], test_steps: int,
-               progress: bool | None = None) -> list[dict[str, Any]]:
+               progress: bool | None = None, final_scoring: bool = False) -> list[dict[str, Any]]:
     """The work items of a campaign, one per seed index (:func:`train_one_seed`).
 
     :param progress: each run's steps on stderr (:func:`~dss14_env.agents.train.train`'s
         ``progress``; None: the configuration's ``progress_bar``)
+    :param final_scoring: the items' test scores are the final scoring (a campaign: it may
+        read the sealed test seeds); False: research (a sweep), refused them
     """
     return [{"config": cfg, "k": int(k), "folder": str(folder),
              "test_seeds": [int(s) for s in test_seeds], "test_steps": int(test_steps),
-             "finished": k in finished, "progress": progress} for k in seeds]
+             "finished": k in finished, "progress": progress, "final_scoring": bool(final_scoring)}
+            for k in seeds]
 
 
 def check_folder_first(cfg: TrainConfig, out: str | Path, overwrite: bool, resume: bool,
@@ -334,6 +346,8 @@ def train_one_seed(item: Mapping[str, Any]) -> dict[str, Any]:
     """
     cfg, k = as_config(item["config"]), int(item["k"])
     tasks, test_seeds, test_steps = campaign_tasks(cfg), item["test_seeds"], item["test_steps"]
+    access = FINAL_SCORING if item.get("final_scoring", False) else None
+    check_unsealed(test_seeds, access, f"{Path(item['folder']).name}/seed_{k}: test scoring")
     run, seed_cfg = Path(item["folder"]) / f"seed_{k}", cfg.replace(seed=training_seed(cfg, k))
     if item.get("finished", False):
         print(f"{run.name}: finished earlier, scored again", file=sys.stderr, flush=True)
@@ -348,9 +362,9 @@ def train_one_seed(item: Mapping[str, Any]) -> dict[str, Any]:
     entry: dict[str, Any] = {"seed_index": k, "training_seed": training_seed(cfg, k),
                              "run": run.name, "wall_s": ts["wall_s"],
                              "env_steps": ts["num_timesteps"]}
-    entry["final"] = _score(run, tasks, test_seeds, test_steps)
+    entry["final"] = _score(run, tasks, test_seeds, test_steps, access)
     best = run / "eval" / "best"
-    entry["best"] = _score(best, tasks, test_seeds, test_steps) if best.is_dir() else None
+    entry["best"] = _score(best, tasks, test_seeds, test_steps, access) if best.is_dir() else None
     if entry["best"] is None and (run / "eval" / "evaluations.npz").is_file():
         # every validation disqualified the policy (a termination, or with select_by general a
         # step that never settles): the seed's selected policy is its final one
@@ -360,13 +374,15 @@ def train_one_seed(item: Mapping[str, Any]) -> dict[str, Any]:
 
 def write_summary(cfg: TrainConfig, folder: Path, seeds: Sequence[int], per_seed: list[dict[str, Any]],
                   test_seeds: Sequence[int], test_steps: int, figures: bool = True,
-                  references: bool = True) -> dict[str, Any]:
+                  references: bool = True, access: FinalScoring | None = None) -> dict[str, Any]:
     """Write a campaign's ``summary.json``, ``summary.md`` (and learning curves) from its
     seeds' entries.
 
     :param per_seed: :func:`train_one_seed`'s entries, in the order of ``seeds``
     :param references: score the reference controllers (PI, LQG) on the same test episodes
         and validation episodes (DSS14; the summary's and the curves' references)
+    :param access: :data:`~dss14_env.agents.evaluation.FINAL_SCORING` when the test seeds are
+        the sealed ones and this is the final scoring (a campaign), else None
     :return: the summary
     """
     tasks = campaign_tasks(cfg)
@@ -394,7 +410,7 @@ def write_summary(cfg: TrainConfig, folder: Path, seeds: Sequence[int], per_seed
     refs: dict[str, Any] = {}
     if references and any(t.preset is not None for t in tasks):
         refs = {"controllers": {k: v[0] for k, v in REFERENCES.items()},
-                "test": reference_scores(tasks, test_seeds, test_steps),
+                "test": reference_scores(tasks, test_seeds, test_steps, access),
                 "validation": validation_references(val_tasks, cfg.eval_seeds, cfg.eval_episode_steps,
                                                     cfg.n_eval_episodes)}
     summary = {
@@ -460,11 +476,12 @@ def train_seeds(config: TrainConfig | Mapping[str, Any] | str | Path, seeds: Seq
         check_env(cfg)
     folder, finished = open_campaign(cfg, out, seeds, overwrite, resume)
     with manifest_kept(folder):
-        items = seed_items(cfg, folder, seeds, finished, test_seeds, test_steps, progress)
+        items = seed_items(cfg, folder, seeds, finished, test_seeds, test_steps, progress,
+                           final_scoring=True)
         ex = executor if executor is not None else SerialExecutor()
         done = run_seed_items(ex, items, [f"seed_{k}" for k in seeds])
         write_summary(cfg, folder, seeds, [done[i] for i in range(len(seeds))], test_seeds,
-                      test_steps, figures)
+                      test_steps, figures, access=FINAL_SCORING)
     return folder
 
 

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from dss14_env.agents.evaluation import FIGURES, EvalTask, run_task, task_env
+from dss14_env.agents.evaluation import FIGURES, EvalTask, FinalScoring, run_task, task_env
 from dss14_env.agents.results import SCENARIO_COLUMNS, column_summary, column_values, summary_cell
 from dss14_env.core.text import counted
 
@@ -35,16 +35,18 @@ BOOTSTRAP_SEED = 0
 
 
 def task_scores(ctrl: Any, tasks: Sequence[EvalTask], seeds: Sequence[int],
-                steps: int | None) -> dict[str, Any]:
+                steps: int | None, access: FinalScoring | None = None) -> dict[str, Any]:
     """A controller's test scores per task, the entry of ``summary.json`` (a hold task runs
     ``steps`` steps, any other its own length, :func:`~dss14_env.agents.evaluation.run_task`):
     returns, terminations, the 3σ of the task's axes and, for a DSS14 task, ``figures``: every
-    episode's figures (:data:`~dss14_env.agents.evaluation.FIGURES` that the scenario has, and
-    ``terminated``), those of the bench's episode records.
+    episode's figures (:data:`~dss14_env.agents.evaluation.FIGURES` that the scenario has,
+    ``terminated`` and ``command_hf_share``), those of the bench's episode records.
+    ``access``: the final scoring's token for the sealed test seeds
+    (:func:`~dss14_env.agents.evaluation.check_unsealed`).
     """
     out = {}
     for t in tasks:
-        r = run_task(ctrl, t, seeds, steps if t.axis is not None else None)
+        r = run_task(ctrl, t, seeds, steps if t.axis is not None else None, access=access)
         d = {"returns": r["returns"].tolist(), "mean_return": float(np.mean(r["returns"])),
              "terminated": int(r["terminated"].sum())}
         if t.axis is not None:
@@ -58,6 +60,7 @@ def task_scores(ctrl: Any, tasks: Sequence[EvalTask], seeds: Sequence[int],
         if t.preset is not None:
             d["figures"] = {k: r[k].tolist() for k in FIGURES if not np.isnan(r[k]).all()}
             d["figures"]["terminated"] = r["terminated"].tolist()
+            d["figures"]["command_hf_share"] = r["command_hf_share"].tolist()
         out[t.name] = d
     return out
 
@@ -68,10 +71,11 @@ def reference_controller(name: str, env: Any) -> Any:
     return getattr(importlib.import_module(module), cls)(env, *args)
 
 
-def reference_scores(tasks: Sequence[EvalTask], seeds: Sequence[int], steps: int | None) -> dict[str, Any]:
+def reference_scores(tasks: Sequence[EvalTask], seeds: Sequence[int], steps: int | None,
+                     access: FinalScoring | None = None) -> dict[str, Any]:
     """Every reference's test scores on the DSS14 tasks (built per task on its environment, as
-    the bench builds them per scenario), in the form of a policy's (:func:`task_scores`);
-    empty without DSS14 tasks.
+    the bench builds them per scenario), in the form of a policy's (:func:`task_scores`;
+    ``access`` as there); empty without DSS14 tasks.
     """
     out: dict[str, Any] = {}
     for name in REFERENCES:
@@ -81,7 +85,7 @@ def reference_scores(tasks: Sequence[EvalTask], seeds: Sequence[int], steps: int
             env = task_env(t)
             try:
                 out.setdefault(name, {}).update(task_scores(reference_controller(name, env), [t], seeds,
-                                                            steps))
+                                                            steps, access))
             finally:
                 env.close()
     return out

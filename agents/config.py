@@ -138,6 +138,7 @@ class CommonSettings:
     normalize_obs: bool = _flag(True)
     normalize_reward: bool = _flag(True)
     reward_log_scale: float | None = _num(None, lo=0.0, lo_open=True, hi=1.0e6, optional=True)
+    action_change_penalty: float = _num(0.0, lo=0.0, hi=1.0e6)
     learning_rate: float = _num(3e-4, lo=0.0, lo_open=True)
     gamma: float = _num(0.99, lo=0.0, hi=1.0, lo_open=True)
     net_arch: Any = spec(None, kind="any", default_factory=lambda: [64, 64])

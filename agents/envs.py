@@ -277,17 +277,20 @@ def vec_env_kind(cfg: TrainConfig, plan: EnvPlan) -> str:
 def _wrap_batched(venv: Any, cfg: TrainConfig, plan: EnvPlan, env_config: Any,
                   monitor_dir: Path | None) -> Any:
     """A batched training VecEnv under a ``VecMonitor`` (``monitor_dir/monitor.csv``: the
-    environment's returns), the logarithmic reward (``reward_log_scale``) and the interface.
+    environment's returns), the action-change penalty (``action_change_penalty``), the
+    logarithmic reward (``reward_log_scale``) and the interface.
     """
     from stable_baselines3.common.vec_env import VecMonitor
 
-    from dss14_env.agents.vec_env import InterfaceVecEnv, LogRewardVecEnv
+    from dss14_env.agents.vec_env import ActionChangePenaltyVecEnv, InterfaceVecEnv, LogRewardVecEnv
 
     if monitor_dir is not None:
         monitor_dir.mkdir(parents=True, exist_ok=True)
     venv = VecMonitor(venv, None if monitor_dir is None else str(monitor_dir / "monitor.csv"))
+    if cfg.action_change_penalty:
+        venv = ActionChangePenaltyVecEnv(venv, cfg.action_change_penalty)
     if cfg.reward_log_scale is not None:
-        venv = LogRewardVecEnv(venv, cfg.reward_log_scale, env_config, cfg.gamma)
+        venv = LogRewardVecEnv(venv, cfg.reward_log_scale, env_config, cfg.gamma, cfg.action_change_penalty)
     return venv if plan.interface is None else InterfaceVecEnv(venv, plan.interface, env_config)
 
 
@@ -326,6 +329,9 @@ def make_train_vec_env(cfg: TrainConfig, plan: EnvPlan, env_config: Any,
         venv = make_sb3_vec_env(plan.base_id, cfg.n_envs, seed=cfg.seed, max_episode_steps=steps,
                                 **kw)
         return _wrap_batched(venv, cfg, plan, env_config, monitor_dir)
+    if cfg.action_change_penalty:
+        raise ValueError(f"{cfg.source}: key 'action_change_penalty': needs the batched VecEnv "
+                         f"(vec_env: auto or batched on a DSS14 environment)")
     if plan.interface is not None and cfg.env_id not in WRAPPER_IDS:
         factory = functools.partial(_interface_env, plan.base_id, dict(plan.base_kwargs),
                                     plan.interface)

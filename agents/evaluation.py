@@ -2,9 +2,14 @@
 
 Seed protocol of the DSS14 runs (checked when training starts):
 
-* **test** seeds 0-999: the benchmark's; the final evaluation uses :data:`TEST_SEEDS` (0-9);
+* **test** seeds 0-999: the benchmark's; the final evaluation uses :data:`TEST_SEEDS` (0-9).
+  They are **sealed**: every evaluation here (:func:`run_task`) refuses them
+  (:class:`SealedSeedError`, :func:`check_unsealed`) unless the caller is the final scoring and
+  says so with the token :data:`FINAL_SCORING` -- a campaign's test scores of its seeds'
+  selected policies and the references beside them.  Validation, selection and recipe research
+  (a sweep ranks its points on :data:`RESEARCH_SEEDS`) cannot read them;
 * **validation** seeds 1000-9999: the periodic evaluation during training (``eval_seeds``),
-  which picks ``eval/best``;
+  which picks ``eval/best``, and the held-out seeds of recipe research (:data:`RESEARCH_SEEDS`);
 * **training** seeds 10 000 and up: sub-environment ``i`` of a run with ``seed`` s starts
   from ``s + i``.
 
@@ -33,7 +38,7 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Any
+from typing import Any, final
 
 import gymnasium as gym
 import numpy as np
@@ -48,8 +53,57 @@ TRAINING_SEED_START = 10_000
 #: the final evaluation: test seeds and episode length (60 s at 50 Hz)
 TEST_SEEDS = tuple(range(10))
 TEST_STEPS = 3000
+#: the seeds recipe research (a sweep's ranking) scores its points on: validation seeds that the
+#: shipped recipes' periodic validation (1000-1005) does not use, never the sealed test seeds
+RESEARCH_SEEDS = tuple(range(2000, 2010))
 #: the pointing-error axis swung with each loaded drive axis: elevation, cross-elevation
 POINTING_AXIS_OF = {"el": "el", "az": "xel"}
+
+
+class SealedSeedError(ValueError):
+    """An evaluation other than the final scoring asked for a sealed test seed."""
+
+
+@final
+class FinalScoring:
+    """The type of :data:`FINAL_SCORING`, the one token that opens the sealed test seeds."""
+
+    __slots__ = ()
+
+    def __repr__(self) -> str:
+        return "FINAL_SCORING"
+
+
+#: the token the final scoring passes (``access=FINAL_SCORING``) to read the sealed test seeds
+FINAL_SCORING = FinalScoring()
+
+
+def check_unsealed(seeds: Sequence[int], access: FinalScoring | None = None,
+                   where: str = "evaluation") -> None:
+    """Refuse the sealed test seeds (:data:`TEST_SEED_RANGE`) to anything but the final scoring:
+    the one guard of every evaluation path (:func:`run_task`).
+
+    >>> check_unsealed([1000, 2000])
+    >>> check_unsealed([3], FINAL_SCORING)
+    >>> check_unsealed([1000, 3], where="validation")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    dss14_env.agents.evaluation.SealedSeedError: validation: seed 3 is a sealed test seed ...
+
+    :param seeds: the seeds asked for
+    :param access: :data:`FINAL_SCORING` for the final scoring; None for everything else
+    :param where: who asks (named in the error)
+    :raises SealedSeedError: a seed in the sealed range without the token
+    """
+    if access is FINAL_SCORING:
+        return
+    lo, hi = TEST_SEED_RANGE
+    sealed = [int(s) for s in seeds if lo <= int(s) < hi]
+    if sealed:
+        raise SealedSeedError(
+            f"{where}: seed {sealed[0]} is a sealed test seed ({lo}-{hi - 1}): only the final "
+            f"scoring reads them (access=FINAL_SCORING); validate, select and research on the "
+            f"validation seeds {VALIDATION_SEED_RANGE[0]}-{VALIDATION_SEED_RANGE[1] - 1}")
 
 
 @dataclass(frozen=True)
@@ -110,6 +164,31 @@ FIGURES: Mapping[str, tuple[str, ...]] = MappingProxyType({
     "rate_limit_hits": ("limit_hits", "rate"),
     "accel_limit_hits": ("limit_hits", "accel"),
 })
+#: the smoothness measure's cut-off: the share of the command change's power above it
+HF_CUTOFF_HZ = 5.0
+
+
+def command_hf_share(rate: np.ndarray, dt: float, cutoff_hz: float = HF_CUTOFF_HZ) -> float:
+    """The share of the applied rate command's change ``diff(rate)`` (both axes' periodograms
+    summed, ``scipy.signal.periodogram``, mean removed) lying above ``cutoff_hz``: 0 for a
+    command that only changes slowly, about ``1 - 2 cutoff dt`` for white chatter; NaN for
+    fewer than 3 steps or a command that never changes.
+
+    >>> t = np.arange(1000) * 0.02
+    >>> round(command_hf_share(np.c_[np.sin(t), np.cos(t)], 0.02), 3)
+    0.0
+
+    :param rate: (n, 2) applied rate commands (any unit)
+    :param dt: the control period, s
+    """
+    from scipy.signal import periodogram
+
+    r = np.asarray(rate, float)
+    if len(r) < 3:
+        return math.nan
+    f, pxx = periodogram(np.diff(r, axis=0), fs=1.0 / dt, axis=0)
+    total = float(pxx.sum())
+    return float(pxx[f > cutoff_hz].sum() / total) if total > 0 else math.nan
 
 
 def dss14_tasks(env_kwargs: Mapping[str, Any] | None = None,
@@ -145,8 +224,11 @@ DSS14_TASKS = tuple(dss14_tasks())
 
 
 def run_task(ctrl: Any, task: EvalTask, seeds: Sequence[int], steps: int | None = None,
-             n_episodes: int = 1) -> dict[str, Any]:
+             n_episodes: int = 1, access: FinalScoring | None = None) -> dict[str, Any]:
     """Run the controller's deterministic policy on one task.
+
+    On a DSS14 task sealed test seeds are refused before any work (:func:`check_unsealed`)
+    unless ``access`` is :data:`FINAL_SCORING`.
 
     A DSS14 task (``task.preset``) runs through the benchmark's episode loop
     (:func:`dss14_env.baselines.rollout.run_rows`: all seeds at once as rows of the vector
@@ -164,13 +246,18 @@ def run_task(ctrl: Any, task: EvalTask, seeds: Sequence[int], steps: int | None 
     :param steps: episode length (control periods), default None: ``task.steps``, else the
         environment's (``max_episode_steps``)
     :param n_episodes: episodes per seed
+    :param access: :data:`FINAL_SCORING` for the final scoring, else None
+    :raises SealedSeedError: a sealed test seed without ``access``
     :return: arrays of ``n_episodes * len(seeds)`` (episode-major): ``returns``, ``lengths``,
+        ``command_hf_share`` (:func:`command_hf_share` after the warm-up; NaN for other tasks),
         ``three_sigma_mdeg`` (the servo error of ``task.axis``; NaN without an axis),
         ``pointing_three_sigma_mdeg`` (of ``task.pointing_axis``; NaN without one),
         ``terminated`` and, for a DSS14 task, every :data:`FIGURES` key (NaN for the others);
         a 3σ of fewer than two scored steps is NaN; ``episodes``: the bench's record of each
         episode (:func:`~dss14_env.baselines.rollout.run_rows`; empty for other tasks)
     """
+    if task.preset is not None:  # the seed protocol is the DSS14 runs' (module doc)
+        check_unsealed(seeds, access, f"run_task {task.name}")
     if n_episodes < 1 or not len(seeds):
         raise ValueError(f"run_task: need at least one seed and n_episodes >= 1, got "
                          f"{len(seeds)} seeds and n_episodes={n_episodes}")
@@ -180,22 +267,32 @@ def run_task(ctrl: Any, task: EvalTask, seeds: Sequence[int], steps: int | None 
 
 
 class _Returns:
-    """An environment that sums each row's rewards until the row's episode ends (what
-    :func:`~dss14_env.baselines.rollout.run_rows` does not record).
+    """An environment that sums each row's rewards until the row's episode ends and keeps the
+    applied rate commands (what :func:`~dss14_env.baselines.rollout.run_rows` does not record).
     """
+
+    def hf_shares(self, episodes: Sequence[Mapping[str, Any]], warmup_steps: int) -> list[float]:
+        """Each row's :func:`command_hf_share` over its episode after the warm-up."""
+        r = np.stack(self.rates) if self.rates else np.zeros((0, len(episodes), 2))
+        dt = self.unwrapped.config.dt
+        return [command_hf_share(r[warmup_steps:ep["n_steps"], i], dt) for i, ep in enumerate(episodes)]
 
     def __init__(self, env: Any, n: int) -> None:
         self.env, self.unwrapped = env, env.unwrapped
         self.returns = np.zeros(n)
         self.alive = np.ones(n, bool)
+        self.rates: list[np.ndarray] = []  # each step's applied rate commands, (n, 2) deg/s
 
     def reset(self, **kwargs: Any) -> Any:
         self.returns[:] = 0.0
         self.alive[:] = True
+        self.rates = []
         return self.env.reset(**kwargs)
 
     def step(self, action: Any) -> Any:
         obs, rew, term, trunc, info = self.env.step(action)
+        self.rates.append(np.stack([np.asarray(info["rate_command_az_deg_s"], float).reshape(-1),
+                                    np.asarray(info["rate_command_el_deg_s"], float).reshape(-1)], 1))
         rew = np.asarray(rew, float).reshape(self.returns.shape)
         self.returns[self.alive] += rew[self.alive]
         self.alive &= ~np.asarray(term, bool).reshape(self.returns.shape)
@@ -231,7 +328,7 @@ def _run_bench_task(ctrl: Any, task: EvalTask, seeds: Sequence[int], steps: int 
     n_steps = _task_steps(task, steps)
     seeds = [int(s) for s in seeds]
     driver = batch_driver(ctrl)
-    episodes, returns = [], []
+    episodes, returns, hf = [], [], []
     if driver is not None:
         env = _Returns(task_env(task, len(seeds)), len(seeds))
         groups = [(env, seeds)]
@@ -244,8 +341,10 @@ def _run_bench_task(ctrl: Any, task: EvalTask, seeds: Sequence[int], steps: int 
         warmup_s = task.warmup_steps * groups[0][0].unwrapped.config.dt
         for k in range(n_episodes):
             for env, rows in groups:
-                episodes += run_rows(driver, env, rows, n_steps, warmup_s, reseed=k == 0)
+                eps = run_rows(driver, env, rows, n_steps, warmup_s, reseed=k == 0)
+                episodes += eps
                 returns.append(env.returns.copy())
+                hf += env.hf_shares(eps, task.warmup_steps)
     finally:
         for env, _ in groups:
             env.env.close()
@@ -253,6 +352,7 @@ def _run_bench_task(ctrl: Any, task: EvalTask, seeds: Sequence[int], steps: int 
     out.update({"returns": np.concatenate(returns),
                 "lengths": np.array([ep["n_steps"] for ep in episodes], np.int64),
                 "terminated": np.array([ep["terminated"] for ep in episodes], bool),
+                "command_hf_share": np.array(hf, float),
                 "three_sigma_mdeg": out[f"servo_three_sigma_mdeg_{task.axis}"] if task.axis
                 else np.full(len(episodes), np.nan),
                 "pointing_three_sigma_mdeg": out[f"pointing_three_sigma_mdeg_{task.pointing_axis}"]
@@ -313,6 +413,7 @@ def _run_gym_task(ctrl: Any, task: EvalTask, seeds: Sequence[int], steps: int | 
     out.update({"returns": np.concatenate(rets), "lengths": np.concatenate(lens),
                 "three_sigma_mdeg": np.full(n_total, np.nan),
                 "pointing_three_sigma_mdeg": np.full(n_total, np.nan),
+                "command_hf_share": np.full(n_total, np.nan),
                 "terminated": np.concatenate(terms), "episodes": []})
     return out
 
@@ -333,6 +434,8 @@ def check_seed_protocol(seed: int, n_envs: int, eval_seeds: Sequence[int], sourc
                          f"the test or training seeds), got {bad}")
 
 
-__all__ = ["DEFAULT_SCENARIOS", "DSS14_TASKS", "EvalTask", "FIGURES", "POINTING_AXIS_OF",
-           "SCENARIO_TASKS", "TEST_SEEDS", "TEST_SEED_RANGE", "TEST_STEPS", "TRAINING_SEED_START",
-           "VALIDATION_SEED_RANGE", "check_seed_protocol", "dss14_tasks", "run_task", "task_env"]
+__all__ = ["DEFAULT_SCENARIOS", "DSS14_TASKS", "EvalTask", "FIGURES", "FINAL_SCORING", "FinalScoring",
+           "HF_CUTOFF_HZ", "POINTING_AXIS_OF", "RESEARCH_SEEDS", "SCENARIO_TASKS", "SealedSeedError",
+           "TEST_SEEDS", "TEST_SEED_RANGE", "TEST_STEPS", "TRAINING_SEED_START", "VALIDATION_SEED_RANGE",
+           "check_seed_protocol", "check_unsealed", "command_hf_share", "dss14_tasks", "run_task",
+           "task_env"]

@@ -55,6 +55,7 @@ auto-reset sub-environments start fresh while the others go on.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 from dataclasses import asdict, dataclass
 from typing import Any
@@ -132,6 +133,11 @@ class InterfaceSpec:
         can form lead and lag; default none
     :param context: names of :data:`CONTEXTS` appended last (constants of the environment's
         configuration, e.g. ``["axis_encoders"]``); default none
+    :param action_filter_s: time constant (s, in [0, 10]) of a first-order low-pass
+        filter on the environment action the action map gives (base and residual together;
+        an episode's first action passes unfiltered): smooth commands by construction, the
+        filter's state part of the loop the policy sees through the applied rates; default 0:
+        none
     """
 
     base: str | None = None
@@ -148,6 +154,7 @@ class InterfaceSpec:
     obs_symlog: bool = False
     history_filters: tuple[float, ...] = ()
     context: tuple[str, ...] = ()
+    action_filter_s: float = 0.0
 
     def __post_init__(self) -> None:
         if self.base not in BASES:
@@ -189,7 +196,8 @@ class InterfaceSpec:
         if not isinstance(self.estimate, bool):
             raise ValueError(f"estimate must be true or false, got {self.estimate!r}")
         object.__setattr__(self, "residual_scale", float(scale))
-        for name, lo, hi in (("feedforward_gain", 0.0, 10.0), ("action_curve", 0.0, 10.0)):
+        for name, lo, hi in (("feedforward_gain", 0.0, 10.0), ("action_curve", 0.0, 10.0),
+                             ("action_filter_s", 0.0, 10.0)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not lo <= v <= hi:
                 raise ValueError(f"{name} must be a number in [{lo:g}, {hi:g}], got {v!r}")
@@ -271,6 +279,10 @@ class PolicyInterface:
         self._alpha = np.array([-math.expm1(-env_config.dt / t) for t in spec.history_filters])
         self._filt = np.zeros((self.n, len(spec.history_filters), n_hist), np.float64)
         self.base_action = np.zeros((self.n, 2))
+        #: the action filter's gain per step (0: no filter), state and rows starting afresh
+        self._act_alpha = -math.expm1(-env_config.dt / spec.action_filter_s) if spec.action_filter_s else 0.0
+        self.filtered_action = np.zeros((self.n, 2))
+        self._act_fresh = np.ones(self.n, bool)
         self._past = np.zeros((self.n, spec.history, len(spec.history_entries)), np.float32)
         self._fresh = np.ones(self.n, bool)
 
@@ -287,6 +299,7 @@ class PolicyInterface:
         if mask.shape != (self.n,):
             raise ValueError(f"restart mask must have shape ({self.n},), got {mask.shape}")
         self._fresh |= mask
+        self._act_fresh |= mask
         if self.pi is not None:
             self.pi.restart(mask)
         if self.lqg_batch is not None:
@@ -296,7 +309,8 @@ class PolicyInterface:
                 self.lqg[i].reset()
 
     #: the attributes of the dynamic state (:meth:`get_state`)
-    _STATE = ("pi", "lqg", "lqg_batch", "base_action", "command_rate", "_past", "_filt", "_fresh")
+    _STATE = ("pi", "lqg", "lqg_batch", "base_action", "command_rate", "_past", "_filt", "_fresh",
+              "filtered_action", "_act_fresh")
 
     def get_state(self) -> dict[str, Any]:
         """A copy of the dynamic state (base controllers, last base action, history) that
@@ -507,7 +521,12 @@ class PolicyInterface:
         else:
             a = self._ff * self.command_rate + self.spec.residual_scale * action_curve(
                 u, self.spec.action_curve)
-        return np.clip(a, -1.0, 1.0).astype(np.float32)
+        a = np.clip(a, -1.0, 1.0)
+        if self._act_alpha:
+            prev = np.where(self._act_fresh[:, None], a, self.filtered_action)
+            a = self.filtered_action = prev + self._act_alpha * (a - prev)
+            self._act_fresh[:] = False
+        return a.astype(np.float32)
 
 
 def symlog_units(env_config: Any) -> np.ndarray:
@@ -588,9 +607,7 @@ def interface_observation_space(interface: PolicyInterface) -> spaces.Box:
 def spec_from_kwargs(kwargs: dict[str, Any], defaults: InterfaceSpec) -> tuple[InterfaceSpec, dict]:
     """``(spec, remaining env kwargs)``: interface keys taken out of wrapper-id kwargs."""
     kw = dict(kwargs)
-    fields = {"base", "action", "gains", "residual_scale", "history", "history_entries",
-              "estimate", "lqg_features", "obs_entries", "feedforward_gain", "action_curve",
-              "obs_symlog", "history_filters", "context"}
+    fields = {f.name for f in dataclasses.fields(InterfaceSpec)}
     given = {k: kw.pop(k) for k in list(kw) if k in fields}
     d = defaults.to_dict()
     d.update(given)

@@ -52,7 +52,7 @@ from dss14_env.agents.campaign import (
 )
 from dss14_env.agents.config import SweepPoint, TrainConfig, as_config
 from dss14_env.agents.envs import check_env
-from dss14_env.agents.evaluation import TEST_SEEDS, TEST_STEPS
+from dss14_env.agents.evaluation import RESEARCH_SEEDS, TEST_STEPS, check_unsealed
 from dss14_env.core.outdir import (
     atomic_write_text,
     manifest_kept,
@@ -180,7 +180,7 @@ def sweep_markdown(report: Mapping[str, Any]) -> str:
 
 
 def train_sweep(config: TrainConfig | Mapping[str, Any] | str | Path, seeds: Sequence[int],
-                out: str | Path, overwrite: bool = False, test_seeds: Sequence[int] = TEST_SEEDS,
+                out: str | Path, overwrite: bool = False, test_seeds: Sequence[int] = RESEARCH_SEEDS,
                 test_steps: int = TEST_STEPS, figures: bool = True,
                 executor: Executor | None = None, resume: bool = False,
                 progress: bool | None = None) -> Path:
@@ -191,7 +191,9 @@ def train_sweep(config: TrainConfig | Mapping[str, Any] | str | Path, seeds: Seq
     :param seeds: seed indices ``k`` (every point trains all of them)
     :param out: the sweep folder (checked before any work; ``overwrite`` replaces an earlier
         sweep's or campaign's files)
-    :param test_seeds: evaluation seeds, default 0-9 (never used in training)
+    :param test_seeds: the seeds the points are scored and ranked on, default
+        :data:`~dss14_env.agents.evaluation.RESEARCH_SEEDS` (validation seeds 2000-2009): a
+        sweep is recipe research and never reads the sealed test seeds
     :param test_steps: episode length of the test episodes, default 3000 (60 s)
     :param figures: draw every point's learning curves
     :param executor: where the (point, seed) items run (:mod:`dss14_env.core.parallel`),
@@ -203,7 +205,9 @@ def train_sweep(config: TrainConfig | Mapping[str, Any] | str | Path, seeds: Seq
     :return: the sweep folder
     :raises ValueError: no sweep in the configuration, an environment a point cannot make, an
         unusable folder (all before any training)
+    :raises SealedSeedError: a sealed test seed in ``test_seeds`` (before any training)
     """
+    check_unsealed(test_seeds, None, "sweep: test_seeds")
     cfg = as_config(config)
     if not cfg.sweep:
         raise ValueError(f"{cfg.source}: field 'sweep': is missing (a configuration without a "

@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import math
 import multiprocessing
 import signal
 from collections.abc import Callable, Iterable, Iterator, Sequence
@@ -235,6 +236,46 @@ def _vec_env_wrapper() -> type:
     return VecEnvWrapper
 
 
+class ActionChangePenaltyVecEnv(_vec_env_wrapper()):
+    """Training rewards minus ``weight * ||a[k] - a[k-1]||^2`` of the environment's actions
+    (action units: what the environment receives, base controller and residual together),
+    nothing on an episode's first step.
+
+    The environment's own action-change weight also sets its model-based controllers' designs
+    (:class:`dss14_env.baselines.interface.Weights`: raising it makes a residual's base LQG
+    another, slower design); this penalty smooths the learned command without touching them.
+
+    :param venv: the VecEnv (DSS14 actions and rewards)
+    :param weight: the penalty's weight (>= 0)
+    """
+
+    def __init__(self, venv: Any, weight: float) -> None:
+        super().__init__(venv)
+        if not (math.isfinite(weight) and weight >= 0.0):
+            raise ValueError(f"action-change penalty weight must be finite and >= 0, got {weight!r}")
+        self.weight = float(weight)
+        self._actions = np.zeros((self.num_envs, 2))
+        self._prev = np.zeros((self.num_envs, 2))
+        self._fresh = np.ones(self.num_envs, bool)
+
+    def reset(self) -> np.ndarray:
+        self._fresh[:] = True
+        return self.venv.reset()
+
+    def step_async(self, actions: np.ndarray) -> None:
+        self._actions = np.asarray(actions, np.float64).reshape(self.num_envs, -1).copy()
+        self.venv.step_async(actions)
+
+    def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict]]:
+        obs, rew, dones, infos = self.venv.step_wait()
+        a = self._actions
+        change = np.where(self._fresh[:, None], 0.0, a - self._prev)
+        out = np.asarray(rew, np.float64) - self.weight * np.sum(change * change, axis=1)
+        self._prev = a
+        self._fresh = np.asarray(dones, bool).copy()
+        return obs, out.astype(np.float32), dones, infos
+
+
 class LogRewardVecEnv(_vec_env_wrapper()):
     """Training rewards ``-log(1 + c / scale)`` of the environment's per-step cost ``c`` (its
     reward's negative without the termination penalty), and on a terminating step minus a
@@ -252,14 +293,17 @@ class LogRewardVecEnv(_vec_env_wrapper()):
     :param env_config: the environment's configuration (termination penalty, error bound,
         action-change weight)
     :param gamma: the discount of the learner
+    :param action_change_penalty: the weight of an :class:`ActionChangePenaltyVecEnv` below, whose
+        penalty is part of ``c`` (it bounds ``c_max`` too)
     """
 
-    def __init__(self, venv: Any, scale: float, env_config: Any, gamma: float) -> None:
+    def __init__(self, venv: Any, scale: float, env_config: Any, gamma: float,
+                 action_change_penalty: float = 0.0) -> None:
         super().__init__(venv)
         self.scale = float(scale)
         self.penalty = float(env_config.termination_penalty)
         err = env_config.max_error_deg * 1.0e3 / env_config.error_scale_mdeg
-        c_max = 2.0 * err * err + 8.0 * env_config.action_change_weight
+        c_max = 2.0 * err * err + 8.0 * (env_config.action_change_weight + action_change_penalty)
         self.terminal = float(np.log1p(c_max / self.scale) / (1.0 - gamma))
 
     def reset(self) -> np.ndarray:
@@ -388,6 +432,5 @@ def make_subproc_vec_env(env_fns: Sequence[Callable[[], Any]], **kwargs: Any) ->
                          start_method=method, **kwargs)
 
 
-__all__ = ["InterfaceVecEnv", "LogRewardVecEnv", "MixtureVecEnv", "SB3VecEnv", "SameStepDSS14VectorEnv",
-           "make_subproc_vec_env",
-           "make_sb3_vec_env"]
+__all__ = ["ActionChangePenaltyVecEnv", "InterfaceVecEnv", "LogRewardVecEnv", "MixtureVecEnv", "SB3VecEnv",
+           "SameStepDSS14VectorEnv", "make_sb3_vec_env", "make_subproc_vec_env"]

@@ -19,6 +19,14 @@ Three steps, each writing what the next reads::
     python scripts/rl_results.py render                # rewrite them
     python scripts/rl_results.py render --check        # exit 1 if a document is out of date
 
+The general recipe's many-seed report (configs/ppo_general_lqg.yaml; its own results file)::
+
+    dss14 train ppo --config ppo_general_lqg --train-seeds 0-9 --out runs/ppo_general_lqg
+    python scripts/rl_results.py recipe --campaign runs/ppo_general_lqg  # -> docs/results/rl_recipe.json
+    python scripts/rl_results.py ship-recipe --campaign runs/ppo_general_lqg  # best-validation seed
+    python scripts/rl_results.py grid      # the shipped policy on the wind direction/speed grid
+    python scripts/rl_results.py render    # its tables too (block rl-recipe)
+
 (tests/test_agents_results.py runs the check.)  The statistics are those of
 :mod:`dss14_env.agents.results`.
 """
@@ -47,10 +55,20 @@ REFERENCES = ROOT / "docs" / "results" / "rl_references.json"
 SCENARIO_REFERENCES = ROOT / "docs" / "results" / "rl_scenario_references.json"
 FIGURES = ROOT / "docs" / "results" / "rl"
 #: the generated blocks and the documents that show them
-DOCUMENTS = {ROOT / "docs" / "results" / "rl_results.md": ("rl-table", "rl-seeds", "rl-campaign")}
+DOCUMENTS = {ROOT / "docs" / "results" / "rl_results.md": ("rl-table", "rl-seeds", "rl-campaign",
+                                                           "rl-recipe")}
 #: the robustness campaign of the learned policies beside PI and LQG (``dss14 campaign``,
 #: :func:`dss14_env.bench.campaign_report.compact_results` of its results.json), and the command
 CAMPAIGN = ROOT / "docs" / "results" / "campaign_policies.json"
+#: the general recipe's report (:mod:`dss14_env.agents.recipe_report`), its shipped folder and
+#: the wind grid it is checked on: (speed km/h, direction deg)
+RECIPE = ROOT / "docs" / "results" / "rl_recipe.json"
+RECIPE_SHIPPED = "ppo_general"
+RECIPE_GRID = tuple((50.0, d) for d in (0.0, 45.0, 90.0, 135.0, 180.0)) + tuple(
+    (v, d) for v in (10.0, 70.0) for d in (0.0, 90.0))
+RECIPE_GRID_STEPS = 1500
+#: the shipped policies trained on the drive before the settled one, re-scored on it
+STALE = ROOT / "docs" / "results" / "rl_stale.json"
 #: the reference controllers: runner name -> label
 REFERENCE_CONTROLLERS = {"pi_kp1": "PI (report: kp 1, ki 0.3)", "lqg": "LQG", "mpc": "MPC",
                          "yardstick": "yardstick (H2-optimal, knows the wind)"}
@@ -75,8 +93,9 @@ AGENTS = {
     "ppo_residual_lqg_pointing": ("model-informed PPO on the pointing LQG, trained on the pointing "
                                   "error", "ppo_residual_lqg_pointing", None),
     # one policy for the whole job (a mixture of every bench scenario, select_by general)
+    # its shipped folder now holds the general recipe's policy (RECIPE, `ship-recipe`)
     "ppo_general": ("general plain PPO: one policy for tracks, holds, steps and slews", "ppo_general",
-                    "ppo_general"),
+                    None),
     "ppo_general_random": ("general plain PPO trained on randomised plants", "ppo_general_random",
                            "ppo_general_random"),
 }
@@ -156,11 +175,11 @@ def scenario_references(out: Path) -> None:
     """
     from dss14_env.agents.campaign_report import REFERENCES as CAMPAIGN_REFERENCES
     from dss14_env.agents.campaign_report import reference_scores
-    from dss14_env.agents.evaluation import dss14_tasks
+    from dss14_env.agents.evaluation import FINAL_SCORING, dss14_tasks
     from dss14_env.agents.results import SCENARIO_COLUMNS
 
     tasks = dss14_tasks(scenarios=list(SCENARIO_COLUMNS))
-    scores = reference_scores(tasks, TEST_SEEDS, None)
+    scores = reference_scores(tasks, TEST_SEEDS, None, FINAL_SCORING)
     doc = {"what": "figures per test seed of the reference controllers in the track, step and slew "
                    "(dss14_env.agents.campaign_report.reference_scores: the bench's episode loop "
                    "and figures, the default bench run's episode lengths)",
@@ -323,11 +342,12 @@ def _reference(ref: dict, key: str) -> tuple:
 def _score_shipped(folder: str, test_seeds: list[int]) -> tuple[dict, dict]:
     """A shipped policy's 3σ servo and pointing errors per test seed in both holds, scored as
     the campaigns score (the seeds at once through the batched controller)."""
-    from dss14_env.agents.evaluation import DSS14_TASKS, run_task
+    from dss14_env.agents.evaluation import DSS14_TASKS, FINAL_SCORING, run_task
     from dss14_env.agents.policy import load_policy, shipped_policy
 
     ctrl = load_policy(shipped_policy(folder))
-    res = {t.name: run_task(ctrl, t, test_seeds, 3000) for t in DSS14_TASKS}
+    res = {t.name: run_task(ctrl, t, test_seeds, 3000, access=FINAL_SCORING)
+           for t in DSS14_TASKS}
     return ({h: r["three_sigma_mdeg"].tolist() for h, r in res.items()},
             {h: r["pointing_three_sigma_mdeg"].tolist() for h, r in res.items()})
 
@@ -375,11 +395,189 @@ def campaign_block(path: Path) -> str:
         "", main_table(res), ""])
 
 
+def _cpu_per_seed(cpu_log: Path, n: int) -> list[float | None]:
+    """CPU seconds of each seed (training and its test scoring) from a log of lines
+    ``epoch_s cpu_s seeds_done`` sampled from the campaign's process (its CPU time as each
+    seed ended, to the sampling period)."""
+    rows = [line.split() for line in cpu_log.read_text().splitlines() if len(line.split()) == 3]
+    at_done: dict[int, float] = {}
+    for _, cpu, done in rows:
+        at_done.setdefault(int(done), float(cpu))  # the first sample after the count rose
+    ends = [at_done.get(k) for k in range(1, n + 1)]
+    starts = [0.0] + ends[:-1]
+    return [None if e is None or s is None else e - s for s, e in zip(starts, ends, strict=True)]
+
+
+def recipe(campaign: Path, out: Path, cpu_log: Path | None) -> None:
+    """The general recipe's report from its campaign (module doc): the pointing-aware LQG scored
+    on the campaign's test episodes beside its PI and LQG, each seed's validation score, the
+    report (:func:`dss14_env.agents.recipe_report.recipe_report`) and its profile figure."""
+    from dss14_env.agents.campaign import selected_evaluation
+    from dss14_env.agents.campaign_report import task_scores
+    from dss14_env.agents.evaluation import FINAL_SCORING, dss14_tasks, task_env
+    from dss14_env.agents.recipe_report import recipe_report
+    from dss14_env.baselines.lqg import PointingLQGController
+
+    summary = json.loads((campaign / "summary.json").read_text())
+    proto = summary["protocol"]
+    lqgp: dict = {}
+    for t in dss14_tasks(scenarios=[t["name"] for t in proto["tasks"]]):
+        env = task_env(t)
+        try:
+            lqgp.update(task_scores(PointingLQGController(env), [t], proto["test_seeds"],
+                                    proto["test_steps"], FINAL_SCORING))
+        finally:
+            env.close()
+    validation = {}
+    for e in summary["per_seed"]:
+        sel = selected_evaluation(campaign / e["run"] / "eval" / "evaluations.npz")
+        validation[e["seed_index"]] = None if sel is None else float(sel[1][1])
+    report = recipe_report(summary, {"lqg_pointing": lqgp}, validation)
+    if cpu_log is not None:
+        for r, cpu in zip(report["per_seed"], _cpu_per_seed(cpu_log, len(report["per_seed"])), strict=True):
+            r["cpu_s_train_and_score"] = cpu
+    cfg_src = summary["config"]
+    doc = {"what": "the general recipe on >= 10 training seeds: each seed's validation-selected policy "
+                   "(eval/best) scored once on the sealed test seeds beside the PI, the LQG and the "
+                   "pointing-aware LQG on the same episodes (dss14_env.agents.recipe_report)",
+           "config": "configs/" + Path(cfg_src).name if "/configs/" in cfg_src else cfg_src,
+           "date_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"), "machine": _machine(),
+           "protocol": proto, **report}
+    if out.is_file():  # a grid or shipped entry of an earlier run of the other commands stays
+        old = json.loads(out.read_text())
+        doc.update({k: old[k] for k in ("grid", "shipped") if k in old})
+    out.write_text(json.dumps(doc, indent=1) + "\n")
+    _profile_figure(doc, FIGURES / "recipe_profile.png")
+    print(f"wrote {out}")
+
+
+def _profile_figure(doc: dict, path: Path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    prof = doc["profile"]
+    fig, ax = plt.subplots(figsize=(5.5, 3.5))
+    ax.step(prof["tau"], prof["worst_scenario"], where="post", label="worst scenario per seed")
+    ax.step(prof["tau"], prof["all_scenarios"], where="post", label="every (seed, scenario)")
+    ax.axvline(1.0, color="grey", lw=0.8, ls="--")
+    ax.set_xlabel("tau: pointing error / PI's")
+    ax.set_ylabel("fraction with ratio <= tau")
+    ax.set_title(f"{doc['config']}: {len(doc['per_seed'])} training seeds")
+    ax.legend(loc="lower right", fontsize=8)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110, metadata={"Software": None})
+    plt.close(fig)
+
+
+def ship_recipe(campaign: Path, report_path: Path) -> None:
+    """Copy the recipe's best-validation seed (the report's ``shipped_seed_index``: chosen on the
+    validation seeds, never the test seeds) into ``agents/policies/<RECIPE_SHIPPED>/`` and record
+    its per-test-seed hold figures in the report (the shipped policy's regression figures)."""
+    doc = json.loads(report_path.read_text())
+    k = doc["shipped_seed_index"]
+    summary = json.loads((campaign / "summary.json").read_text())
+    entry = next(e for e in summary["per_seed"] if e["seed_index"] == k)
+    run = campaign / entry["run"]
+    dest = ROOT / "agents" / "policies" / RECIPE_SHIPPED
+    if dest.exists():
+        shutil.rmtree(dest)
+    dest.mkdir(parents=True)
+    for name in ("policy.pt", "normalization.npz", "config.yaml"):
+        shutil.copyfile(run / "eval" / "best" / name, dest / name)
+    shutil.copyfile(run / "eval" / "evaluations.npz", dest / "evaluations.npz")
+    shutil.copyfile(run / "train_summary.json", dest / "train_summary.json")
+    doc["shipped"] = {"folder": f"agents/policies/{RECIPE_SHIPPED}", "seed_index": k,
+                      "training_seed": entry["training_seed"],
+                      "why": "the best validation score of the campaign's seeds",
+                      "holds": {h: {"per_test_seed": entry["best"][h]["three_sigma_mdeg"],
+                                    "pointing": {"per_test_seed":
+                                                 entry["best"][h]["pointing_three_sigma_mdeg"]}}
+                                for h in HOLDS}}
+    report_path.write_text(json.dumps(doc, indent=1) + "\n")
+    print(f"seed index {k}: {run} -> {dest.relative_to(ROOT)}")
+
+
+def grid(report_path: Path) -> None:
+    """The shipped general policy, the PI and the pointing-aware LQG in holds over
+    :data:`RECIPE_GRID` (the test seeds, :data:`RECIPE_GRID_STEPS` steps): the worse axis's 3σ
+    pointing error per episode, and the policy's ratio to each with a paired bootstrap interval
+    over the test seeds (:func:`dss14_env.core.stats.ratio_ci`); into the report's ``grid``."""
+    import math
+
+    from dss14_env.agents.evaluation import FINAL_SCORING, dss14_tasks, run_task, task_env
+    from dss14_env.agents.policy import load_policy, shipped_policy
+    from dss14_env.agents.recipe_report import BOOTSTRAP_SEED
+    from dss14_env.baselines.lqg import PointingLQGController
+    from dss14_env.baselines.pi import PIController
+    from dss14_env.core.stats import ratio_ci
+
+    makers = {RECIPE_SHIPPED: lambda env: load_policy(shipped_policy(RECIPE_SHIPPED)),
+              "pi_kp1": lambda env: PIController(env, "kp1"), "lqg_pointing": PointingLQGController}
+    rng = np.random.default_rng(BOOTSTRAP_SEED)
+    conditions = []
+    for speed, direction in RECIPE_GRID:
+        (task,) = dss14_tasks({"wind_speed_kmh": speed, "wind_direction": math.radians(direction)},
+                              scenarios=["hold_front"])
+        vals = {}
+        for name, make in makers.items():
+            env = task_env(task)
+            try:
+                r = run_task(make(env), task, TEST_SEEDS, RECIPE_GRID_STEPS, access=FINAL_SCORING)
+            finally:
+                env.close()
+            vals[name] = np.maximum(r["pointing_three_sigma_mdeg_el"], r["pointing_three_sigma_mdeg_xel"])
+        c = {"wind_speed_kmh": speed, "wind_direction_deg": direction,
+             "pointing_mdeg": {k: float(np.mean(v)) for k, v in vals.items()},
+             "per_test_seed": {k: v.tolist() for k, v in vals.items()}}
+        for ref in ("pi_kp1", "lqg_pointing"):
+            est = ratio_ci(vals[RECIPE_SHIPPED], vals[ref], np.mean, rng, paired=True)
+            c[f"ratio_{ref}"] = {"value": est.value, "low": est.low, "high": est.high}
+        conditions.append(c)
+        print(f"{speed:g} km/h {direction:g} deg: " + ", ".join(f"{k} {v:.2f}" for k, v in
+                                                               c["pointing_mdeg"].items()), flush=True)
+    doc = json.loads(report_path.read_text()) if report_path.is_file() else {}
+    doc["grid"] = {"what": f"holds, test seeds {TEST_SEEDS[0]}-{TEST_SEEDS[-1]}, {RECIPE_GRID_STEPS} steps, "
+                           "5-s warm-up; the worse axis's 3-sigma pointing error (mdeg), mean over the "
+                           "seeds; ratios of means with 95 % paired percentile-bootstrap intervals",
+                   "controllers": list(makers), "conditions": conditions}
+    report_path.write_text(json.dumps(doc, indent=1) + "\n")
+    print(f"wrote the grid into {report_path}")
+
+
+def stale(results_path: Path, out: Path) -> None:
+    """Score the results file's shipped policies (those whose folder the recipe did not take)
+    again on the test seeds on the shipped drive: their per-test-seed hold figures there (the
+    regression checks' figures for the policies marked stale, docs/rl.md)."""
+    results = json.loads(results_path.read_text())
+    taken = json.loads(RECIPE.read_text()).get("shipped", {}).get("folder") if RECIPE.is_file() else None
+    rows = {}
+    for key, row in results["rows"].items():
+        if not row.get("shipped") or row["shipped"]["folder"] == taken:
+            continue
+        servo, pointing = _score_shipped(Path(row["shipped"]["folder"]).name, TEST_SEEDS)
+        rows[key] = {"folder": row["shipped"]["folder"],
+                     "holds": {h: {"per_test_seed": servo[h], "pointing": {"per_test_seed": pointing[h]}}
+                               for h in HOLDS}}
+        print(key, {h: round(float(np.mean(pointing[h])), 2) for h in HOLDS}, flush=True)
+    doc = {"what": "the shipped policies trained on the earlier drive, re-scored on the shipped drive: "
+                   "3-sigma servo (loaded axis) and pointing (swung axis) errors per test seed, 3000-step "
+                   "holds (the regression checks' figures; they are marked stale in docs/rl.md)",
+           "date_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"), "machine": _machine(),
+           "test_seeds": TEST_SEEDS, "rows": rows}
+    out.write_text(json.dumps(doc, indent=1) + "\n")
+    print(f"wrote {out}")
+
+
 def render(results_path: Path, check: bool) -> int:
     """Fill the generated blocks of the documents; with ``check`` only report stale ones."""
+    from dss14_env.agents.recipe_report import recipe_markdown
     from dss14_env.reproduce import fill_blocks, find_blocks
 
-    blocks = {**rl_tables(json.loads(results_path.read_text())), "rl-campaign": campaign_block(CAMPAIGN)}
+    blocks = {**rl_tables(json.loads(results_path.read_text())), "rl-campaign": campaign_block(CAMPAIGN),
+              "rl-recipe": recipe_markdown(json.loads(RECIPE.read_text())) if RECIPE.is_file()
+              else "(no `rl_recipe.json` yet: `python scripts/rl_results.py recipe`)"}
     stale = []
     for doc, names in DOCUMENTS.items():
         text = doc.read_text()
@@ -417,6 +615,15 @@ def main(argv: list[str] | None = None) -> int:
     s = sub.add_parser("ship", help="copy the shipped agents' chosen seeds to agents/policies")
     s.add_argument("--runs", type=Path, default=Path("runs"))
     s.add_argument("--results", type=Path, default=RESULTS)
+    rc = sub.add_parser("recipe", help="the general recipe's many-seed report from its campaign")
+    rc.add_argument("--campaign", type=Path, default=Path("runs") / "ppo_general_lqg")
+    rc.add_argument("--out", type=Path, default=RECIPE)
+    rc.add_argument("--cpu-log", type=Path, default=None,
+                    help="lines 'epoch_s cpu_s seeds_done' sampled from the campaign's process")
+    sh = sub.add_parser("ship-recipe", help="ship the recipe's best-validation seed")
+    sh.add_argument("--campaign", type=Path, default=Path("runs") / "ppo_general_lqg")
+    sub.add_parser("grid", help="the shipped general policy on the wind direction/speed grid")
+    sub.add_parser("stale", help="re-score the stale shipped policies on the shipped drive")
     d = sub.add_parser("render", help="the tables of docs/results/rl_results.md")
     d.add_argument("--results", type=Path, default=RESULTS)
     d.add_argument("--check", action="store_true", help="only check; exit 1 if out of date")
@@ -430,6 +637,14 @@ def main(argv: list[str] | None = None) -> int:
               args.scenario_references)
     elif args.cmd == "ship":
         ship(args.runs, args.results)
+    elif args.cmd == "recipe":
+        recipe(args.campaign, args.out, args.cpu_log)
+    elif args.cmd == "ship-recipe":
+        ship_recipe(args.campaign, RECIPE)
+    elif args.cmd == "grid":
+        grid(RECIPE)
+    elif args.cmd == "stale":
+        stale(RESULTS, STALE)
     else:
         return render(args.results, args.check)
     return 0

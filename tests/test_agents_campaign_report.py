@@ -20,7 +20,7 @@ from dss14_env.agents.campaign_report import (
     task_scores,
 )
 from dss14_env.agents.config import TrainConfig
-from dss14_env.agents.evaluation import dss14_tasks
+from dss14_env.agents.evaluation import FINAL_SCORING, dss14_tasks
 from dss14_env.agents.results import (
     SCENARIO_COLUMNS,
     build_results,
@@ -76,7 +76,7 @@ def _short(names: list[str], steps: int = 200) -> list:
 def test_reference_scores_are_the_bench_figures() -> None:
     """The LQG reference of a campaign scores the bench's figures on the same episodes."""
     tasks = _short(["track", "step"])
-    refs = reference_scores(tasks, [0, 1], None)
+    refs = reference_scores(tasks, [0, 1], None, FINAL_SCORING)
     assert set(refs) == set(REFERENCES)
     bench = run(["lqg"], [("step", _scenario("step", 200))], seeds=[0, 1])["episodes"]
     got = refs["lqg"]["step"]["figures"]
@@ -97,7 +97,7 @@ def test_task_scores_keep_the_figures_of_every_episode() -> None:
     tasks = _short(["hold_side", "slew"], 300)
     from dss14_env.envs.env import DSS14Env
     ctrl = reference_controller("pi_kp1", DSS14Env())
-    d = task_scores(ctrl, tasks, [3, 4], 300)
+    d = task_scores(ctrl, tasks, [3, 4], 300, FINAL_SCORING)
     assert d["hold_side"]["axis"] == "az" and len(d["hold_side"]["three_sigma_mdeg"]) == 2
     assert d["hold_side"]["three_sigma_mdeg"] == d["hold_side"]["figures"]["servo_three_sigma_mdeg_az"]
     assert set(d["slew"]["figures"]) >= {"servo_three_sigma_mdeg_az", "pointing_three_sigma_mdeg_xel",

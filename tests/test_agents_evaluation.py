@@ -13,6 +13,7 @@ from dss14_env.agents.evaluation import (
     DEFAULT_SCENARIOS,
     DSS14_TASKS,
     FIGURES,
+    FINAL_SCORING,
     SCENARIO_TASKS,
     TEST_SEED_RANGE,
     TEST_SEEDS,
@@ -76,7 +77,7 @@ def test_task_figures_equal_the_bench_runners(name: str, steps: int) -> None:
     episode loop and figures), for every scenario kind."""
     (task,) = dss14_tasks(scenarios=[name])
     env = DSS14Env(**{**PRESETS[task.preset].kwargs, **task.env_kwargs})
-    res = run_task(_pi(env), task, [3, 4], steps)
+    res = run_task(_pi(env), task, [3, 4], steps, access=FINAL_SCORING)
     bench = run(["pi_kp1"], [name], seeds=[3, 4], steps=steps)["episodes"]
     assert [e["seed"] for e in res["episodes"]] == [3, 4]
     for key, path in FIGURES.items():
@@ -101,10 +102,10 @@ def test_returns_are_the_episodes_summed_rewards() -> None:
     (task,) = dss14_tasks(scenarios=["slew"])
     kw = {**PRESETS[task.preset].kwargs, **task.env_kwargs}
     env = DSS14Env(**kw)
-    res = run_task(_pi(env), task, [5, 6], 150)
+    res = run_task(_pi(env), task, [1005, 1006], 150)
     ctrl = _pi(env)
-    obs, _ = env.reset(seed=6)
-    ctrl.reset(6)
+    obs, _ = env.reset(seed=1006)
+    ctrl.reset(1006)
     total = 0.0
     for _ in range(150):
         obs, r, term, _, _ = env.step(ctrl.act(obs))
@@ -120,8 +121,8 @@ def test_later_episodes_continue_each_rows_generator() -> None:
     episode of the same generator."""
     task = DSS14_TASKS[1]
     env = DSS14Env(**PRESETS[task.preset].kwargs)
-    one = run_task(_pi(env), task, [0, 1], 300)
-    two = run_task(_pi(env), task, [0, 1], 300, n_episodes=2)
+    one = run_task(_pi(env), task, [1000, 1001], 300)
+    two = run_task(_pi(env), task, [1000, 1001], 300, n_episodes=2)
     assert two["three_sigma_mdeg"].shape == (4,)
     np.testing.assert_allclose(two["three_sigma_mdeg"][:2], one["three_sigma_mdeg"], rtol=1e-12)
     assert not np.allclose(two["three_sigma_mdeg"][2:], one["three_sigma_mdeg"], rtol=1e-3)
@@ -136,8 +137,8 @@ def test_an_unbatchable_controller_runs_one_episode_at_a_time() -> None:
     class OneAtATime(PIController):
         batchable = False
 
-    batched = run_task(_pi(env), task, [2, 7], 300)
-    single = run_task(OneAtATime(env, "kp1"), task, [2, 7], 300)
+    batched = run_task(_pi(env), task, [1002, 1007], 300)
+    single = run_task(OneAtATime(env, "kp1"), task, [1002, 1007], 300)
     np.testing.assert_allclose(single["three_sigma_mdeg"], batched["three_sigma_mdeg"], rtol=1e-6)
     np.testing.assert_allclose(single["returns"], batched["returns"], rtol=1e-6)
 
@@ -169,7 +170,53 @@ def test_regression_shipped_residual_policies_score_their_committed_bench_figure
     col = bench["episodes"][row][scenario]
     seeds = list(col["seed"])[:8]
     (task,) = dss14_tasks(scenarios=[scenario])
-    res = run_task(CONTROLLERS[row].make(DSS14Env(**PRESETS[task.preset].kwargs)), task, seeds)
+    res = run_task(CONTROLLERS[row].make(DSS14Env(**PRESETS[task.preset].kwargs)), task, seeds,
+                   access=FINAL_SCORING)
     check_rescored({ax: (res[f"servo_three_sigma_mdeg_{ax}"], col[f"servo_error_mdeg.{ax}.three_sigma"][:8])
                     for ax in ("az", "el")})
     assert not res["terminated"].any()
+
+
+# ------------------------------------------------------------------------------ sealed test seeds
+def test_validation_on_a_sealed_test_seed_is_refused_and_the_final_scoring_reads_it() -> None:
+    """Every evaluation path goes through run_task's guard: without the final scoring's token a
+    test seed is refused before any work, naming it; with the token the same call scores."""
+    from dss14_env.agents.evaluation import FINAL_SCORING, SealedSeedError
+
+    task = DSS14_TASKS[0]
+    env = DSS14Env(**PRESETS[task.preset].kwargs)
+    with pytest.raises(SealedSeedError, match=r"run_task hold_front: seed 3 is a sealed test seed \(0-999\)"):
+        run_task(_pi(env), task, [1000, 3], 20)
+    res = run_task(_pi(env), task, [3], 20, access=FINAL_SCORING)
+    assert res["lengths"].tolist() == [20]
+    assert run_task(_pi(env), task, [1000], 20)["lengths"].tolist() == [20]  # validation seeds: open
+
+
+def test_selection_references_and_sweeps_cannot_read_the_test_seeds(tmp_path) -> None:
+    """The selection's reference runs (validation) and a sweep (recipe research) are refused the
+    test seeds; a sweep is refused before it makes its folder."""
+    from dss14_env.agents.campaign_report import reference_runs
+    from dss14_env.agents.evaluation import SealedSeedError
+    from dss14_env.agents.sweep import train_sweep
+
+    with pytest.raises(SealedSeedError, match="seed 0 is a sealed test seed"):
+        reference_runs("pi_kp1", list(DSS14_TASKS), [0], 20)
+    with pytest.raises(SealedSeedError, match="sweep: test_seeds: seed 9 is a sealed test seed"):
+        train_sweep({"algo": "ppo", "sweep": {"learning_rate": [1e-4, 3e-4]}}, [0], tmp_path / "s",
+                    test_seeds=(9,))
+    assert not (tmp_path / "s").exists()
+
+
+def test_command_hf_share_of_slow_white_and_fast_commands() -> None:
+    """The share of diff(rate)'s power above 5 Hz at 50 Hz: ~0 for a 0.5-Hz sine, ~1 for a
+    10-Hz sine, 1 - 2 * 5 Hz * 0.02 s = 0.8 for white noise (to its sampling scatter)."""
+    from dss14_env.agents.evaluation import command_hf_share
+
+    t = np.arange(5000) * 0.02
+    slow = np.c_[np.sin(2 * np.pi * 0.5 * t), np.cos(2 * np.pi * 0.5 * t)]
+    fast = np.c_[np.sin(2 * np.pi * 10.0 * t), np.zeros_like(t)]
+    assert command_hf_share(slow, 0.02) < 1e-3
+    assert command_hf_share(fast, 0.02) > 0.999
+    white = np.cumsum(np.random.default_rng(0).normal(size=(5000, 2)), axis=0)  # diff is white
+    assert command_hf_share(white, 0.02) == pytest.approx(0.8, abs=0.03)
+    assert math.isnan(command_hf_share(np.zeros((100, 2)), 0.02))

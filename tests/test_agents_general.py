@@ -357,3 +357,59 @@ def test_validation_tasks_follow_eval_scenarios() -> None:
     assert tasks[1].axis == "az" and tasks[1].env_kwargs.get("encoders") == "axis"
     with pytest.raises(ConfigError, match="field 'eval_scenarios'"):
         TrainConfig.from_dict({"env_id": "DSS14-Plain-v0", "eval_scenarios": ["step", "step"]})
+
+
+# ------------------------------------------------------------------------------ smooth commands
+def test_action_change_penalty_charges_each_change_of_the_environments_action() -> None:
+    """w ||a[k] - a[k-1]||^2 of the actions the environment receives comes off the reward,
+    nothing on an episode's first step (reset and after a done row)."""
+    from dss14_env.agents.vec_env import ActionChangePenaltyVecEnv
+
+    plain = make_sb3_vec_env("DSS14-Step-v0", 2, seed=10_000, max_episode_steps=3)
+    pen = ActionChangePenaltyVecEnv(make_sb3_vec_env("DSS14-Step-v0", 2, seed=10_000, max_episode_steps=3),
+                                    200.0)
+    plain.reset()
+    pen.reset()
+    acts = [np.array([[0.1, 0.0], [0.0, 0.0]]), np.array([[0.3, 0.0], [0.0, -0.2]]),
+            np.array([[0.3, 0.1], [0.0, -0.2]]), np.array([[0.0, 0.0], [0.5, 0.0]])]
+    want_pen = [[0.0, 0.0], [200 * 0.04, 200 * 0.04], [200 * 0.01, 0.0], [0.0, 0.0]]  # 3rd step ends
+    for a, w in zip(acts, want_pen, strict=True):
+        _, r0, d0, _ = plain.step(a.astype(np.float32))
+        _, r1, d1, _ = pen.step(a.astype(np.float32))
+        np.testing.assert_array_equal(d0, d1)
+        np.testing.assert_allclose(r0 - r1, w, rtol=1e-5, atol=1e-5)
+    with pytest.raises(ValueError, match="action-change penalty weight"):
+        ActionChangePenaltyVecEnv(plain, -1.0)
+
+
+def test_action_filter_low_passes_the_action_and_restarts_with_the_episode() -> None:
+    """action_filter_s: a first-order low-pass of the action map's output; an episode's first
+    action passes unfiltered; the filter is part of the saved interface."""
+    spec = InterfaceSpec(action_filter_s=0.05)
+    assert spec.to_dict()["action_filter_s"] == 0.05
+    it = PolicyInterface(spec, CFG, 2)
+    alpha = 1.0 - math.exp(-CFG.dt / 0.05)
+    it.observe(np.zeros((2, 12), np.float32))
+    np.testing.assert_allclose(it.action(np.array([[0.5, -0.5], [0.2, 0.0]])), [[0.5, -0.5], [0.2, 0.0]],
+                               rtol=1e-6)
+    got = it.action(np.array([[1.0, -0.5], [0.2, 0.0]]))
+    np.testing.assert_allclose(got[0], [0.5 + alpha * 0.5, -0.5], rtol=1e-6)
+    it.restart(np.array([False, True]))
+    got = it.action(np.array([[1.0, -0.5], [-0.4, 0.0]]))
+    assert got[1, 0] == pytest.approx(-0.4)  # the restarted row starts afresh
+    assert got[0, 0] == pytest.approx(0.5 + alpha * 0.5 + alpha * (0.5 - alpha * 0.5), rel=1e-6)
+    none = PolicyInterface(InterfaceSpec(), CFG, 1)
+    none.observe(np.zeros((1, 12), np.float32))
+    none.action(np.array([[0.5, 0.0]]))
+    assert none.action(np.array([[1.0, 0.0]]))[0, 0] == 1.0
+    with pytest.raises(ValueError, match="action_filter_s"):
+        InterfaceSpec(action_filter_s=-0.1)
+
+
+def test_action_change_penalty_needs_the_batched_vec_env() -> None:
+    from dss14_env.agents.envs import make_train_vec_env, resolve_env
+
+    cfg = TrainConfig.from_dict({"algo": "ppo", "env_id": "DSS14-Plain-v0", "vec_env": "dummy",
+                                 "action_change_penalty": 10.0, "n_envs": 1}, "cfg.yaml")
+    with pytest.raises(ValueError, match="cfg.yaml: key 'action_change_penalty': needs the batched"):
+        make_train_vec_env(cfg, resolve_env(cfg), CFG, None)

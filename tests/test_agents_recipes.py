@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 import dss14_env  # noqa: F401
 from dss14_env.agents.config import TrainConfig, load_config
 from dss14_env.agents.envs import check_env
-from dss14_env.agents.evaluation import DSS14_TASKS, run_task
+from dss14_env.agents.evaluation import DSS14_TASKS, FINAL_SCORING, run_task
 from dss14_env.agents.hyperparams import hyperparams_path, load_hyperparams
 from dss14_env.agents.interface import (
     LQG_FEATURE_WIDTHS,
@@ -160,6 +160,7 @@ RECIPES = {  # config -> (algo, policy observation size, action scale the policy
     "sac": ("sac", 8 + 8 * 4, 0.02),
     "ppo_general": ("ppo", 8 + (8 + 3) * 4, 0.25),  # 8 steps and 3 filters of 4 entries
     "ppo_general_random": ("ppo", 8 + (8 + 3) * 4, 0.25),
+    "ppo_general_lqg": ("ppo", 8 + 4 + 4 * 4, 0.25),  # general, on the beam: residual on lqg_pointing
 }
 
 
@@ -169,7 +170,7 @@ def test_recipe_configs_build_their_environment(name: str) -> None:
     cfg = load_config(name)
     # a recipe on the beam is rewarded, validated and selected on the pointing error; a general
     # recipe is selected over every bench scenario
-    on_beam = name.endswith("_pointing")
+    on_beam = name.endswith("_pointing") or name == "ppo_general_lqg"
     select = "pointing" if on_beam else "general" if "general" in name else "three_sigma"
     assert cfg.algo == algo and cfg.select_by == select
     assert cfg.seed >= 10_000 and all(1000 <= s < 10_000 for s in cfg.eval_seeds)
@@ -292,7 +293,7 @@ def test_campaign_scoring_equals_the_benchmark_runner() -> None:
     stats = NormStats(np.zeros(40), np.full(40, 1e-2), 1.0, 1.0, 1e-8)
     ctrl = PolicyController(policy, cfg, stats, "test")
     steps = 400
-    res = run_task(ctrl, DSS14_TASKS[1], [0, 1], steps)
+    res = run_task(ctrl, DSS14_TASKS[1], [0, 1], steps, access=FINAL_SCORING)
     bench = run([("test", lambda env: PolicyController(policy, cfg, stats, "test", env))],
                 ["hold_side"], seeds=[0, 1], steps=steps)
     ref = [e["servo_error_mdeg"]["az"]["three_sigma"] for e in bench["episodes"]]

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import yaml
 
-from dss14_env.agents.evaluation import DSS14_TASKS, run_task
+from dss14_env.agents.evaluation import DSS14_TASKS, FINAL_SCORING, run_task
 from dss14_env.agents.policy import load_policy, shipped_policies
 from dss14_env.agents.results import agent_ratio, build_results, rl_tables
 
@@ -158,8 +158,50 @@ def test_committed_results_follow_the_protocol(results: dict) -> None:
                     assert ratio["significant"] == (not ratio["ci95"][0] <= 1.0 <= ratio["ci95"][1])
 
 
+RECIPE = ROOT / "docs" / "results" / "rl_recipe.json"
+STALE = ROOT / "docs" / "results" / "rl_stale.json"
+
+
+def _recipe() -> dict:
+    return json.loads(RECIPE.read_text())
+
+
 def _shipped(results: dict) -> list[tuple[str, dict]]:
-    return [(k, row) for k, row in results["rows"].items() if row.get("shipped")]
+    """The results file's shipped rows whose folder still holds their policy (the general
+    recipe's report, rl_recipe.json, names the folder its shipped policy took)."""
+    taken = {_recipe().get("shipped", {}).get("folder")} if RECIPE.is_file() else set()
+    return [(k, row) for k, row in results["rows"].items()
+            if row.get("shipped") and row["shipped"]["folder"] not in taken]
+
+
+def test_the_recipes_shipped_policy_is_its_best_validation_seed() -> None:
+    """The general recipe ships the seed with the best validation score (never chosen on the
+    test seeds); the folder holds that seed's configuration."""
+    rep = _recipe()
+    shipped = rep["shipped"]
+    cfg = yaml.safe_load((ROOT / shipped["folder"] / "config.yaml").read_text())
+    assert cfg["seed"] == shipped["training_seed"]
+    best = max(rep["per_seed"], key=lambda r: r["validation_score"])
+    assert best["seed_index"] == shipped["seed_index"] == rep["shipped_seed_index"]
+    assert len(rep["per_seed"]) >= 10
+
+
+@pytest.mark.slow
+def test_regression_shipped_policies_recipe_reproduces_its_test_scores(check_rescored) -> None:
+    """Regression check: the general recipe's shipped policy, scored again on the test seeds,
+    gives its campaign's hold figures recorded in rl_recipe.json (servo and pointing) within the
+    scatter between CPU kinds (``tests/conftest.py``)."""
+    rep = _recipe()
+    ctrl = load_policy(ROOT / rep["shipped"]["folder"])
+    groups = {}
+    for task in DSS14_TASKS:
+        got = run_task(ctrl, task, rep["protocol"]["test_seeds"], rep["protocol"]["test_steps"],
+                       access=FINAL_SCORING)
+        want = rep["shipped"]["holds"][task.name]
+        groups[task.name] = (got["three_sigma_mdeg"], want["per_test_seed"])
+        groups[f"{task.name} pointing"] = (got["pointing_three_sigma_mdeg"],
+                                           want["pointing"]["per_test_seed"])
+    check_rescored(groups)
 
 
 def test_every_shipped_policy_is_a_campaign_seed_chosen_on_validation(results: dict) -> None:
@@ -180,13 +222,19 @@ def test_regression_shipped_policies_reproduce_their_test_scores(results: dict, 
     file's numbers -- its campaign row's, or, when that row is kept from earlier results (scored
     on the code of its time), the shipped policy's own row (``<key>_shipped``, scored when the
     file was built), servo and pointing errors -- within the scatter between CPU kinds
-    (``tests/conftest.py``)."""
+    (``tests/conftest.py``); a policy marked stale (trained on the earlier drive) against its
+    re-scoring on the shipped drive (``rl_stale.json``, ``scripts/rl_results.py stale``)."""
     shipped = _shipped(results)
     assert shipped
+    stale = json.loads(STALE.read_text())["rows"] if STALE.is_file() else {}
     groups = {}
     for key, row in shipped:
         ctrl = load_policy(ROOT / row["shipped"]["folder"])
-        if row.get("kept_from"):
+        if key in stale:
+            want = stale[key]["holds"]
+            pick = {t.name: (want[t.name]["per_test_seed"], want[t.name]["pointing"]["per_test_seed"])
+                    for t in DSS14_TASKS}
+        elif row.get("kept_from"):
             want = results["rows"][f"{key}_shipped"]["holds"]
             pick = {t.name: (want[t.name]["per_test_seed"], want[t.name]["pointing"]["per_test_seed"])
                     for t in DSS14_TASKS}
@@ -197,7 +245,7 @@ def test_regression_shipped_policies_reproduce_their_test_scores(results: dict, 
                              h[t.name]["pointing"]["per_test_seed"][i] if "pointing" in h[t.name] else None)
                     for t in DSS14_TASKS}
         for task in DSS14_TASKS:
-            got = run_task(ctrl, task, results["test_seeds"], 3000)
+            got = run_task(ctrl, task, results["test_seeds"], 3000, access=FINAL_SCORING)
             servo, pointing = pick[task.name]
             groups[f"{key} {task.name}"] = (got["three_sigma_mdeg"], servo)
             if pointing is not None:

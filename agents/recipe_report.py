@@ -1,0 +1,186 @@
+"""A recipe's many-seed report: per training seed its validation-selected policy's pointing
+error against the references in every test scenario, the success rate, the IQM over seeds with
+its interval, a performance profile and the smoothness of the commands.
+
+Input is a campaign's ``summary.json`` (:mod:`dss14_env.agents.campaign`: per training seed the
+test figures of every episode of its ``eval/best`` policy, the references' on the same episodes)
+and, optionally, more references scored on the same episodes (e.g. the pointing-aware LQG).
+
+Definitions (every figure a mean over the test episodes of one scenario):
+
+* **pointing figure** of an episode: a hold's 3σ pointing error on the axis its wind swings
+  (front: el, side: xel); any other scenario's the larger of the two axes' 3σ (the worse axis);
+* **ratio** of a seed to a reference: its mean pointing figure over the reference's, on the same
+  episodes; a seed **beats** the reference in a scenario when the ratio is below 1, and the
+  **success rate** is the share of seeds that beat the PI in every scenario;
+* **IQM** over seeds with its 95 % percentile-bootstrap interval over seeds
+  (:func:`dss14_env.core.stats.iqm_ci`, :func:`scipy.stats.bootstrap`);
+* **performance profile**: the share of seeds whose worst ratio over the scenarios is at most
+  tau, over a grid of tau (at tau = 1 the success rate's complement of ties);
+* **smoothness**: acceleration-limit hits per episode (the limiter's ``accel_limited`` steps) and
+  their share of the episode's steps, and the share of the applied rate command's change lying
+  above 5 Hz (:func:`dss14_env.agents.evaluation.command_hf_share`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from dss14_env.core.stats import iqm_ci
+
+#: seed of every bootstrap here
+BOOTSTRAP_SEED = 0
+#: the performance profile's grid of tau (ratio to the PI)
+PROFILE_TAUS = tuple(float(t) for t in np.round(np.arange(0.2, 2.001, 0.01), 2))
+
+
+def pointing_figures(entry: Mapping[str, Any], pointing_axis: str | None) -> np.ndarray:
+    """Each episode's pointing figure (module doc) from a scenario's ``task_scores`` entry."""
+    f = entry["figures"]
+    if pointing_axis is not None:
+        return np.asarray(f[f"pointing_three_sigma_mdeg_{pointing_axis}"], float)
+    return np.maximum(np.asarray(f["pointing_three_sigma_mdeg_el"], float),
+                      np.asarray(f["pointing_three_sigma_mdeg_xel"], float))
+
+
+def scenario_figures(entry: Mapping[str, Any], pointing_axis: str | None, steps: int) -> dict[str, float]:
+    """A controller's figures in one scenario: mean pointing figure (mdeg), acceleration-limit
+    hits per episode and per step, mean high-frequency share of the command change.
+    """
+    f = entry["figures"]
+    hits = np.asarray(f["accel_limit_hits"], float)
+    return {"pointing_mdeg": float(np.mean(pointing_figures(entry, pointing_axis))),
+            "accel_hits": float(np.mean(hits)), "accel_hit_share": float(np.mean(hits) / steps),
+            "hf_share": float(np.nanmean(f["command_hf_share"]))}
+
+
+def controller_figures(scores: Mapping[str, Any], tasks: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    """:func:`scenario_figures` of every task of a campaign's protocol (``summary["protocol"]["tasks"]``)."""
+    return {t["name"]: scenario_figures(scores[t["name"]], t["pointing_axis"], int(t["steps"]))
+            for t in tasks}
+
+
+def recipe_report(summary: Mapping[str, Any], extra_refs: Mapping[str, Mapping[str, Any]] | None = None,
+                  validation: Mapping[int, float] | None = None) -> dict[str, Any]:
+    """The report (module doc) of a campaign's ``summary.json``.
+
+    :param extra_refs: more references' ``task_scores`` on the campaign's test episodes, by name
+    :param validation: seed index -> its selected evaluation's validation score (higher is
+        better); the best names the seed to ship
+    :raises ValueError: a summary without the PI's test scores or a seed without a selected policy
+    """
+    tasks = summary["protocol"]["tasks"]
+    refs_scores = {**summary.get("references", {}).get("test", {}), **(extra_refs or {})}
+    if "pi_kp1" not in refs_scores:
+        raise ValueError("recipe_report: the summary has no PI (pi_kp1) test scores")
+    refs = {name: controller_figures(s, tasks) for name, s in refs_scores.items()}
+    names = [t["name"] for t in tasks]
+    per_seed = []
+    for e in summary["per_seed"]:
+        if e.get("best") is None:
+            raise ValueError(f"recipe_report: seed index {e['seed_index']} has no selected policy")
+        figs = controller_figures(e["best"], tasks)
+        for name in names:
+            for ref, rf in refs.items():
+                figs[name][f"ratio_{ref}"] = figs[name]["pointing_mdeg"] / rf[name]["pointing_mdeg"]
+        worst = max(figs[n]["ratio_pi_kp1"] for n in names)
+        row = {"seed_index": e["seed_index"], "training_seed": e["training_seed"], "wall_s": e["wall_s"],
+               "env_steps": e["env_steps"], "scenarios": figs, "worst_ratio_pi": worst,
+               "beats_pi_everywhere": bool(worst < 1.0)}
+        if validation is not None:
+            row["validation_score"] = validation.get(e["seed_index"])
+        per_seed.append(row)
+    rng = np.random.default_rng(BOOTSTRAP_SEED)
+    iqm = {}
+    for name in names:
+        iqm[name] = {}
+        for ref in refs:
+            est = iqm_ci([r["scenarios"][name][f"ratio_{ref}"] for r in per_seed], rng)
+            iqm[name][f"ratio_{ref}"] = {"iqm": est.value, "ci95": [est.low, est.high]}
+    worst = [r["worst_ratio_pi"] for r in per_seed]
+    est = iqm_ci(worst, rng)
+    n_ok = sum(r["beats_pi_everywhere"] for r in per_seed)
+    out = {"scenarios": names, "references": refs, "per_seed": per_seed,
+           "success_rate": {"share": n_ok / len(per_seed), "seeds_beating_pi_everywhere": n_ok,
+                            "seeds": len(per_seed)},
+           "iqm": {**iqm, "worst_ratio_pi": {"iqm": est.value, "ci95": [est.low, est.high]}},
+           "profile": {"tau": list(PROFILE_TAUS),
+                       "worst_scenario": [float(np.mean(np.asarray(worst) <= t)) for t in PROFILE_TAUS],
+                       "all_scenarios": [float(np.mean([r["scenarios"][n]["ratio_pi_kp1"] <= t
+                                                        for r in per_seed for n in names]))
+                                         for t in PROFILE_TAUS]}}
+    if validation:
+        best = max((r for r in per_seed if r.get("validation_score") is not None),
+                   key=lambda r: r["validation_score"])
+        out["shipped_seed_index"] = best["seed_index"]
+    return out
+
+
+
+
+def _f(v: float, nd: int = 2) -> str:
+    return "–" if v is None or not np.isfinite(v) else f"{v:.{nd}f}"
+
+
+def recipe_markdown(report: Mapping[str, Any]) -> str:
+    """The report as Markdown tables: per seed the ratio to the PI per scenario (worst, beats
+    the PI everywhere), the IQM row with its interval, the references' figures, the
+    smoothness per seed and, when present, the direction/speed grid.
+    """
+    names = report["scenarios"]
+    sr = report["success_rate"]
+    lines = [f"Success rate (seeds whose validation-selected policy beats the PI's pointing error in "
+             f"every scenario): **{sr['seeds_beating_pi_everywhere']} of {sr['seeds']}** "
+             f"({100 * sr['share']:.0f} %).", "",
+             "Pointing error relative to the PI (mean over the test episodes; < 1 beats it):", "",
+             "| seed | " + " | ".join(names) + " | worst | beats PI everywhere | validation score |",
+             "|---|" + "---|" * (len(names) + 3)]
+    for r in report["per_seed"]:
+        cells = [_f(r["scenarios"][n]["ratio_pi_kp1"]) for n in names]
+        val = r.get("validation_score")
+        lines.append(f"| {r['training_seed']} | " + " | ".join(cells) + f" | {_f(r['worst_ratio_pi'])} | "
+                     f"{'yes' if r['beats_pi_everywhere'] else 'no'} | {_f(val, 3)} |")
+    iq = report["iqm"]
+    lines.append("| **IQM [95 % CI]** | " + " | ".join(
+        f"{_f(iq[n]['ratio_pi_kp1']['iqm'])} [{_f(iq[n]['ratio_pi_kp1']['ci95'][0])}, "
+        f"{_f(iq[n]['ratio_pi_kp1']['ci95'][1])}]" for n in names)
+        + f" | {_f(iq['worst_ratio_pi']['iqm'])} [{_f(iq['worst_ratio_pi']['ci95'][0])}, "
+          f"{_f(iq['worst_ratio_pi']['ci95'][1])}] | | |")
+    others = [k for k in iq[names[0]] if k != "ratio_pi_kp1"]
+    for k in others:
+        lines.append(f"| IQM {k.removeprefix('ratio_')} ratio | " + " | ".join(
+            f"{_f(iq[n][k]['iqm'])} [{_f(iq[n][k]['ci95'][0])}, {_f(iq[n][k]['ci95'][1])}]"
+            for n in names) + " | | | |")
+    lines += ["", "References on the same test episodes (pointing figure, mdeg; acceleration-limit hits "
+                  "per episode; high-frequency share of the command change):", "",
+              "| controller | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
+    for ref, figs in report["references"].items():
+        lines.append(f"| {ref} | " + " | ".join(
+            f"{_f(figs[n]['pointing_mdeg'])} mdeg; {figs[n]['accel_hits']:.0f} hits; "
+            f"{100 * figs[n]['hf_share']:.1f} %" for n in names) + " |")
+    lines += ["", "Smoothness per seed (acceleration-limit hits per episode / high-frequency share of the "
+                  "command change):", "",
+              "| seed | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
+    for r in report["per_seed"]:
+        lines.append(f"| {r['training_seed']} | " + " | ".join(
+            f"{r['scenarios'][n]['accel_hits']:.0f} / {100 * r['scenarios'][n]['hf_share']:.1f} %"
+            for n in names) + " |")
+    if report.get("grid"):
+        g = report["grid"]
+        lines += ["", f"Direction/speed grid ({g['what']}):", "",
+                  "| wind | " + " | ".join(g["controllers"]) + " | policy / PI [95 % CI] | "
+                  "policy / lqg_pointing [95 % CI] |", "|---|" + "---|" * (len(g["controllers"]) + 2)]
+        for c in g["conditions"]:
+            rp, rl = c["ratio_pi_kp1"], c["ratio_lqg_pointing"]
+            lines.append(f"| {c['wind_speed_kmh']:g} km/h, {c['wind_direction_deg']:g}° | " + " | ".join(
+                _f(c["pointing_mdeg"][k]) for k in g["controllers"])
+                + f" | {_f(rp['value'])} [{_f(rp['low'])}, {_f(rp['high'])}] | "
+                  f"{_f(rl['value'])} [{_f(rl['low'])}, {_f(rl['high'])}] |")
+    return "\n".join(lines) + "\n"
+
+
+__all__ = ["BOOTSTRAP_SEED", "PROFILE_TAUS", "controller_figures", "pointing_figures", "recipe_markdown",
+           "recipe_report", "scenario_figures"]
