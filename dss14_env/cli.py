@@ -222,7 +222,7 @@ def _bench(args: argparse.Namespace) -> int:
                       figures=not args.no_figures, sweep=not args.no_sweep,
                       sweep_seeds=args.sweep_seeds, sequential_episodes=args.sequential_episodes,
                       threads=args.threads, overwrite=args.overwrite, command=cmd,
-                      variants=args.variants)
+                      variants=args.variants, jobs=args.jobs)
     prepare_out(plan)  # before any work: a bad --out is a one-line error
     for note in plan.notes:
         print(f"dss14 bench: warning: {note}", file=sys.stderr)
@@ -505,6 +505,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="randomised plant parameters every episode (randomize_params=True)")
     p.add_argument("--threads", type=int, default=1, metavar="N",
                    help="BLAS threads of numpy and scipy while running (default 1)")
+    p.add_argument("--jobs", type=int, default=None, metavar="N",
+                   help="worker processes running the scenarios and sweep points side by side, the "
+                   "largest first (default: the usable CPUs, at most 8; 1: one process); the "
+                   "results are the same for any N")
     p.add_argument("--out", default="bench_out", help="output folder (default: bench_out)")
     p.add_argument("--overwrite", action="store_true",
                    help="replace the results of an earlier bench in --out (results.json, results.md, "

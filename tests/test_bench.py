@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 import re
 import subprocess
 import sys
@@ -710,3 +711,45 @@ def test_the_drive_variants_run_beside_the_nominal_model(tiny) -> None:
     assert point["hold_side@soft"] < point["hold_side"] < point["hold_side@stiff"]
     md = (tiny["out"] / "results.md").read_text()
     assert "drive/structure split" in md and "hold_side@stiff" in md
+
+
+def _numbers(results: dict) -> str:
+    """A results.json's figures and episodes, without the wall-clock and run records."""
+    drop = {"controller_time_ms", "wall_time_s", "controller_wall_time_s", "created_utc", "bench",
+            "load_average_start", "load_average_end"}
+
+    def strip(x):
+        if isinstance(x, dict):
+            return {k: strip(v) for k, v in x.items()
+                    if k not in drop and not k.startswith("controller_time_ms")}
+        if isinstance(x, list):
+            return [strip(v) for v in x]
+        return x
+    return json.dumps(strip(results), sort_keys=True)
+
+
+def test_jobs_give_the_serial_runs_numbers(tmp_path) -> None:
+    """Worker processes run the scenarios and sweep points side by side: same numbers."""
+    runs = {}
+    for jobs in (1, 2):
+        plan = P.build_plan(controllers=["pi_kp1", "lqg", "mpc"], scenarios=["hold_side", "step"], seeds=3,
+                            steps=300, sequential_episodes=1, sweep_seeds=2, wind_speeds=["40", "50"],
+                            out=tmp_path / str(jobs), figures=False, jobs=jobs)
+        assert plan.jobs == jobs
+        res = B.bench(plan, progress=False)
+        runs[jobs] = json.loads((tmp_path / str(jobs) / "results.json").read_text())
+        assert res["results"]["bench"]["config"]["jobs"] == jobs
+    assert "pool" in runs[2]["bench"]["wall_time_s"] and "pool" not in runs[1]["bench"]["wall_time_s"]
+    assert runs[1]["summary"]["mpc"]["hold_side"]["servo_error_mdeg"]["el"]["three_sigma"]["n_episodes"] == 1
+    assert _numbers(runs[1]) == _numbers(runs[2])
+
+
+@pytest.mark.parametrize("jobs", [0, -1, "x"])
+def test_bad_jobs_are_named(jobs) -> None:
+    with pytest.raises(P.BenchOptionError, match="^--jobs"):
+        P.build_plan(controllers=["pi_kp1"], scenarios=["step"], quick=True, jobs=jobs)
+
+
+def test_default_jobs_are_the_usable_cpus() -> None:
+    assert P.build_plan(controllers=["pi_kp1"], scenarios=["step"], quick=True).jobs == P.default_jobs()
+    assert 1 <= P.default_jobs() <= min(P.MAX_DEFAULT_JOBS, os.cpu_count() or 1)

@@ -69,6 +69,16 @@ LOADED_AXES: Mapping[str, tuple[str, ...]] = LiveMapping(
     lambda: {r.name: r.loaded_axes for r in catalog.SCENARIOS.values() if r.loaded_axes})
 #: default BLAS threads while running
 DEFAULT_THREADS = 1
+#: most worker processes of a run without ``--jobs``
+MAX_DEFAULT_JOBS = 8
+
+
+def default_jobs() -> int:
+    """Worker processes without ``--jobs``: the CPUs this process may use, at most
+    :data:`MAX_DEFAULT_JOBS`.
+    """
+    cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return max(1, min(cpus, MAX_DEFAULT_JOBS))
 
 
 class BenchOptionError(ValueError):
@@ -116,6 +126,8 @@ class BenchPlan:
     :param overwrite: replace the bench's files in an output folder that has them
     :param figures: draw the PNG figures
     :param threads: BLAS threads while running (None: leave them)
+    :param jobs: worker processes running the scenarios, sweep points and variant points side
+        by side (1: all in this process, one after another)
     :param quick: the plan came from ``--quick`` (for the record)
     :param bootstrap_seed: seed of the confidence intervals' resampling
     :param notes: warnings found while building the plan (printed, stored in results.json)
@@ -138,6 +150,7 @@ class BenchPlan:
     overwrite: bool = False
     figures: bool = True
     threads: int | None = DEFAULT_THREADS
+    jobs: int = 1
     quick: bool = False
     bootstrap_seed: int = 0
     notes: list[str] = field(default_factory=list)
@@ -441,7 +454,8 @@ def build_plan(controllers: Sequence[str] | None = None, scenarios: Sequence[str
                out: str | Path = "bench_out", figures: bool = True, sweep: bool = True,
                sweep_seeds: int | None = None, sequential_episodes: int | None = None,
                threads: int | None = DEFAULT_THREADS, overwrite: bool = False,
-               command: str | None = None, variants: Sequence[str] | None = None) -> BenchPlan:
+               command: str | None = None, variants: Sequence[str] | None = None,
+               jobs: int | None = None) -> BenchPlan:
     """Resolve and validate the bench options (None: the default of the option).
 
     :param controllers: controller names of the catalog (default :data:`DEFAULT_CONTROLLERS`;
@@ -475,6 +489,8 @@ def build_plan(controllers: Sequence[str] | None = None, scenarios: Sequence[str
     :param variants: drive variants whose hold scenarios run too (default
         :data:`DEFAULT_VARIANTS`, with ``quick`` none; empty: none), with
         :data:`VARIANT_CONTROLLERS` among the selected controllers
+    :param jobs: worker processes (default :func:`default_jobs`; 1: one process, serially);
+        the results are the same for any count
     :raises BenchOptionError: a bad option (the message names it)
     """
     ctrl = _names(controllers, catalog.controller_names(), "--controllers", "controller")
@@ -491,6 +507,7 @@ def build_plan(controllers: Sequence[str] | None = None, scenarios: Sequence[str
         raise BenchOptionError(f"--threads: {threads} BLAS threads, this machine has "
                                f"{os.cpu_count() or 1} CPUs")
     threads = _count(threads, "--threads", 1, MAX_THREADS)
+    jobs = default_jobs() if jobs is None else _count(jobs, "--jobs", 1, MAX_THREADS)
     scen = list(catalog.scenario_names("bench")) if scen is None else scen
     env_kwargs = {"randomize_params": True} if randomize else {}
     dt = control_period(env_kwargs)
@@ -520,7 +537,7 @@ def build_plan(controllers: Sequence[str] | None = None, scenarios: Sequence[str
                      sweep_directions=directions, sweep=sweep_run, variants=var, variant_run=variant_run,
                      env_kwargs=env_kwargs, rows=tuple(rows), dt=dt,
                      ppo_model=None if ppo_model is None else str(ppo_model), out=Path(out),
-                     overwrite=bool(overwrite), figures=bool(figures), threads=threads,
+                     overwrite=bool(overwrite), figures=bool(figures), threads=threads, jobs=jobs,
                      quick=bool(quick), notes=notes, command=command)
 
 
@@ -544,6 +561,7 @@ def sweep_name(direction: str, speed_kmh: float) -> str:
 __all__ = ["BenchOptionError", "BenchPlan", "Budget", "DEFAULT_BUDGETS", "DEFAULT_CONTROLLERS",
            "DEFAULT_SCENARIOS", "DEFAULT_SWEEP", "DEFAULT_VARIANTS", "VARIANT_CONTROLLERS", "LOADED_AXES",
            "QUICK_BUDGETS", "QUICK_SWEEP", "ScenarioRun", "SWEEP_DIRECTIONS", "build_plan",
-           "MIN_SCORED_S", "check_names", "control_period", "controller_rows", "least_steps",
+           "MAX_DEFAULT_JOBS", "MIN_SCORED_S", "default_jobs", "check_names", "control_period",
+           "controller_rows", "least_steps",
            "parse_episodes", "parse_seeds", "default_wind_speeds", "parse_wind_speeds", "sweep_name",
            "sweep_scenario"]

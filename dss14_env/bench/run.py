@@ -8,13 +8,17 @@ keys, episode length and warm-up: the 50 km/h points) is taken from it, not reru
 
 from __future__ import annotations
 
+import multiprocessing
+import signal
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 from dss14_env.bench import catalog, runner
 from dss14_env.bench.plan import SWEEP_DIRECTIONS, BenchPlan, ScenarioRun, sweep_name, sweep_scenario
 from dss14_env.bench.runner import Scenario
+from dss14_env.bench.threads import blas_threads
 from dss14_env.core.progress import Progress
 from dss14_env.model.variants import DRIVE_VARIANTS
 
@@ -85,6 +89,25 @@ def _merge(parts: list[dict[str, Any]]) -> dict[str, Any]:
             "yardstick": {k: v for p in parts for k, v in p["yardstick"].items()}}
 
 
+#: a one-at-a-time episode's cost in batched episodes of the same length (the MPC's QP per
+#: period against a row of the vector environment), for ordering the units only
+SEQUENTIAL_WEIGHT = 30.0
+
+
+@dataclass(frozen=True)
+class _Unit:
+    """One independent piece of the run: one runner call (part ``main``, ``sweep`` or
+    ``variants``).
+    """
+
+    part: str
+    name: str
+    scenario: Scenario
+    run: ScenarioRun
+    ctrls: tuple[Any, ...]
+    record: bool
+
+
 def _run_one(plan: BenchPlan, ctrls: list[Any], name: str, sc: Scenario, r: ScenarioRun,
              cb: Callable[[str, int], None] | None, record: bool) -> dict[str, Any]:
     return runner.run(ctrls, [(name, sc)], r.seeds, plan.env_kwargs, progress=cb, record=record,
@@ -98,9 +121,72 @@ def _expected_episodes(plan: BenchPlan, runs: list[ScenarioRun]) -> int:
     return sum(len(r.seeds) if row.batchable else r.sequential for r in runs for row in plan.rows)
 
 
+def _units(plan: BenchPlan, ctrls: list[Any], to_run: list[tuple[str, Scenario]],
+           variants: list[tuple[str, str, str, Scenario]], v_ctrls: list[Any]) -> list[_Unit]:
+    """The run's independent units, in the serial run's order: a main scenario (with its traces),
+    a sweep point or a hold scenario on a drive variant, each with every controller it runs.
+    """
+    units = [_Unit("main", s, plan.scenario(s), plan.runs[s], tuple(ctrls), catalog.SCENARIOS[s].traced)
+             for s in plan.scenarios]
+    units += [_Unit("sweep", n, sc, plan.sweep, tuple(ctrls), False) for n, sc in to_run]
+    units += [_Unit("variants", n, sc, plan.variant_run, tuple(v_ctrls), False) for n, _, _, sc in variants]
+    return units
+
+
+def _unit_cost(u: _Unit) -> float:
+    """A unit's rough cost, to start the largest first: control periods simulated, an episode of
+    a one-at-a-time row (the MPC) counted as :data:`SEQUENTIAL_WEIGHT` batched ones.
+    """
+    return float(sum(u.run.steps * (len(u.run.seeds) if row.batchable
+                                    else SEQUENTIAL_WEIGHT * u.run.sequential) for row in u.ctrls))
+
+
+#: the plan of this worker process (set by :func:`_init_worker`)
+_WORKER_PLAN: list[BenchPlan] = []
+
+
+def _init_worker(plan: BenchPlan) -> None:
+    """A worker of the pool: Ctrl-C is the parent's to handle; the plan's BLAS threads."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _WORKER_PLAN.append(plan)
+    blas_threads(plan.threads).__enter__()  # for the worker's life (it ends with the pool)
+
+
+def _run_unit(item: tuple[int, _Unit]) -> tuple[int, dict[str, Any], float]:
+    """One unit in a worker: (its index, the runner's result, its wall time)."""
+    i, u = item
+    t0 = time.perf_counter()
+    res = _run_one(_WORKER_PLAN[0], list(u.ctrls), u.name, u.scenario, u.run, None, u.record)
+    return i, res, time.perf_counter() - t0
+
+
+def _run_pool(plan: BenchPlan, units: list[_Unit], jobs: int,
+              done: Callable[[_Unit, dict[str, Any]], None]) -> tuple[list[dict[str, Any]], dict[str, float]]:
+    """The units in ``jobs`` worker processes, largest first; their results in the units' order
+    and the summed wall time of each part's units (s).
+    """
+    results: list[dict[str, Any] | None] = [None] * len(units)
+    wall = {"main": 0.0, "sweep": 0.0, "variants": 0.0}
+    order = sorted(range(len(units)), key=lambda i: -_unit_cost(units[i]))
+    # fork: the workers start with the parent's imports and plan (spawn where there is none)
+    ctx = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods()
+                                      else "spawn")
+    with ctx.Pool(min(jobs, len(units)), _init_worker, (plan,)) as pool:
+        for i, res, t in pool.imap_unordered(_run_unit, [(i, units[i]) for i in order], chunksize=1):
+            results[i] = res
+            wall[units[i].part] += t
+            done(units[i], res)
+    return [r for r in results if r is not None], wall
+
+
 def run_plan(plan: BenchPlan, progress: bool = True) -> dict[str, Any]:
     """Run the plan: the main scenarios (with the first seed's time histories of the hold and
     step scenarios) and the wind sweep.
+
+    With ``plan.jobs`` above 1 the units (:func:`_units`: a scenario, a sweep point, a variant
+    point) run in that many worker processes, largest first, and the progress shows each unit
+    as it finishes; every episode is seeded as in the serial run and the results are merged in
+    the serial run's order, so both give the same numbers.
 
     :param plan: the plan (:func:`dss14_env.bench.plan.build_plan`)
     :param progress: show the episodes done on stderr (:class:`~dss14_env.core.progress.Progress`:
@@ -109,7 +195,8 @@ def run_plan(plan: BenchPlan, progress: bool = True) -> dict[str, Any]:
         sweep points that ran (or None), "variants": runner result of the hold scenarios on the
         drive variants (or None), "sweep_points": [(name, direction, speed, same_as)],
         "variant_points": [(name, scenario, variant)], "wall_time_s": {"main", "sweep",
-        "variants"}}``
+        "variants"}}`` (in processes: each part's units' summed wall time, and ``"pool"``, the
+        pool's own)
     """
     ctrls = controller_entries(plan)
     points = sweep_points(plan)
@@ -118,6 +205,7 @@ def run_plan(plan: BenchPlan, progress: bool = True) -> dict[str, Any]:
     v_ctrls = [r for r in ctrls if r.name in plan.variant_controllers]
     total = (_expected_episodes(plan, list(plan.runs.values()) + [plan.sweep] * len(to_run))
              + len(variants) * len(v_ctrls) * len(plan.variant_run.seeds))
+    units = _units(plan, ctrls, to_run, variants, v_ctrls)
     t0 = time.perf_counter()
     with Progress(total, "bench", unit="episodes", enabled=progress) as bar:
         def tick(line: str, n: int) -> None:
@@ -126,20 +214,29 @@ def run_plan(plan: BenchPlan, progress: bool = True) -> dict[str, Any]:
             bar.set_note(tail.strip())
             bar.update(n)
 
-        main = _merge([_run_one(plan, ctrls, s, plan.scenario(s), plan.runs[s], tick,
-                                catalog.SCENARIOS[s].traced) for s in plan.scenarios])
-        t1 = time.perf_counter()
-        sweep = _merge([_run_one(plan, ctrls, n, sc, plan.sweep, tick, False) for n, sc in to_run]) \
-            if to_run else None
-        t2 = time.perf_counter()
-        var = _merge([_run_one(plan, v_ctrls, n, sc, plan.variant_run, tick, False)
-                      for n, _, _, sc in variants]) if variants else None
+        if plan.jobs > 1 and len(units) > 1:
+            def done(u: _Unit, res: dict[str, Any]) -> None:
+                tick(f"{u.name}: {len(res['episodes'])} episodes", len(res["episodes"]))
+
+            parts, wall = _run_pool(plan, units, plan.jobs, done)
+            wall["pool"] = time.perf_counter() - t0
+        else:
+            parts, wall, t = [], {}, t0
+            for u in units:
+                parts.append(_run_one(plan, list(u.ctrls), u.name, u.scenario, u.run, tick, u.record))
+                now = time.perf_counter()
+                wall[u.part] = wall.get(u.part, 0.0) + now - t
+                t = now
         bar.set_total(bar.n)
-    t3 = time.perf_counter()
-    return {"main": main, "sweep": sweep, "variants": var,
+    by_part = {k: [p for u, p in zip(units, parts, strict=True) if u.part == k]
+               for k in ("main", "sweep", "variants")}
+    return {"main": _merge(by_part["main"]), "sweep": _merge(by_part["sweep"]) if to_run else None,
+            "variants": _merge(by_part["variants"]) if variants else None,
             "sweep_points": [(n, d, v, same) for n, d, v, _, same in points],
             "variant_points": [(n, s, v) for n, s, v, _ in variants],
-            "wall_time_s": {"main": t1 - t0, "sweep": t2 - t1, "variants": t3 - t2}}
+            "wall_time_s": {"main": wall.get("main", 0.0), "sweep": wall.get("sweep", 0.0),
+                            "variants": wall.get("variants", 0.0),
+                            **({"pool": wall["pool"]} if "pool" in wall else {})}}
 
 
 __all__ = ["controller_entries", "run_plan", "sweep_points", "SWEEP_DIRECTIONS", "variant_name",
