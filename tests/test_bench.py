@@ -6,8 +6,10 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import multiprocessing
 import os
 import re
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -753,3 +755,28 @@ def test_bad_jobs_are_named(jobs) -> None:
 def test_default_jobs_are_the_usable_cpus() -> None:
     assert P.build_plan(controllers=["pi_kp1"], scenarios=["step"], quick=True).jobs == P.default_jobs()
     assert 1 <= P.default_jobs() <= min(P.MAX_DEFAULT_JOBS, os.cpu_count() or 1)
+
+
+
+def _worker_handlers(plan, conn) -> None:
+    from dss14_env.bench import run as bench_run
+    from dss14_env.core.stop import terminate_as_interrupt
+
+    with terminate_as_interrupt():  # as the command runs the bench
+        bench_run._init_worker(plan)
+        conn.send((signal.getsignal(signal.SIGTERM) == signal.SIG_DFL,
+                   signal.getsignal(signal.SIGINT) == signal.SIG_IGN))
+
+
+@pytest.mark.skipif("fork" not in multiprocessing.get_all_start_methods(), reason="the pool forks")
+def test_a_worker_ends_quietly_on_the_pools_sigterm() -> None:
+    """The pool ends its workers with SIGTERM when the run is over: a worker forked from the
+    command (whose SIGTERM handler raises) must die quietly, not print a traceback; Ctrl-C is the
+    parent's."""
+    plan = P.build_plan(controllers=["pi_kp1"], scenarios=["step"], quick=True, jobs=2)
+    ctx = multiprocessing.get_context("fork")
+    parent, child = ctx.Pipe()
+    p = ctx.Process(target=_worker_handlers, args=(plan, child))
+    p.start()
+    assert parent.recv() == (True, True)
+    p.join(30)

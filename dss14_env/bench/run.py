@@ -146,8 +146,12 @@ _WORKER_PLAN: list[BenchPlan] = []
 
 
 def _init_worker(plan: BenchPlan) -> None:
-    """A worker of the pool: Ctrl-C is the parent's to handle; the plan's BLAS threads."""
+    """A worker of the pool: Ctrl-C is the parent's to handle, SIGTERM (how the pool ends its
+    workers) ends the worker quietly, whatever handler the forked parent had; the plan's BLAS
+    threads.
+    """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     _WORKER_PLAN.append(plan)
     blas_threads(plan.threads).__enter__()  # for the worker's life (it ends with the pool)
 
