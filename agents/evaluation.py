@@ -85,10 +85,11 @@ def check_unsealed(seeds: Sequence[int], access: FinalScoring | None = None,
 
     >>> check_unsealed([1000, 2000])
     >>> check_unsealed([3], FINAL_SCORING)
-    >>> check_unsealed([1000, 3], where="validation")  # doctest: +ELLIPSIS
-    Traceback (most recent call last):
-    ...
-    dss14_env.agents.evaluation.SealedSeedError: validation: seed 3 is a sealed test seed ...
+    >>> try:
+    ...     check_unsealed([1000, 3], where="validation")
+    ... except SealedSeedError as exc:
+    ...     print(str(exc)[:48])
+    validation: seed 3 is a sealed test seed (0-999)
 
     :param seeds: the seeds asked for
     :param access: :data:`FINAL_SCORING` for the final scoring; None for everything else
@@ -175,8 +176,8 @@ def command_hf_share(rate: np.ndarray, dt: float, cutoff_hz: float = HF_CUTOFF_H
     fewer than 3 steps or a command that never changes.
 
     >>> t = np.arange(1000) * 0.02
-    >>> round(command_hf_share(np.c_[np.sin(t), np.cos(t)], 0.02), 3)
-    0.0
+    >>> command_hf_share(np.c_[np.sin(t), np.cos(t)], 0.02) < 0.01
+    True
 
     :param rate: (n, 2) applied rate commands (any unit)
     :param dt: the control period, s
