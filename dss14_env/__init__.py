@@ -20,18 +20,24 @@ modules of the top room: the CLI may import everything, ``reproduce`` everything
 __version__ = "0.1.0"
 
 
+#: matplotlib's built-in non-interactive backends (its ``backend_registry``), always valid
+OFF_SCREEN_BACKENDS = frozenset({"agg", "cairo", "pdf", "pgf", "ps", "svg", "template"})
+
+
 def _set_aside_a_bad_matplotlib_backend() -> None:
     """Importing matplotlib (which the model's control-systems library does) raises when the
     ``MPLBACKEND`` environment variable names no backend; the package draws its figures
     off-screen on Agg (only ``render_mode="human"`` goes through pyplot), so such a value is
-    set aside with a warning instead of stopping every command.
+    set aside with a warning instead of stopping every command.  The off-screen backends
+    matplotlib always ships (:data:`OFF_SCREEN_BACKENDS`) pass without importing it (seconds on
+    a loaded machine); any other name is matplotlib's to judge.
     """
     import os
     import sys
     import warnings
 
     name = os.environ.get("MPLBACKEND")
-    if not name:
+    if not name or name.lower() in OFF_SCREEN_BACKENDS:
         return
     try:
         import matplotlib  # noqa: F401

@@ -4,9 +4,12 @@ are imported inside the command), and the ``quick`` tier is registered."""
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from pathlib import Path
+
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 #: repository folder -> installed package
@@ -42,11 +45,16 @@ HEAVY = ("torch", "stable_baselines3", "sb3_contrib", "ray", "cvxpy", "numba", "
          "scipy")
 
 
-def test_importing_the_command_line_imports_no_heavy_library(tmp_path: Path) -> None:
+@pytest.mark.parametrize("backend", [None, "Agg"])
+def test_importing_the_command_line_imports_no_heavy_library(tmp_path: Path, backend: str | None) -> None:
+    """Also with ``MPLBACKEND`` naming an off-screen backend (as CI and headless users set it)."""
     code = ("import sys\nimport dss14_env.cli\n"
             f"print(sorted({{m.split('.')[0] for m in sys.modules}} & set({HEAVY!r})))")
+    env = {k: v for k, v in os.environ.items() if k != "MPLBACKEND"}
+    if backend is not None:
+        env["MPLBACKEND"] = backend
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path,
-                         timeout=300)
+                         timeout=300, env=env)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "[]", out.stdout
 
@@ -59,3 +67,11 @@ def test_quick_tier_is_registered_and_its_files_exist() -> None:
     spec.loader.exec_module(root)
     assert '"quick: ' in (ROOT / "pyproject.toml").read_text()
     assert root.QUICK_FILES and all(p.is_file() for p in root.QUICK_FILES)
+
+
+def test_the_off_screen_backends_passed_unchecked_are_matplotlibs() -> None:
+    from matplotlib.backends.registry import BackendFilter, backend_registry
+
+    import dss14_env
+
+    assert dss14_env.OFF_SCREEN_BACKENDS == set(backend_registry.list_builtin(BackendFilter.NON_INTERACTIVE))
