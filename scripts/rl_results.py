@@ -113,6 +113,18 @@ SINGLE_POLICIES = {
 TEST_SEEDS = list(range(10))
 
 
+
+def ship_run(run: Path, dest: Path) -> None:
+    """Copy a run's validation-selected policy (``eval/best``), its validation history and its
+    training summary into the policy folder ``dest`` (replaced)."""
+    if dest.exists():
+        shutil.rmtree(dest)
+    dest.mkdir(parents=True)
+    for name in ("policy.pt", "normalization.npz", "config.yaml"):
+        shutil.copyfile(run / "eval" / "best" / name, dest / name)
+    shutil.copyfile(run / "eval" / "evaluations.npz", dest / "evaluations.npz")
+    shutil.copyfile(run / "train_summary.json", dest / "train_summary.json")
+
 def _machine() -> dict:
     return {"cpu_count": os.cpu_count(), "load_average": list(os.getloadavg()),
             "python": platform.python_version(), "platform": platform.platform()}
@@ -363,13 +375,7 @@ def ship(runs: Path, results_path: Path) -> None:
             continue
         run = runs / AGENTS[key][1] / f"seed_{shipped['seed_index']}"
         dest = ROOT / shipped["folder"]
-        if dest.exists():
-            shutil.rmtree(dest)
-        dest.mkdir(parents=True)
-        for name in ("policy.pt", "normalization.npz", "config.yaml"):
-            shutil.copyfile(run / "eval" / "best" / name, dest / name)
-        shutil.copyfile(run / "eval" / "evaluations.npz", dest / "evaluations.npz")
-        shutil.copyfile(run / "train_summary.json", dest / "train_summary.json")
+        ship_run(run, dest)
         print(f"{key}: {run} -> {dest.relative_to(ROOT)}")
 
 
@@ -481,13 +487,7 @@ def ship_recipe(campaign: Path, report_path: Path) -> None:
     entry = next(e for e in summary["per_seed"] if e["seed_index"] == k)
     run = campaign / entry["run"]
     dest = ROOT / "agents" / "policies" / RECIPE_SHIPPED
-    if dest.exists():
-        shutil.rmtree(dest)
-    dest.mkdir(parents=True)
-    for name in ("policy.pt", "normalization.npz", "config.yaml"):
-        shutil.copyfile(run / "eval" / "best" / name, dest / name)
-    shutil.copyfile(run / "eval" / "evaluations.npz", dest / "evaluations.npz")
-    shutil.copyfile(run / "train_summary.json", dest / "train_summary.json")
+    ship_run(run, dest)
     doc["shipped"] = {"folder": f"agents/policies/{RECIPE_SHIPPED}", "seed_index": k,
                       "training_seed": entry["training_seed"],
                       "why": "the best validation score of the campaign's seeds",
