@@ -304,20 +304,26 @@ def load_stats(path: Path) -> tuple[dict[str, Any], NormStats]:
         raise PolicyFileError(f"{path}: field 'fingerprint' is not valid JSON") from None
     if not isinstance(fp, dict) or fp.get("format") != FORMAT:
         raise PolicyFileError(f"{path}: not a normalisation file of format {FORMAT}")
-    mean, var = np.asarray(a["obs_mean"], np.float64), np.asarray(a["obs_var"], np.float64)
-    if mean.ndim != 1 or mean.shape != var.shape or not (np.all(np.isfinite(mean)) and
-                                                         np.all(np.isfinite(var)) and np.all(var >= 0)):
+    mean, var = _real(a, "obs_mean", path), _real(a, "obs_var", path)
+    if mean.ndim != 1 or mean.shape != var.shape or not np.all(var >= 0):
         raise PolicyFileError(f"{path}: field 'obs_mean'/'obs_var' must be finite vectors of one "
                               f"size (var >= 0)")
     ret = {}
     if "ret_mean" in a:
-        ret = dict(ret_mean=np.asarray(a["ret_mean"], np.float64),
-                   ret_var=np.asarray(a["ret_var"], np.float64),
+        ret = dict(ret_mean=_real(a, "ret_mean", path), ret_var=_real(a, "ret_var", path),
                    ret_count=_scalar(a, "ret_count", path), clip_reward=_scalar(a, "clip_reward", path))
-        if not (np.all(np.isfinite(ret["ret_mean"])) and np.all(np.isfinite(ret["ret_var"]))):
-            raise PolicyFileError(f"{path}: field 'ret_mean'/'ret_var' must be finite")
     return fp, NormStats(mean, var, _scalar(a, "obs_count", path, positive=False),
                          _scalar(a, "clip_obs", path), _scalar(a, "epsilon", path), **ret)
+
+
+def _real(a: dict[str, np.ndarray], key: str, path: Path) -> np.ndarray:
+    """Field ``key`` of a statistics file as float64: present, of real numbers (a complex field
+    is refused, not cast), every value finite.
+    """
+    v = np.asarray(a.get(key))
+    if v.dtype.kind not in "fiu" or not np.isfinite(v).all():
+        raise PolicyFileError(f"{path}: field {key!r} must hold finite real numbers")
+    return v.astype(np.float64)
 
 
 def _scalar(a: dict[str, np.ndarray], key: str, path: Path, positive: bool = True) -> float:

@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import io
 import math
+import re
 import shutil
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -140,7 +142,9 @@ def test_statistics_of_any_values_load_finite_or_are_one_error(stats_folder, cha
     path = folder / "fuzzed.npz"
     path.write_bytes(_npz_bytes({**good, **changes}))
     try:
-        _, stats = load_stats(path)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # a value cast with a warning (complex to real) fails
+            _, stats = load_stats(path)
     except PolicyFileError as exc:
         assert str(exc).startswith(str(path)) and "\n" not in str(exc)
         return
@@ -148,3 +152,14 @@ def test_statistics_of_any_values_load_finite_or_are_one_error(stats_folder, cha
     for v in (stats.clip_obs, stats.epsilon):
         assert math.isfinite(v) and v > 0
     assert math.isfinite(stats.obs_count) and stats.obs_count >= 0
+
+
+@pytest.mark.parametrize("key", ["obs_mean", "obs_var", "ret_mean", "ret_var"])
+def test_complex_statistics_are_refused_naming_the_field(stats_folder, key) -> None:
+    folder, good = stats_folder
+    path = folder / f"complex_{key}.npz"
+    changed = {**good, key: np.asarray(good.get(key, good["obs_mean"]), np.complex128) + 1j}
+    path.write_bytes(_npz_bytes(changed))
+    with pytest.raises(PolicyFileError, match=rf"^{re.escape(str(path))}: field '{key}' must hold "
+                                              r"finite real numbers$"):
+        load_stats(path)

@@ -76,6 +76,8 @@ def test_serial_failure_names_the_item() -> None:
 
 
 def test_pinned_threads_limits_blas_and_restores() -> None:
+    import scipy.linalg  # noqa: F401  (entering loads numpy's and scipy's BLAS: compare like with like)
+
     before = sorted(d["num_threads"] for d in threadpool_info())
     with P.pinned_threads(1):
         assert {d["num_threads"] for d in threadpool_info()} == {1}
