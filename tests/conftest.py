@@ -1,4 +1,5 @@
-"""Shared test settings: the hypothesis profiles, and the check of re-scored learned policies.
+"""Shared test settings: the hypothesis profiles, the check of re-scored learned policies, and the
+one local Ray of a test session.
 
 About 100 examples per property in the default suite (``dss14-default``); the ``slow`` tests
 and ``HYPOTHESIS_PROFILE=dss14-slow`` run 1,000+ (``settings.get_profile("dss14-slow")``).
@@ -48,3 +49,30 @@ def check_rescored() -> Callable[[dict[str, tuple]], None]:
     committed)}`` arrays of per-episode figures.
     """
     return _check_rescored
+
+
+# ------------------------------------------------------------------ one local Ray
+#: the xdist group of every test that uses :func:`local_ray`: with ``-n auto`` they all run on one
+#: worker, so that no two local Ray clusters start side by side on one machine
+RAY_GROUP = "local_ray"
+
+
+@pytest.hookimpl(tryfirst=True)  # before xdist reads the groups
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Put the tests that start or use the local Ray into one xdist group (:data:`RAY_GROUP`)."""
+    for item in items:
+        if "local_ray" in getattr(item, "fixturenames", ()):
+            item.add_marker(pytest.mark.xdist_group(RAY_GROUP))
+
+
+@pytest.fixture(scope="session")
+def local_ray():
+    """One local Ray with 2 CPUs for the session, its workers' BLAS/OpenMP pools at one thread
+    (a command under test finds it running and uses it)."""
+    ray = pytest.importorskip("ray")
+    from dss14_env.core.parallel import THREAD_ENV_VARS
+
+    ray.init(num_cpus=2, include_dashboard=False, logging_level="WARNING",
+             runtime_env={"env_vars": {v: "1" for v in THREAD_ENV_VARS}})
+    yield ray
+    ray.shutdown()

@@ -329,15 +329,6 @@ def test_command_without_ray_says_how_to_install_it(tmp_path, capsys, monkeypatc
 
 
 # ------------------------------------------------------------------ on a local Ray
-@pytest.fixture(scope="module")
-def local_ray():
-    """One local Ray with 2 CPUs for the module (the command finds it running and uses it)."""
-    ray = pytest.importorskip("ray")
-    ray.init(num_cpus=2, include_dashboard=False, logging_level="WARNING")
-    yield ray
-    ray.shutdown()
-
-
 def test_command_on_ray_gives_the_same_numbers(local_ray, fresh, tmp_path) -> None:
     assert cli.main(ARGS + ["--ray", "--out", str(tmp_path / "ray")]) == 0
     res = json.loads((tmp_path / "ray" / "results.json").read_text())

@@ -115,17 +115,16 @@ def test_without_ray_the_error_says_how_to_install_it(monkeypatch) -> None:
 
 
 # ------------------------------------------------------------------ on a local Ray
-@pytest.fixture(scope="module")
-def local_ray():
-    """One local Ray with 2 CPUs for the module; this module's functions go to the workers by
-    value (the workers cannot import a test module)."""
-    ray = pytest.importorskip("ray")
+@pytest.fixture(autouse=True)
+def by_value(request):
+    """This module's functions go to the Ray workers by value (they cannot import a test module)."""
+    if "local_ray" not in request.fixturenames:
+        yield
+        return
+    ray = request.getfixturevalue("local_ray")
     ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])
-    ray.init(num_cpus=2, include_dashboard=False, logging_level="WARNING",
-             runtime_env={"env_vars": {v: "1" for v in P.THREAD_ENV_VARS}})
-    yield ray
+    yield
     ray.cloudpickle.unregister_pickle_by_value(sys.modules[__name__])
-    ray.shutdown()
 
 
 def test_ray_gives_the_same_numbers_as_in_process(local_ray) -> None:
