@@ -201,6 +201,28 @@ def test_single_env_step_info_keys_and_types() -> None:
     assert list(vinfo) == list(INFO_KEYS) and all(np.shape(v)[0] == 3 for v in vinfo.values())
 
 
+def test_a_deep_copy_of_the_step_info_is_equal_and_shares_nothing_mutable() -> None:
+    """``copy.deepcopy`` of a step's info (what stable-baselines3's DummyVecEnv does every step):
+    an equal dict of the same keys and types; values a wrapper added (an array, a nested dict)
+    are copies, so changing the original afterwards leaves the copy as it was."""
+    import copy
+
+    env = DSS14Env()
+    env.reset(seed=0)
+    *_, info = env.step(np.array([0.3, -2.0], np.float32))
+    info["terminal_observation"] = obs = np.arange(3.0)
+    info["episode"] = {"r": [1.0]}
+    c = copy.deepcopy(info)
+    assert c == {k: v for k, v in info.items() if k not in ("terminal_observation", "episode")} | {
+        "terminal_observation": c["terminal_observation"], "episode": {"r": [1.0]}}
+    assert [type(v) for v in c.values()] == [type(v) for v in info.values()]
+    obs[0] = 99.0
+    info["episode"]["r"].append(2.0)
+    info["servo_error_az_mdeg"] = -1.0
+    assert c["terminal_observation"].tolist() == [0.0, 1.0, 2.0] and c["episode"] == {"r": [1.0]}
+    assert c["servo_error_az_mdeg"] != -1.0
+
+
 _ROLLOUT = """
 import json, sys
 import numpy as np

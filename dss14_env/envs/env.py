@@ -16,7 +16,7 @@ from gymnasium import spaces
 
 from dss14_env.core.units import DEG, KMH_PER_M_S, R2D, R2MD
 from dss14_env.envs.config import EnvConfig, load_env_config
-from dss14_env.envs.core import OBS_HIGH, OBS_NAMES, StepConstants, as_actions, check_seed
+from dss14_env.envs.core import OBS_HIGH, OBS_NAMES, StepConstants, StepInfo, as_actions, check_seed
 from dss14_env.envs.fused import (
     NON_FINITE,
     ONE_HITS,
@@ -548,8 +548,8 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         return self._gust_of(self._plant_state())
 
     def _gust_of(self, x: np.ndarray) -> float:
-        tg = self._C_gust @ x  # x: the episode's one-copy state
-        return float(tg[0] if self._gust_az else tg[1]) * self._gust_inv
+        row = self._C_gust[0 if self._gust_az else 1]  # x: the episode's one-copy state
+        return float(row.dot(x)) * self._gust_inv
 
     @property
     def elapsed_steps(self) -> int:
@@ -603,13 +603,14 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         self._j = j + 1
         v = S[ONE_INFO].tolist()
         f = v[2:]
-        info = {"servo_error_az_mdeg": f[0], "servo_error_el_mdeg": f[1], "measured_error_az_mdeg": f[2],
-                "measured_error_el_mdeg": f[3], "pointing_error_el_mdeg": f[4],
-                "pointing_error_xel_mdeg": f[5], "wind_speed_mps": f[6], "wind_direction_rad": f[7],
-                "action_unclipped": tuple(action.tolist()),
-                "rate_command_az_deg_s": f[8], "rate_command_el_deg_s": f[9],
-                "rate_limited": v[0] != 0.0, "accel_limited": v[1] != 0.0,
-                "n_rate_limited": int(f[12]), "n_accel_limited": int(f[13])}
+        info = StepInfo({
+            "servo_error_az_mdeg": f[0], "servo_error_el_mdeg": f[1], "measured_error_az_mdeg": f[2],
+            "measured_error_el_mdeg": f[3], "pointing_error_el_mdeg": f[4],
+            "pointing_error_xel_mdeg": f[5], "wind_speed_mps": f[6], "wind_direction_rad": f[7],
+            "action_unclipped": tuple(action.tolist()),
+            "rate_command_az_deg_s": f[8], "rate_command_el_deg_s": f[9],
+            "rate_limited": v[0] != 0.0, "accel_limited": v[1] != 0.0,
+            "n_rate_limited": int(f[12]), "n_accel_limited": int(f[13])})
         if self.monopulse is not None:
             mp = self._mp
             p = S[ONE_INFO][2 + POINTING_ROWS[0]:2 + POINTING_ROWS[1] + 1, None]

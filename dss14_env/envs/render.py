@@ -27,7 +27,7 @@ class Renderer:
             raise ValueError(f"render_mode must be None, 'rgb_array' or 'human', got {mode!r}")
         self.mode = mode
         self.maxlen = max(2, int(round(window_s / dt)) + 1)
-        self.hist = {k: deque(maxlen=self.maxlen) for k in _FIELDS}
+        self.samples: deque[tuple[float, ...]] = deque(maxlen=self.maxlen)  # one tuple of _FIELDS a step
         self.title = ""
         self._fig = None
         self._lines = None
@@ -42,8 +42,7 @@ class Renderer:
 
     def reset(self, title: str) -> None:
         """Forget the history; ``title`` labels the figure (scenario, wind)."""
-        for d in self.hist.values():
-            d.clear()
+        self.samples.clear()
         self.title = title
 
     def record(self, t: float, e_az: float, e_el: float, r_az: float, r_el: float,
@@ -51,8 +50,7 @@ class Renderer:
         """Add one sample: time (s), true servo errors (mdeg), applied and commanded rates
         (deg/s), wind speed (m/s).
         """
-        for k, v in zip(_FIELDS, (t, e_az, e_el, r_az, r_el, cd_az, cd_el, wind), strict=True):
-            self.hist[k].append(v)
+        self.samples.append((t, e_az, e_el, r_az, r_el, cd_az, cd_el, wind))
 
     # ------------------------------------------------------------------ drawing
     def _build(self) -> None:
@@ -88,9 +86,11 @@ class Renderer:
     def _update(self) -> None:
         if self._fig is None:
             self._build()
-        t = np.asarray(self.hist["t"], float)
+        h = np.asarray(self.samples, float).reshape(-1, len(_FIELDS))
+        cols = dict(zip(_FIELDS, h.T, strict=True))
+        t = cols["t"]
         for k, line in self._lines.items():
-            line.set_data(t, np.asarray(self.hist[k], float))
+            line.set_data(t, cols[k])
         for ax in self._axs:
             ax.relim()
             ax.autoscale_view()
