@@ -11,6 +11,8 @@ ROOT = Path(__file__).resolve().parents[1]
 #: the most words of the README and of each manual in docs/
 README_WORDS = 2500
 MANUAL_WORDS = 6000
+#: the most words of the architecture page (a walk through the house, not a manual)
+ARCHITECTURE_WORDS = 1200
 
 
 def words(path: Path) -> int:
@@ -30,3 +32,9 @@ def test_readme_fits_its_limit_and_opens_with_the_three_commands() -> None:
 @pytest.mark.parametrize("page", sorted(p.name for p in (ROOT / "docs").glob("*.md")))
 def test_each_manual_fits_its_limit(page: str) -> None:
     assert words(ROOT / "docs" / page) <= MANUAL_WORDS, page
+
+
+def test_the_architecture_page_fits_its_limit_and_draws_the_layers() -> None:
+    text = (ROOT / "docs" / "architecture.md").read_text(encoding="utf-8")
+    assert words(ROOT / "docs" / "architecture.md") <= ARCHITECTURE_WORDS
+    assert text.count("```mermaid") == 1
