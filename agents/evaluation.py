@@ -43,6 +43,7 @@ from typing import Any, final
 import gymnasium as gym
 import numpy as np
 
+from dss14_env.core.smoothness import high_frequency_share
 from dss14_env.envs.config import load_env_config
 from dss14_env.envs.presets import PRESETS
 
@@ -165,33 +166,6 @@ FIGURES: Mapping[str, tuple[str, ...]] = MappingProxyType({
     "rate_limit_hits": ("limit_hits", "rate"),
     "accel_limit_hits": ("limit_hits", "accel"),
 })
-#: the smoothness measure's cut-off: the share of the command change's power above it
-HF_CUTOFF_HZ = 5.0
-
-
-def command_hf_share(rate: np.ndarray, dt: float, cutoff_hz: float = HF_CUTOFF_HZ) -> float:
-    """The share of the applied rate command's change ``diff(rate)`` (both axes' periodograms
-    summed, ``scipy.signal.periodogram``, mean removed) lying above ``cutoff_hz``: 0 for a
-    command that only changes slowly, about ``1 - 2 cutoff dt`` for white chatter; NaN for
-    fewer than 3 steps or a command that never changes.
-
-    >>> t = np.arange(1000) * 0.02
-    >>> command_hf_share(np.c_[np.sin(t), np.cos(t)], 0.02) < 0.01
-    True
-
-    :param rate: (n, 2) applied rate commands (any unit)
-    :param dt: the control period, s
-    """
-    from scipy.signal import periodogram
-
-    r = np.asarray(rate, float)
-    if len(r) < 3:
-        return math.nan
-    f, pxx = periodogram(np.diff(r, axis=0), fs=1.0 / dt, axis=0)
-    total = float(pxx.sum())
-    return float(pxx[f > cutoff_hz].sum() / total) if total > 0 else math.nan
-
-
 def dss14_tasks(env_kwargs: Mapping[str, Any] | None = None,
                 scenarios: Sequence[str] = DEFAULT_SCENARIOS) -> list[EvalTask]:
     """Benchmark scenarios (:data:`SCENARIO_TASKS`) as evaluation tasks, with ``env_kwargs``
@@ -250,7 +224,8 @@ def run_task(ctrl: Any, task: EvalTask, seeds: Sequence[int], steps: int | None 
     :param access: :data:`FINAL_SCORING` for the final scoring, else None
     :raises SealedSeedError: a sealed test seed without ``access``
     :return: arrays of ``n_episodes * len(seeds)`` (episode-major): ``returns``, ``lengths``,
-        ``command_hf_share`` (:func:`command_hf_share` after the warm-up; NaN for other tasks),
+        ``command_hf_share`` (:func:`~dss14_env.core.smoothness.high_frequency_share` of both
+        axes pooled, after the warm-up; NaN for other tasks),
         ``three_sigma_mdeg`` (the servo error of ``task.axis``; NaN without an axis),
         ``pointing_three_sigma_mdeg`` (of ``task.pointing_axis``; NaN without one),
         ``terminated`` and, for a DSS14 task, every :data:`FIGURES` key (NaN for the others);
@@ -273,10 +248,12 @@ class _Returns:
     """
 
     def hf_shares(self, episodes: Sequence[Mapping[str, Any]], warmup_steps: int) -> list[float]:
-        """Each row's :func:`command_hf_share` over its episode after the warm-up."""
+        """Each row's share of the command change above 5 Hz, both axes pooled
+        (:func:`~dss14_env.core.smoothness.high_frequency_share`), over its episode after the warm-up.
+        """
         r = np.stack(self.rates) if self.rates else np.zeros((0, len(episodes), 2))
         dt = self.unwrapped.config.dt
-        return [command_hf_share(r[warmup_steps:ep["n_steps"], i], dt) for i, ep in enumerate(episodes)]
+        return [high_frequency_share(r[warmup_steps:ep["n_steps"], i], dt) for i, ep in enumerate(episodes)]
 
     def __init__(self, env: Any, n: int) -> None:
         self.env, self.unwrapped = env, env.unwrapped
@@ -436,7 +413,7 @@ def check_seed_protocol(seed: int, n_envs: int, eval_seeds: Sequence[int], sourc
 
 
 __all__ = ["DEFAULT_SCENARIOS", "DSS14_TASKS", "EvalTask", "FIGURES", "FINAL_SCORING", "FinalScoring",
-           "HF_CUTOFF_HZ", "POINTING_AXIS_OF", "RESEARCH_SEEDS", "SCENARIO_TASKS", "SealedSeedError",
+           "POINTING_AXIS_OF", "RESEARCH_SEEDS", "SCENARIO_TASKS", "SealedSeedError",
            "TEST_SEEDS", "TEST_SEED_RANGE", "TEST_STEPS", "TRAINING_SEED_START", "VALIDATION_SEED_RANGE",
-           "check_seed_protocol", "check_unsealed", "command_hf_share", "dss14_tasks", "run_task",
+           "check_seed_protocol", "check_unsealed", "dss14_tasks", "run_task",
            "task_env"]

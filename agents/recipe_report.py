@@ -19,7 +19,8 @@ Definitions (every figure a mean over the test episodes of one scenario):
   tau, over a grid of tau (at tau = 1 the success rate's complement of ties);
 * **smoothness**: acceleration-limit hits per episode (the limiter's ``accel_limited`` steps) and
   their share of the episode's steps, and the share of the applied rate command's change lying
-  above 5 Hz (:func:`dss14_env.agents.evaluation.command_hf_share`).
+  above 5 Hz (:func:`dss14_env.core.smoothness.high_frequency_share`,
+  both axes pooled).
 """
 
 from __future__ import annotations

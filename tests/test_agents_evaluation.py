@@ -205,18 +205,3 @@ def test_selection_references_and_sweeps_cannot_read_the_test_seeds(tmp_path) ->
         train_sweep({"algo": "ppo", "sweep": {"learning_rate": [1e-4, 3e-4]}}, [0], tmp_path / "s",
                     test_seeds=(9,))
     assert not (tmp_path / "s").exists()
-
-
-def test_command_hf_share_of_slow_white_and_fast_commands() -> None:
-    """The share of diff(rate)'s power above 5 Hz at 50 Hz: ~0 for a 0.5-Hz sine, ~1 for a
-    10-Hz sine, 1 - 2 * 5 Hz * 0.02 s = 0.8 for white noise (to its sampling scatter)."""
-    from dss14_env.agents.evaluation import command_hf_share
-
-    t = np.arange(5000) * 0.02
-    slow = np.c_[np.sin(2 * np.pi * 0.5 * t), np.cos(2 * np.pi * 0.5 * t)]
-    fast = np.c_[np.sin(2 * np.pi * 10.0 * t), np.zeros_like(t)]
-    assert command_hf_share(slow, 0.02) < 1e-3
-    assert command_hf_share(fast, 0.02) > 0.999
-    white = np.cumsum(np.random.default_rng(0).normal(size=(5000, 2)), axis=0)  # diff is white
-    assert command_hf_share(white, 0.02) == pytest.approx(0.8, abs=0.03)
-    assert math.isnan(command_hf_share(np.zeros((100, 2)), 0.02))

@@ -45,6 +45,24 @@ def test_a_cutoff_beyond_nyquist_is_named() -> None:
         high_frequency_share(np.zeros(100), DT, cutoff_hz=30.0)
 
 
+def test_several_axes_pool_their_spectra() -> None:
+    """Two axes, shape (n, 2): the spectral densities are summed before the share is taken, so a
+    slow axis beside a 10-Hz one of equal change power gives about half; two white axes give the
+    flat spectrum's 0.8; two slow ones about 0."""
+    t = np.arange(5000) * DT
+    slow = np.sin(2 * np.pi * 0.5 * t) / (2 * np.sin(np.pi * 0.5 * DT))  # diff amplitude 1
+    fast = np.sin(2 * np.pi * 10.0 * t) / (2 * np.sin(np.pi * 10.0 * DT))  # diff amplitude 1
+    assert high_frequency_share(np.c_[slow, slow], DT) < 1e-3
+    assert high_frequency_share(np.c_[fast, np.zeros_like(t)], DT) > 0.999
+    assert high_frequency_share(np.c_[slow, fast], DT) == pytest.approx(0.5, abs=0.05)
+    white = np.cumsum(np.random.default_rng(0).normal(size=(20_000, 2)), axis=0)
+    assert high_frequency_share(white, DT) == pytest.approx(0.8, abs=0.04)
+    assert math.isnan(high_frequency_share(np.zeros((100, 2)), DT))
+    assert math.isnan(high_frequency_share(np.zeros((0, 2)), DT))
+    with pytest.raises(ValueError, match=r"command: one axis \(n,\) or several \(n, k\)"):
+        high_frequency_share(np.zeros((10, 2, 2)), DT)
+
+
 def test_limit_hit_share_in_percent() -> None:
     assert limit_hit_pct(np.array([True, False, False, True])) == 50.0
     assert limit_hit_pct(np.zeros(7, bool)) == 0.0

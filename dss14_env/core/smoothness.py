@@ -41,17 +41,24 @@ MIN_SAMPLES = 16
 def high_frequency_share(command: np.ndarray, dt: float, cutoff_hz: float = CUTOFF_HZ) -> float:
     """The share (0..1) of the variance of ``diff(command)`` above ``cutoff_hz`` (see the module
     docstring); NaN when the change has fewer than :data:`MIN_SAMPLES` samples or no variance.
+    A command of several axes, shape ``(n, k)``, gives one share pooled over its axes: the
+    axes' spectral densities are summed before the share is taken.
 
-    :param command: one axis' applied rate command, one sample per control period
+    :param command: the applied rate command, one sample per control period: one axis ``(n,)``
+        or several ``(n, k)``
     :param dt: control period, s
     :param cutoff_hz: the boundary, Hz (below the Nyquist frequency ``1 / (2 dt)``)
     """
     if not 0.0 < cutoff_hz < 0.5 / dt:
         raise ValueError(f"cutoff_hz: between 0 and the Nyquist frequency {0.5 / dt:g} Hz, got {cutoff_hz!r}")
-    d = np.diff(np.asarray(command, float))
-    if d.size < MIN_SAMPLES:
+    c = np.asarray(command, float)
+    if c.ndim not in (1, 2):
+        raise ValueError(f"command: one axis (n,) or several (n, k), got shape {c.shape}")
+    d = np.diff(c if c.ndim == 2 else c[:, None], axis=0)
+    if len(d) < MIN_SAMPLES:
         return math.nan
-    f, p = signal.welch(d, fs=1.0 / dt, nperseg=min(SEGMENT, d.size), detrend="constant")
+    f, p = signal.welch(d, fs=1.0 / dt, nperseg=min(SEGMENT, len(d)), detrend="constant", axis=0)
+    p = p.sum(axis=1)
     total = float(p.sum())
     if not total > 0.0:
         return math.nan
