@@ -452,3 +452,25 @@ def test_lqg_base_is_designed_for_each_rows_encoders() -> None:
     assert np.abs(want[:, [0, 2]] - want[:, [1]]).max() > 1e-4  # the placements command differently
     np.testing.assert_allclose(np.asarray(got), want, rtol=1e-5, atol=1e-7)
     assert iface.context[:, 0].tolist() == [1.0, 0.0, 1.0]
+
+
+def test_training_vec_env_designs_the_base_for_its_sub_environments_encoders() -> None:
+    """The training VecEnv's interface, built on a drive-encoder configuration over a mixture of
+    axis-encoder holds (no context feature asked), commands at zero policy output what the
+    pointing-aware LQG designed for those holds commands."""
+    from dss14_env.agents.vec_env import InterfaceVecEnv
+    from dss14_env.baselines.lqg import PointingLQGController
+
+    spec = InterfaceSpec(base="lqg_pointing", action="residual", residual_scale=0.01,
+                         lqg_features=("command", "disturbance"))
+    mix = [{"preset": "hold", "n_envs": 2, "env_kwargs": {"encoders": "axis"}, "max_episode_steps": 200}]
+    inner = make_mixture_vec_env(mix, {}, 3, CFG)
+    venv = InterfaceVecEnv(inner, spec, CFG)
+    ref = PointingLQGController(inner.get_attr("config")[0])
+    ref.reset_batch(2)
+    obs = inner.reset()
+    for _ in range(100):
+        venv.interface.observe(obs)
+        a = venv.interface.action(np.zeros((2, 2)))
+        np.testing.assert_allclose(a, ref.act_batch(obs), rtol=1e-5, atol=1e-7)
+        obs, *_ = inner.step(a)
