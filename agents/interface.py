@@ -64,8 +64,9 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from dss14_env.agents.base_rows import RowGroupedLQG, batched_base, batched_lqg
 from dss14_env.baselines.design import default_controllers_config
-from dss14_env.baselines.lqg import LQGController, PointingLQGController
+from dss14_env.baselines.lqg import LQGController
 from dss14_env.baselines.pi import PIController
 from dss14_env.core.units import DEG, MDEG
 from dss14_env.envs.core import OBS, OBS_HIGH, OBS_SIZE, as_actions
@@ -253,7 +254,7 @@ class PolicyInterface:
         self._err = env_config.error_scale_mdeg * MDEG
         self.pi: PIController | None = None
         self.lqg: list[_RecordingLQG] = []
-        self.lqg_batch: LQGController | None = None
+        self.lqg_batch: LQGController | RowGroupedLQG | None = None
         n_feat = 0
         if spec.base == "pi":
             self.pi = PIController(env_config, spec.gains)
@@ -261,13 +262,14 @@ class PolicyInterface:
         elif spec.base in LQG_BASES:
             n_feat = sum(LQG_FEATURE_WIDTHS[f] for f in spec.lqg_features) if spec.estimate else 0
             pointing = default_controllers_config().pointing if spec.base == "lqg_pointing" else None
+            self._pointing = pointing
             if spec.estimate and {"output", "law"} & set(spec.lqg_features):
                 # the LQR state z of every row: one recording controller per row
                 self.lqg = [_RecordingLQG(env_config, pointing=pointing) for _ in range(self.n)]
             else:  # command and disturbance only: one batched LQG for all rows
-                self.lqg_batch = (LQGController(env_config) if pointing is None
-                                  else PointingLQGController(env_config, pointing=pointing))
-                self.lqg_batch.reset_batch(self.n)
+                self.lqg_batch = batched_lqg(env_config, pointing, self.n)
+        #: where each row's base controller expects the encoders (:meth:`set_context`)
+        self._base_encoders = [getattr(env_config, "encoders", None)] * self.n
         self.n_features = n_feat
         self.entries = list(range(OBS_SIZE)) if spec.obs_entries is None else list(spec.obs_entries)
         n_hist = len(spec.history_entries)
@@ -309,8 +311,8 @@ class PolicyInterface:
                 self.lqg[i].reset()
 
     #: the attributes of the dynamic state (:meth:`get_state`)
-    _STATE = ("pi", "lqg", "lqg_batch", "base_action", "command_rate", "_past", "_filt", "_fresh",
-              "filtered_action", "_act_fresh")
+    _STATE = ("pi", "lqg", "lqg_batch", "_base_encoders", "base_action", "command_rate", "_past", "_filt",
+              "_fresh", "filtered_action", "_act_fresh")
 
     def get_state(self) -> dict[str, Any]:
         """A copy of the dynamic state (base controllers, last base action, history) that
@@ -344,15 +346,28 @@ class PolicyInterface:
         self.__dict__.update(copy.deepcopy({name: state[name] for name in self._STATE}))
 
     def set_context(self, env_configs: Any) -> None:
-        """The context features from the environments the rows act on: one configuration for
-        every row, or a sequence of ``n`` (a mixture's sub-environments).
+        """The environments the rows act on: one configuration for every row, or a sequence of
+        ``n`` (a mixture's sub-environments). Sets the context features, and an LQG base is
+        designed for each row's encoder placement (:func:`dss14_env.agents.base_rows.batched_base`;
+        the interface's own configuration's design where they agree). A base redesigned here
+        starts afresh: call it before the rows' episodes start.
         """
         if isinstance(env_configs, (list, tuple)):
             if len(env_configs) != self.n:
                 raise ValueError(f"set_context: {len(env_configs)} configurations for {self.n} rows")
-            self.context = np.stack([context_values(self.spec.context, c) for c in env_configs])
+            configs = list(env_configs)
         else:
-            self.context = np.tile(context_values(self.spec.context, env_configs), (self.n, 1))
+            configs = [env_configs] * self.n
+        self.context = np.stack([context_values(self.spec.context, c) for c in configs])
+        encoders = [getattr(c, "encoders", None) for c in configs]
+        if self.spec.base not in LQG_BASES or None in encoders or encoders == self._base_encoders:
+            return
+        self._base_encoders = encoders
+        if self.lqg:
+            self.lqg = [_RecordingLQG(dataclasses.replace(self.env_config, encoders=e),
+                                      pointing=self._pointing) for e in encoders]
+        else:
+            self.lqg_batch = batched_base(self.env_config, self._pointing, encoders)
 
     # ------------------------------------------------------------------ observation
     def observe(self, obs: np.ndarray) -> np.ndarray:
@@ -467,7 +482,7 @@ class PolicyInterface:
     def _pi_features(pi: PIController) -> np.ndarray:
         return np.clip(pi.integral_action(), -FEATURE_BOUND, FEATURE_BOUND).astype(np.float32)
 
-    def _lqg_batch_features(self, c: LQGController, action: np.ndarray,
+    def _lqg_batch_features(self, c: LQGController | RowGroupedLQG, action: np.ndarray,
                             rows: np.ndarray) -> np.ndarray:
         """The command and disturbance features of rows ``rows`` of the batched LQG (``action``:
         those rows' commands).

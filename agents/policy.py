@@ -88,8 +88,9 @@ class PolicyController(Controller):
     :param stats: frozen observation statistics, or None
     :param name: label in tables and plots
     :param env: the environment it will act on, default None: the run's; a residual or
-        model-informed policy's base controller is designed for the *training* environment,
-        and actions are converted to ``env``'s action scale
+        model-informed policy's base controller is designed for the *training* environment
+        with ``env``'s encoder placement (:meth:`PolicyInterface.set_context`), and actions are
+        converted to ``env``'s action scale
     :param torch_threads: ``torch.set_num_threads`` value (process-wide), default 1; None leaves
         torch alone
     """

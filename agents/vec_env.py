@@ -52,7 +52,7 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
 
 from dss14_env.agents.envs import is_dss14_id
-from dss14_env.agents.interface import InterfaceSpec, PolicyInterface, interface_observation_space
+from dss14_env.agents.interface import LQG_BASES, InterfaceSpec, PolicyInterface, interface_observation_space
 from dss14_env.envs.core import as_actions
 from dss14_env.envs.vector import DSS14VectorEnv
 
@@ -360,7 +360,8 @@ class InterfaceVecEnv(_vec_env_wrapper()):
 
     def __init__(self, venv: Any, spec: InterfaceSpec, env_config: Any) -> None:
         self.interface = PolicyInterface(spec, env_config, venv.num_envs)
-        if spec.context:  # each sub-environment's own configuration (a mixture's parts differ)
+        if spec.context or spec.base in LQG_BASES:  # each sub-environment's own configuration (a
+            # mixture's parts differ: the context, and where an LQG base's encoders sit)
             self.interface.set_context(list(venv.get_attr("config")))
         super().__init__(venv, observation_space=interface_observation_space(self.interface),
                          action_space=spaces.Box(-1.0, 1.0, (2,), np.float32))

@@ -19,13 +19,16 @@ Three steps, each writing what the next reads::
     python scripts/rl_results.py render                # rewrite them
     python scripts/rl_results.py render --check        # exit 1 if a document is out of date
 
-The general recipe's many-seed report (configs/ppo_general_lqg.yaml; its own results file)::
+The general recipe's many-seed reports (one results file per version: configs/ppo_general_lqg.yaml
+-> rl_recipe.json, configs/ppo_general_lqg2.yaml -> rl_recipe2.json)::
 
-    dss14 train ppo --config ppo_general_lqg --train-seeds 0-9 --out runs/ppo_general_lqg
-    python scripts/rl_results.py recipe --campaign runs/ppo_general_lqg  # -> docs/results/rl_recipe.json
-    python scripts/rl_results.py ship-recipe --campaign runs/ppo_general_lqg  # best-validation seed
-    python scripts/rl_results.py grid      # the shipped policy on the wind direction/speed grid
-    python scripts/rl_results.py render    # its tables too (block rl-recipe)
+    dss14 train ppo --config ppo_general_lqg2 --train-seeds 0-9 --out runs/ppo_general_lqg2
+    python scripts/rl_results.py recipe --campaign runs/ppo_general_lqg2 --out docs/results/rl_recipe2.json
+    python scripts/rl_results.py ship-recipe --campaign runs/ppo_general_lqg2 \
+        --report docs/results/rl_recipe2.json   # its best-validation seed (the other report's
+                                                # shipped entry becomes its shipped_before)
+    python scripts/rl_results.py grid      # the shipped policy on the wind grid (its report)
+    python scripts/rl_results.py render    # their tables too (blocks rl-recipe, rl-recipe2)
 
 (tests/test_agents_results.py runs the check.)  The statistics are those of
 :mod:`dss14_env.agents.results`.
@@ -56,13 +59,15 @@ SCENARIO_REFERENCES = ROOT / "docs" / "results" / "rl_scenario_references.json"
 FIGURES = ROOT / "docs" / "results" / "rl"
 #: the generated blocks and the documents that show them
 DOCUMENTS = {ROOT / "docs" / "results" / "rl_results.md": ("rl-table", "rl-seeds", "rl-campaign",
-                                                           "rl-recipe")}
+                                                           "rl-recipe", "rl-recipe2")}
 #: the robustness campaign of the learned policies beside PI and LQG (``dss14 campaign``,
 #: :func:`dss14_env.bench.campaign_report.compact_results` of its results.json), and the command
 CAMPAIGN = ROOT / "docs" / "results" / "campaign_policies.json"
 #: the general recipe's report (:mod:`dss14_env.agents.recipe_report`), its shipped folder and
 #: the wind grid it is checked on: (speed km/h, direction deg)
 RECIPE = ROOT / "docs" / "results" / "rl_recipe.json"
+#: every version's report, by the generated block that tables it
+RECIPE_REPORTS = {"rl-recipe": RECIPE, "rl-recipe2": ROOT / "docs" / "results" / "rl_recipe2.json"}
 RECIPE_SHIPPED = "ppo_general"
 RECIPE_GRID = tuple((50.0, d) for d in (0.0, 45.0, 90.0, 135.0, 180.0)) + tuple(
     (v, d) for v in (10.0, 70.0) for d in (0.0, 90.0))
@@ -453,7 +458,7 @@ def recipe(campaign: Path, out: Path, cpu_log: Path | None) -> None:
         old = json.loads(out.read_text())
         doc.update({k: old[k] for k in ("grid", "shipped") if k in old})
     out.write_text(json.dumps(doc, indent=1) + "\n")
-    _profile_figure(doc, FIGURES / "recipe_profile.png")
+    _profile_figure(doc, FIGURES / f"{out.stem.removeprefix('rl_')}_profile.png")
     print(f"wrote {out}")
 
 
@@ -477,10 +482,23 @@ def _profile_figure(doc: dict, path: Path) -> None:
     plt.close(fig)
 
 
+def shipping_report() -> Path | None:
+    """The recipe report whose policy ``agents/policies/<RECIPE_SHIPPED>/`` holds (the one with a
+    ``shipped`` entry), or None.
+
+    :raises ValueError: more than one report claims the folder
+    """
+    found = [p for p in RECIPE_REPORTS.values() if p.is_file() and "shipped" in json.loads(p.read_text())]
+    if len(found) > 1:
+        raise ValueError(f"recipe reports {', '.join(p.name for p in found)} each claim the shipped folder")
+    return found[0] if found else None
+
+
 def ship_recipe(campaign: Path, report_path: Path) -> None:
     """Copy the recipe's best-validation seed (the report's ``shipped_seed_index``: chosen on the
     validation seeds, never the test seeds) into ``agents/policies/<RECIPE_SHIPPED>/`` and record
-    its per-test-seed hold figures in the report (the shipped policy's regression figures)."""
+    its per-test-seed hold figures in the report (the shipped policy's regression figures); a
+    report whose policy the folder held before keeps that entry as ``shipped_before``."""
     doc = json.loads(report_path.read_text())
     k = doc["shipped_seed_index"]
     summary = json.loads((campaign / "summary.json").read_text())
@@ -496,6 +514,12 @@ def ship_recipe(campaign: Path, report_path: Path) -> None:
                                                  entry["best"][h]["pointing_three_sigma_mdeg"]}}
                                 for h in HOLDS}}
     report_path.write_text(json.dumps(doc, indent=1) + "\n")
+    for other in RECIPE_REPORTS.values():
+        if other.resolve() != report_path.resolve() and other.is_file():
+            old = json.loads(other.read_text())
+            if "shipped" in old:
+                old["shipped_before"] = {**old.pop("shipped"), "replaced_by": report_path.name}
+                other.write_text(json.dumps(old, indent=1) + "\n")
     print(f"seed index {k}: {run} -> {dest.relative_to(ROOT)}")
 
 
@@ -551,7 +575,8 @@ def stale(results_path: Path, out: Path) -> None:
     again on the test seeds on the shipped drive: their per-test-seed hold figures there (the
     regression checks' figures for the policies marked stale, docs/rl.md)."""
     results = json.loads(results_path.read_text())
-    taken = json.loads(RECIPE.read_text()).get("shipped", {}).get("folder") if RECIPE.is_file() else None
+    report = shipping_report()
+    taken = json.loads(report.read_text())["shipped"]["folder"] if report is not None else None
     rows = {}
     for key, row in results["rows"].items():
         if not row.get("shipped") or row["shipped"]["folder"] == taken:
@@ -576,8 +601,9 @@ def render(results_path: Path, check: bool) -> int:
     from dss14_env.reproduce import fill_blocks, find_blocks
 
     blocks = {**rl_tables(json.loads(results_path.read_text())), "rl-campaign": campaign_block(CAMPAIGN),
-              "rl-recipe": recipe_markdown(json.loads(RECIPE.read_text())) if RECIPE.is_file()
-              else "(no `rl_recipe.json` yet: `python scripts/rl_results.py recipe`)"}
+              **{name: recipe_markdown(json.loads(path.read_text())) if path.is_file()
+                 else f"(no `{path.name}` yet: `python scripts/rl_results.py recipe`)"
+                 for name, path in RECIPE_REPORTS.items()}}
     stale = []
     for doc, names in DOCUMENTS.items():
         text = doc.read_text()
@@ -622,7 +648,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="lines 'epoch_s cpu_s seeds_done' sampled from the campaign's process")
     sh = sub.add_parser("ship-recipe", help="ship the recipe's best-validation seed")
     sh.add_argument("--campaign", type=Path, default=Path("runs") / "ppo_general_lqg")
-    sub.add_parser("grid", help="the shipped general policy on the wind direction/speed grid")
+    sh.add_argument("--report", type=Path, default=RECIPE, help="the campaign's recipe report")
+    sub.add_parser("grid", help="the shipped general policy on the wind direction/speed grid "
+                                "(into the shipping report)")
     sub.add_parser("stale", help="re-score the stale shipped policies on the shipped drive")
     d = sub.add_parser("render", help="the tables of docs/results/rl_results.md")
     d.add_argument("--results", type=Path, default=RESULTS)
@@ -640,9 +668,9 @@ def main(argv: list[str] | None = None) -> int:
     elif args.cmd == "recipe":
         recipe(args.campaign, args.out, args.cpu_log)
     elif args.cmd == "ship-recipe":
-        ship_recipe(args.campaign, RECIPE)
+        ship_recipe(args.campaign, args.report)
     elif args.cmd == "grid":
-        grid(RECIPE)
+        grid(shipping_report() or RECIPE)
     elif args.cmd == "stale":
         stale(RESULTS, STALE)
     else:

@@ -413,3 +413,64 @@ def test_action_change_penalty_needs_the_batched_vec_env() -> None:
                                  "action_change_penalty": 10.0, "n_envs": 1}, "cfg.yaml")
     with pytest.raises(ValueError, match="cfg.yaml: key 'action_change_penalty': needs the batched"):
         make_train_vec_env(cfg, resolve_env(cfg), CFG, None)
+
+
+# ------------------------------------------------------------------------------ base per encoder placement
+def _lqg_pointing_run(encoders: str, seed: int, steps: int) -> tuple[np.ndarray, np.ndarray, object]:
+    """The observations a pointing-aware LQG sees in a hold with ``encoders``, its commands and
+    the hold's configuration."""
+    from dss14_env.baselines.lqg import PointingLQGController
+
+    env = gym.make("DSS14-Hold-v0", encoders=encoders, wind_direction="side")
+    ctrl = PointingLQGController(env)
+    ctrl.reset_batch(1)
+    obs, _ = env.reset(seed=seed)
+    seen, acts = [], []
+    for _ in range(steps):
+        a = ctrl.act_batch(obs[None])[0]
+        seen.append(obs)
+        acts.append(a)
+        obs, *_ = env.step(a)
+    env.close()
+    return np.asarray(seen, np.float32), np.asarray(acts), env.unwrapped.config
+
+
+def test_lqg_base_is_designed_for_each_rows_encoders() -> None:
+    """An interface built on a drive-encoder configuration, its rows set to act on axis-, drive-
+    and axis-encoder holds: at zero policy output each row commands what the pointing-aware LQG
+    designed for that row's hold commands (the bench's ``lqg_pointing``), step by step."""
+    runs = [_lqg_pointing_run(e, s, 120) for e, s in (("axis", 3), ("drive", 4), ("axis", 5))]
+    spec = InterfaceSpec(base="lqg_pointing", action="residual", residual_scale=0.01,
+                         lqg_features=("command", "disturbance"), context=("axis_encoders",))
+    iface = PolicyInterface(spec, CFG, 3)
+    iface.set_context([r[2] for r in runs])
+    got = []
+    for k in range(120):
+        iface.observe(np.stack([r[0][k] for r in runs]))
+        got.append(iface.action(np.zeros((3, 2))))
+    want = np.stack([r[1] for r in runs], 1)
+    assert np.abs(want[:, [0, 2]] - want[:, [1]]).max() > 1e-4  # the placements command differently
+    np.testing.assert_allclose(np.asarray(got), want, rtol=1e-5, atol=1e-7)
+    assert iface.context[:, 0].tolist() == [1.0, 0.0, 1.0]
+
+
+def test_training_vec_env_designs_the_base_for_its_sub_environments_encoders() -> None:
+    """The training VecEnv's interface, built on a drive-encoder configuration over a mixture of
+    axis-encoder holds (no context feature asked), commands at zero policy output what the
+    pointing-aware LQG designed for those holds commands."""
+    from dss14_env.agents.vec_env import InterfaceVecEnv
+    from dss14_env.baselines.lqg import PointingLQGController
+
+    spec = InterfaceSpec(base="lqg_pointing", action="residual", residual_scale=0.01,
+                         lqg_features=("command", "disturbance"))
+    mix = [{"preset": "hold", "n_envs": 2, "env_kwargs": {"encoders": "axis"}, "max_episode_steps": 200}]
+    inner = make_mixture_vec_env(mix, {}, 3, CFG)
+    venv = InterfaceVecEnv(inner, spec, CFG)
+    ref = PointingLQGController(inner.get_attr("config")[0])
+    ref.reset_batch(2)
+    obs = inner.reset()
+    for _ in range(100):
+        venv.interface.observe(obs)
+        a = venv.interface.action(np.zeros((2, 2)))
+        np.testing.assert_allclose(a, ref.act_batch(obs), rtol=1e-5, atol=1e-7)
+        obs, *_ = inner.step(a)

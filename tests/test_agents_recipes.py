@@ -161,6 +161,7 @@ RECIPES = {  # config -> (algo, policy observation size, action scale the policy
     "ppo_general": ("ppo", 8 + (8 + 3) * 4, 0.25),  # 8 steps and 3 filters of 4 entries
     "ppo_general_random": ("ppo", 8 + (8 + 3) * 4, 0.25),
     "ppo_general_lqg": ("ppo", 8 + 4 + 4 * 4, 0.25),  # general, on the beam: residual on lqg_pointing
+    "ppo_general_lqg2": ("ppo", 8 + 4 + 4 * 4 + 1, 0.25),  # the same + where the encoders sit
 }
 
 
@@ -170,7 +171,7 @@ def test_recipe_configs_build_their_environment(name: str) -> None:
     cfg = load_config(name)
     # a recipe on the beam is rewarded, validated and selected on the pointing error; a general
     # recipe is selected over every bench scenario
-    on_beam = name.endswith("_pointing") or name == "ppo_general_lqg"
+    on_beam = name.endswith("_pointing") or name.startswith("ppo_general_lqg")
     select = "pointing" if on_beam else "general" if "general" in name else "three_sigma"
     assert cfg.algo == algo and cfg.select_by == select
     assert cfg.seed >= 10_000 and all(1000 <= s < 10_000 for s in cfg.eval_seeds)

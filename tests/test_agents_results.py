@@ -158,18 +158,23 @@ def test_committed_results_follow_the_protocol(results: dict) -> None:
                     assert ratio["significant"] == (not ratio["ci95"][0] <= 1.0 <= ratio["ci95"][1])
 
 
-RECIPE = ROOT / "docs" / "results" / "rl_recipe.json"
+#: the general recipe's reports, one per version (rl_recipe.json, rl_recipe2.json, ...)
+RECIPE_REPORTS = sorted((ROOT / "docs" / "results").glob("rl_recipe*.json"))
 STALE = ROOT / "docs" / "results" / "rl_stale.json"
 
 
 def _recipe() -> dict:
-    return json.loads(RECIPE.read_text())
+    """The recipe report whose policy the shipped folder holds: the one report with a ``shipped``
+    entry (scripts/rl_results.py ship-recipe moves the others' to ``shipped_before``)."""
+    claims = [r for r in (json.loads(p.read_text()) for p in RECIPE_REPORTS) if "shipped" in r]
+    assert len(claims) == 1, f"{len(claims)} recipe reports claim the shipped folder"
+    return claims[0]
 
 
 def _shipped(results: dict) -> list[tuple[str, dict]]:
-    """The results file's shipped rows whose folder still holds their policy (the general
-    recipe's report, rl_recipe.json, names the folder its shipped policy took)."""
-    taken = {_recipe().get("shipped", {}).get("folder")} if RECIPE.is_file() else set()
+    """The results file's shipped rows whose folder still holds their policy (the shipping
+    recipe report names the folder its shipped policy took)."""
+    taken = {_recipe()["shipped"]["folder"]} if RECIPE_REPORTS else set()
     return [(k, row) for k, row in results["rows"].items()
             if row.get("shipped") and row["shipped"]["folder"] not in taken]
 
@@ -189,7 +194,7 @@ def test_the_recipes_shipped_policy_is_its_best_validation_seed() -> None:
 @pytest.mark.slow
 def test_regression_shipped_policies_recipe_reproduces_its_test_scores(check_rescored) -> None:
     """Regression check: the general recipe's shipped policy, scored again on the test seeds,
-    gives its campaign's hold figures recorded in rl_recipe.json (servo and pointing) within the
+    gives its campaign's hold figures recorded in its report (servo and pointing) within the
     scatter between CPU kinds (``tests/conftest.py``)."""
     rep = _recipe()
     ctrl = load_policy(ROOT / rep["shipped"]["folder"])
