@@ -24,6 +24,9 @@ can run code: it loads only with ``trust_pickle=True``.
 
 from __future__ import annotations
 
+import copy
+import functools
+import hashlib
 import time
 from collections.abc import Iterable, Mapping
 from pathlib import Path
@@ -260,10 +263,66 @@ def check_resolved(path: Path) -> None:
                               f"{', '.join(POLICY_KEYS)})")
 
 
+#: policies a process keeps read (:func:`checked_policy`), the least recently used dropped first
+POLICIES_KEPT = 16
+
+
+def file_stamp(path: Path | None) -> tuple[str, str] | None:
+    """``(resolved path, SHA-256 of the content)`` of a policy file, or None: what tells an
+    edited file from the one read before (same size and time or not).
+
+    :raises PolicyFileError: the file cannot be read
+    """
+    if path is None:
+        return None
+    try:
+        return str(path.resolve()), hashlib.sha256(path.read_bytes()).hexdigest()
+    except OSError as exc:
+        raise PolicyFileError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+
+
+@functools.lru_cache(maxsize=POLICIES_KEPT)
+def checked_policy(config: tuple[str, str], weights: tuple[str, str], stats: tuple[str, str] | None,
+                   env_module: str | None = None
+                   ) -> tuple[TrainConfig, dict[str, Any], dict, NormStats | None]:
+    """The checked contents of a policy folder's files (:func:`file_stamp` of each): the
+    configuration, the weights' fingerprint and state dict, and the statistics.  Read once per
+    content and kept (:data:`POLICIES_KEPT`); shared, never changed: :func:`load_policy` copies
+    the weights into a network of its own and the statistics.  ``checked_policy.cache_clear()``
+    forgets them.
+
+    :raises PolicyFileError: (a ValueError) one line naming the file: unreadable, weights and
+        statistics of different runs
+    """
+    cfg_path, w_path = Path(config[0]), Path(weights[0])
+    cfg = load_config(cfg_path, env_module)
+    check_resolved(cfg_path)
+    wfp, state = load_weights(w_path)
+    if wfp["algo"] != cfg.algo:
+        raise PolicyFileError(f"{w_path}: weights of algo {wfp['algo']!r}, "
+                              f"{cfg_path} says {cfg.algo!r}")
+    norm = None
+    if cfg.normalize_obs:
+        if stats is None:
+            raise PolicyFileError(f"policy folder {w_path.parent}: normalization.npz is missing "
+                                  f"({cfg_path} has normalize_obs: true)")
+        s_path = Path(stats[0])
+        sfp, norm = load_stats(s_path)
+        check_fingerprints(w_path, wfp, s_path, sfp)
+        if norm.obs_mean.size != int(wfp["obs_dim"]):
+            raise PolicyFileError(f"{s_path}: statistics of {norm.obs_mean.size} "
+                                  f"observations, the weights expect {wfp['obs_dim']}")
+    return cfg, wfp, state, norm
+
+
 def load_policy(path: str | Path | None = None, env: Any = None, name: str | None = None,
                 trust_pickle: bool = False, torch_threads: int | None = 1,
                 env_module: str | None = None) -> PolicyController:
     """Load a trained policy as a :class:`dss14_env.baselines.base.Controller`.
+
+    The files of a policy folder are read every time; their checked contents are kept per
+    content (:func:`checked_policy`), so a policy loaded again costs a fresh network only (an
+    edited file is read anew).  Every controller gets a network and statistics of its own.
 
     :param path: a policy folder (run folder, ``eval/best``, ``checkpoints/<N>_steps``);
         default None: the policy shipped with the package (:data:`DEFAULT_POLICY`)
@@ -280,30 +339,18 @@ def load_policy(path: str | Path | None = None, env: Any = None, name: str | Non
         configured architecture
     """
     files = find_policy_files(DEFAULT_POLICY if path is None else path)
-    cfg = None
-    if files.config is not None:
-        cfg = load_config(files.config, env_module)
-        check_resolved(files.config)
     if files.foreign:
+        cfg = None
+        if files.config is not None:
+            cfg = load_config(files.config, env_module)
+            check_resolved(files.config)
         model, vn = load_sb3_model(files, algo_class(cfg.algo if cfg else "ppo"), trust_pickle)
         stats = NormStats.from_vec_normalize(vn) if vn is not None and vn.norm_obs else None
         algo = cfg.algo if cfg else "ppo"
         return PolicyController(model.policy, cfg, stats, name or _label(files, algo), env,
                                 torch_threads)
-    wfp, state = load_weights(files.weights)
-    if wfp["algo"] != cfg.algo:
-        raise PolicyFileError(f"{files.weights}: weights of algo {wfp['algo']!r}, "
-                              f"{files.config} says {cfg.algo!r}")
-    stats = None
-    if cfg.normalize_obs:
-        if files.stats is None:
-            raise PolicyFileError(f"policy folder {files.folder}: normalization.npz is missing "
-                                  f"({files.config} has normalize_obs: true)")
-        sfp, stats = load_stats(files.stats)
-        check_fingerprints(files.weights, wfp, files.stats, sfp)
-        if stats.obs_mean.size != int(wfp["obs_dim"]):
-            raise PolicyFileError(f"{files.stats}: statistics of {stats.obs_mean.size} "
-                                  f"observations, the weights expect {wfp['obs_dim']}")
+    cfg, wfp, state, stats = checked_policy(file_stamp(files.config), file_stamp(files.weights),
+                                            file_stamp(files.stats), env_module)
     low = wfp.get("action_low", [-1.0] * int(wfp["act_dim"]))
     high = wfp.get("action_high", [1.0] * int(wfp["act_dim"]))
     policy = build_policy(cfg, int(wfp["obs_dim"]), low, high)
@@ -313,7 +360,7 @@ def load_policy(path: str | Path | None = None, env: Any = None, name: str | Non
         first = str(exc).strip().splitlines()[0][:160]
         raise PolicyFileError(f"{files.weights}: the weights do not fit the architecture of "
                               f"{files.config} ({first})") from None
-    return PolicyController(policy, cfg, stats, name or _label(files, cfg.algo), env,
+    return PolicyController(policy, cfg, copy.deepcopy(stats), name or _label(files, cfg.algo), env,
                             torch_threads)
 
 
@@ -421,7 +468,7 @@ def evaluate(path: str | Path, env_id: str | None = None, seeds: Iterable[int] =
 
 
 __all__ = ["ALGO_LABELS", "DEFAULT_POLICY", "DSS14_ACT_DIM", "DSS14_OBS_DIM", "POLICIES_DIR",
-           "PPOController", "PolicyController",
-           "PolicyFiles", "shipped_policies", "shipped_policy",
+           "POLICIES_KEPT", "PPOController", "PolicyController",
+           "PolicyFiles", "checked_policy", "file_stamp", "shipped_policies", "shipped_policy",
            "dss14_policy_problem", "evaluate", "find_policy_files", "load_policy",
            "policy_problem"]
