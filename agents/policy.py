@@ -82,6 +82,38 @@ def _env_config(env: Any) -> Any:
     return getattr(getattr(env, "unwrapped", env), "config", None)
 
 
+def is_gaussian_mlp(policy: Any) -> bool:
+    """Whether ``policy`` is stable-baselines3's plain ``ActorCriticPolicy`` (PPO's
+    ``MlpPolicy``): flattened observations through linear layers and activations, a diagonal
+    Gaussian on unsquashed Box actions -- what :func:`gaussian_mlp_actions` acts for.
+    """
+    from gymnasium import spaces
+    from stable_baselines3.common.distributions import DiagGaussianDistribution
+    from stable_baselines3.common.policies import ActorCriticPolicy
+    from stable_baselines3.common.torch_layers import FlattenExtractor
+
+    return (type(policy) is ActorCriticPolicy and type(policy.pi_features_extractor) is FlattenExtractor
+            and isinstance(policy.action_dist, DiagGaussianDistribution) and not policy.squash_output
+            and isinstance(policy.action_space, spaces.Box)
+            and isinstance(policy.observation_space, spaces.Box))
+
+
+def gaussian_mlp_actions(policy: Any, x: np.ndarray) -> np.ndarray:
+    """The deterministic actions of a plain Gaussian MLP policy (:func:`is_gaussian_mlp`) for
+    float32 observations ``x (n, obs_dim)``: the mean of its Gaussian, clipped to the action
+    space -- the very operations of its ``predict(x, deterministic=True)``, without building the
+    distribution object (equal to it bit for bit).
+    """
+    import torch
+    from stable_baselines3.common.policies import BaseModel
+
+    with torch.no_grad():
+        features = BaseModel.extract_features(policy, torch.as_tensor(x), policy.pi_features_extractor)
+        mean = policy.action_net(policy.mlp_extractor.forward_actor(features))
+    u = mean.numpy().reshape((-1, *policy.action_space.shape))
+    return np.clip(u, policy.action_space.low, policy.action_space.high)
+
+
 class PolicyController(Controller):
     """Deterministic trained policy with frozen observation normalisation (see the module doc).
 
@@ -108,6 +140,8 @@ class PolicyController(Controller):
             torch.set_num_threads(torch_threads)
         self.policy, self.config, self.stats = policy, config, stats
         self.recurrent = config is not None and is_recurrent(config.algo)
+        #: the network is a plain Gaussian MLP policy: :func:`gaussian_mlp_actions` acts for it
+        self.gaussian_mlp = not self.recurrent and is_gaussian_mlp(policy)
         self.obs_dim = int(np.prod(policy.observation_space.shape))
         self.spec: InterfaceSpec | None = None
         self.train_env_config = None
@@ -216,6 +250,8 @@ class PolicyController(Controller):
         if self.recurrent:
             u, self._state = self.policy.predict(x, state=self._state, episode_start=self._starts,
                                                  deterministic=True)
+        elif self.gaussian_mlp:
+            u = gaussian_mlp_actions(self.policy, x)
         else:
             u, _ = self.policy.predict(x, deterministic=True)
         self._starts = np.zeros(self._n, bool)
@@ -469,6 +505,7 @@ def evaluate(path: str | Path, env_id: str | None = None, seeds: Iterable[int] =
 
 __all__ = ["ALGO_LABELS", "DEFAULT_POLICY", "DSS14_ACT_DIM", "DSS14_OBS_DIM", "POLICIES_DIR",
            "POLICIES_KEPT", "PPOController", "PolicyController",
-           "PolicyFiles", "checked_policy", "file_stamp", "shipped_policies", "shipped_policy",
+           "PolicyFiles", "checked_policy", "file_stamp", "gaussian_mlp_actions", "is_gaussian_mlp",
+           "shipped_policies", "shipped_policy",
            "dss14_policy_problem", "evaluate", "find_policy_files", "load_policy",
            "policy_problem"]
