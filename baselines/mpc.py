@@ -49,7 +49,7 @@ from scipy import linalg
 
 from dss14_env.baselines.design import LQGConfig, MPCConfig, PointingConfig, default_controllers_config
 from dss14_env.baselines.lqg import LQGController, LQGDesign
-from dss14_env.baselines.qp import ParametricQP
+from dss14_env.baselines.qp import ParametricQP, set_values
 
 
 @dataclass(frozen=True)
@@ -221,9 +221,9 @@ class CondensedMPC:
         Rss = np.tile(r_ss, N)
         # cost in u~ = U ru - Rss: u~' H u~ + 2 (F z0)' u~  ->  in U (scaled, up to a constant)
         lin = 2.0 * (self.F @ z0 - (self.H_scaled * self._Hs_scale / (ru * ru)) @ Rss)
-        self.q.value = lin * ru / self._Hs_scale
-        self.e0.value = (self.Ephi @ z0 - self.Egam @ Rss) / es
-        self.u_prev.value = np.clip(r_prev / ru, -1.0, 1.0)
+        set_values([self.q, self.e0, self.u_prev], [lin * ru / self._Hs_scale,
+                                                   (self.Ephi @ z0 - self.Egam @ Rss) / es,
+                                                   np.clip(r_prev / ru, -1.0, 1.0)])
 
     def solve(self, z0: np.ndarray, r_ss: np.ndarray, r_prev: np.ndarray) -> MPCStep:
         """Solve one step for one row (``z0`` ``(n_z,)``, ``r_ss`` and ``r_prev`` ``(2,)``).
