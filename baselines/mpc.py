@@ -38,6 +38,7 @@ episode.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import math
 import time
 from dataclasses import dataclass
@@ -158,8 +159,11 @@ class CondensedMPC:
         if not self.problem.is_dpp():
             raise RuntimeError("the MPC problem is not DPP: it would be re-canonicalised every "
                                "step")
+        # the problem is these numbers' (the canonical data of an equal problem is reused)
+        digest = hashlib.sha256(b"".join(np.ascontiguousarray(a).tobytes() for a in (Hs, Eg))).hexdigest()
+        key = ("CondensedMPC", N, m, Hs.shape, Eg.shape, step, lim_e, w1, w2, digest)
         self.qp = ParametricQP(self.problem, [self.q, self.e0, self.u_prev], self.U,
-                               st.osqp_settings(), fast=fast)
+                               st.osqp_settings(), fast=fast, key=key)
 
     def _prediction(self, design: LQGDesign) -> np.ndarray:
         """Prediction matrices of a design; returns the (unscaled) Hessian ``H``."""

@@ -100,3 +100,21 @@ def test_set_values_stores_what_the_value_setter_stores() -> None:
         set_values([p], [np.array([0.0, np.nan, 0.0])])
     with pytest.raises(ValueError):  # an attribute is still enforced by the setter
         set_values([cp.Parameter(2, nonneg=True)], [np.array([-1.0, 0.0])])
+
+
+def test_a_problem_of_a_kept_key_is_not_probed_again_and_solves_the_same(monkeypatch) -> None:
+    qp_module.CANONICAL_DATA.clear()
+    probes = []
+    real = qp_module.osqp_data
+    monkeypatch.setattr(qp_module, "osqp_data", lambda *a: probes.append(1) or real(*a))
+    solutions = []
+    for _ in range(2):
+        prob, params, x = _known_problem()
+        fast = CanonicalQP(prob, params, x, SETTINGS, key="known")
+        n_probed = len(probes)
+        params[0].value, params[1].value = np.array([1.0, 1.0, -3.0]), 0.5
+        solutions.append(fast.solve()[0])
+    assert n_probed > 0 and len(probes) == n_probed  # the second problem was not probed
+    np.testing.assert_array_equal(solutions[0], solutions[1])
+    np.testing.assert_allclose(solutions[0], _solution(np.array([1.0, 1.0, -3.0]), 0.5), atol=1e-6)
+    assert len(qp_module.CANONICAL_DATA) == 1
