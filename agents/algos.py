@@ -74,8 +74,19 @@ def algo_kwargs(cfg: TrainConfig) -> dict[str, Any]:
     return kw
 
 
+class NoOptimizer:
+    """The optimizer of a policy network built to act, not to learn (:func:`build_policy`): it
+    holds nothing (a torch optimizer's first construction alone imports torch's compiler,
+    about 2 s of a process).
+    """
+
+    def __init__(self, params: Any, lr: float = 0.0, **kwargs: Any) -> None:
+        self.param_groups: list[dict[str, Any]] = []
+
+
 def build_policy(cfg: TrainConfig, obs_dim: int, action_low: Any, action_high: Any) -> Any:
-    """The algorithm's policy network, freshly initialised, for the config's architecture.
+    """The algorithm's policy network, freshly initialised, for the config's architecture, to
+    act (in evaluation mode, without an optimizer: :class:`NoOptimizer`).
 
     :param cfg: the run's configuration (``algo``, ``net_arch``, ``activation_fn``, ...)
     :param obs_dim: size of the policy's observation
@@ -89,9 +100,10 @@ def build_policy(cfg: TrainConfig, obs_dim: int, action_low: Any, action_high: A
     obs_space = spaces.Box(-np.inf, np.inf, (int(obs_dim),), np.float32)
     act_space = spaces.Box(np.asarray(action_low, np.float32), np.asarray(action_high, np.float32),
                            dtype=np.float32)
-    policy = policy_cls(obs_space, act_space, lambda _: 0.0, **policy_kwargs(cfg))
+    policy = policy_cls(obs_space, act_space, lambda _: 0.0, optimizer_class=NoOptimizer,
+                        **policy_kwargs(cfg))
     policy.set_training_mode(False)
     return policy
 
 
-__all__ = ["algo_class", "algo_kwargs", "build_policy", "is_recurrent", "policy_kwargs"]
+__all__ = ["NoOptimizer", "algo_class", "algo_kwargs", "build_policy", "is_recurrent", "policy_kwargs"]

@@ -24,6 +24,9 @@ can run code: it loads only with ``trust_pickle=True``.
 
 from __future__ import annotations
 
+import copy
+import functools
+import hashlib
 import time
 from collections.abc import Iterable, Mapping
 from pathlib import Path
@@ -79,6 +82,38 @@ def _env_config(env: Any) -> Any:
     return getattr(getattr(env, "unwrapped", env), "config", None)
 
 
+def is_gaussian_mlp(policy: Any) -> bool:
+    """Whether ``policy`` is stable-baselines3's plain ``ActorCriticPolicy`` (PPO's
+    ``MlpPolicy``): flattened observations through linear layers and activations, a diagonal
+    Gaussian on unsquashed Box actions -- what :func:`gaussian_mlp_actions` acts for.
+    """
+    from gymnasium import spaces
+    from stable_baselines3.common.distributions import DiagGaussianDistribution
+    from stable_baselines3.common.policies import ActorCriticPolicy
+    from stable_baselines3.common.torch_layers import FlattenExtractor
+
+    return (type(policy) is ActorCriticPolicy and type(policy.pi_features_extractor) is FlattenExtractor
+            and isinstance(policy.action_dist, DiagGaussianDistribution) and not policy.squash_output
+            and isinstance(policy.action_space, spaces.Box)
+            and isinstance(policy.observation_space, spaces.Box))
+
+
+def gaussian_mlp_actions(policy: Any, x: np.ndarray) -> np.ndarray:
+    """The deterministic actions of a plain Gaussian MLP policy (:func:`is_gaussian_mlp`) for
+    float32 observations ``x (n, obs_dim)``: the mean of its Gaussian, clipped to the action
+    space -- the very operations of its ``predict(x, deterministic=True)``, without building the
+    distribution object (equal to it bit for bit).
+    """
+    import torch
+    from stable_baselines3.common.policies import BaseModel
+
+    with torch.no_grad():
+        features = BaseModel.extract_features(policy, torch.as_tensor(x), policy.pi_features_extractor)
+        mean = policy.action_net(policy.mlp_extractor.forward_actor(features))
+    u = mean.numpy().reshape((-1, *policy.action_space.shape))
+    return np.clip(u, policy.action_space.low, policy.action_space.high)
+
+
 class PolicyController(Controller):
     """Deterministic trained policy with frozen observation normalisation (see the module doc).
 
@@ -106,6 +141,8 @@ class PolicyController(Controller):
             torch.set_num_threads(torch_threads)
         self.policy, self.config, self.stats = policy, config, stats
         self.recurrent = config is not None and is_recurrent(config.algo)
+        #: the network is a plain Gaussian MLP policy: :func:`gaussian_mlp_actions` acts for it
+        self.gaussian_mlp = not self.recurrent and is_gaussian_mlp(policy)
         self.obs_dim = int(np.prod(policy.observation_space.shape))
         self.spec: InterfaceSpec | None = None
         self.train_env_config = None
@@ -214,6 +251,8 @@ class PolicyController(Controller):
         if self.recurrent:
             u, self._state = self.policy.predict(x, state=self._state, episode_start=self._starts,
                                                  deterministic=True)
+        elif self.gaussian_mlp:
+            u = gaussian_mlp_actions(self.policy, x)
         else:
             u, _ = self.policy.predict(x, deterministic=True)
         self._starts = np.zeros(self._n, bool)
@@ -261,10 +300,66 @@ def check_resolved(path: Path) -> None:
                               f"{', '.join(POLICY_KEYS)})")
 
 
+#: policies a process keeps read (:func:`checked_policy`), the least recently used dropped first
+POLICIES_KEPT = 16
+
+
+def file_stamp(path: Path | None) -> tuple[str, str] | None:
+    """``(resolved path, SHA-256 of the content)`` of a policy file, or None: what tells an
+    edited file from the one read before (same size and time or not).
+
+    :raises PolicyFileError: the file cannot be read
+    """
+    if path is None:
+        return None
+    try:
+        return str(path.resolve()), hashlib.sha256(path.read_bytes()).hexdigest()
+    except OSError as exc:
+        raise PolicyFileError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+
+
+@functools.lru_cache(maxsize=POLICIES_KEPT)
+def checked_policy(config: tuple[str, str], weights: tuple[str, str], stats: tuple[str, str] | None,
+                   env_module: str | None = None
+                   ) -> tuple[TrainConfig, dict[str, Any], dict, NormStats | None]:
+    """The checked contents of a policy folder's files (:func:`file_stamp` of each): the
+    configuration, the weights' fingerprint and state dict, and the statistics.  Read once per
+    content and kept (:data:`POLICIES_KEPT`); shared, never changed: :func:`load_policy` copies
+    the weights into a network of its own and the statistics.  ``checked_policy.cache_clear()``
+    forgets them.
+
+    :raises PolicyFileError: (a ValueError) one line naming the file: unreadable, weights and
+        statistics of different runs
+    """
+    cfg_path, w_path = Path(config[0]), Path(weights[0])
+    cfg = load_config(cfg_path, env_module)
+    check_resolved(cfg_path)
+    wfp, state = load_weights(w_path)
+    if wfp["algo"] != cfg.algo:
+        raise PolicyFileError(f"{w_path}: weights of algo {wfp['algo']!r}, "
+                              f"{cfg_path} says {cfg.algo!r}")
+    norm = None
+    if cfg.normalize_obs:
+        if stats is None:
+            raise PolicyFileError(f"policy folder {w_path.parent}: normalization.npz is missing "
+                                  f"({cfg_path} has normalize_obs: true)")
+        s_path = Path(stats[0])
+        sfp, norm = load_stats(s_path)
+        check_fingerprints(w_path, wfp, s_path, sfp)
+        if norm.obs_mean.size != int(wfp["obs_dim"]):
+            raise PolicyFileError(f"{s_path}: statistics of {norm.obs_mean.size} "
+                                  f"observations, the weights expect {wfp['obs_dim']}")
+    return cfg, wfp, state, norm
+
+
 def load_policy(path: str | Path | None = None, env: Any = None, name: str | None = None,
                 trust_pickle: bool = False, torch_threads: int | None = 1,
                 env_module: str | None = None) -> PolicyController:
     """Load a trained policy as a :class:`dss14_env.baselines.base.Controller`.
+
+    The files of a policy folder are read every time; their checked contents are kept per
+    content (:func:`checked_policy`), so a policy loaded again costs a fresh network only (an
+    edited file is read anew).  Every controller gets a network and statistics of its own.
 
     :param path: a policy folder (run folder, ``eval/best``, ``checkpoints/<N>_steps``);
         default None: the policy shipped with the package (:data:`DEFAULT_POLICY`)
@@ -281,30 +376,18 @@ def load_policy(path: str | Path | None = None, env: Any = None, name: str | Non
         configured architecture
     """
     files = find_policy_files(DEFAULT_POLICY if path is None else path)
-    cfg = None
-    if files.config is not None:
-        cfg = load_config(files.config, env_module)
-        check_resolved(files.config)
     if files.foreign:
+        cfg = None
+        if files.config is not None:
+            cfg = load_config(files.config, env_module)
+            check_resolved(files.config)
         model, vn = load_sb3_model(files, algo_class(cfg.algo if cfg else "ppo"), trust_pickle)
         stats = NormStats.from_vec_normalize(vn) if vn is not None and vn.norm_obs else None
         algo = cfg.algo if cfg else "ppo"
         return PolicyController(model.policy, cfg, stats, name or _label(files, algo), env,
                                 torch_threads)
-    wfp, state = load_weights(files.weights)
-    if wfp["algo"] != cfg.algo:
-        raise PolicyFileError(f"{files.weights}: weights of algo {wfp['algo']!r}, "
-                              f"{files.config} says {cfg.algo!r}")
-    stats = None
-    if cfg.normalize_obs:
-        if files.stats is None:
-            raise PolicyFileError(f"policy folder {files.folder}: normalization.npz is missing "
-                                  f"({files.config} has normalize_obs: true)")
-        sfp, stats = load_stats(files.stats)
-        check_fingerprints(files.weights, wfp, files.stats, sfp)
-        if stats.obs_mean.size != int(wfp["obs_dim"]):
-            raise PolicyFileError(f"{files.stats}: statistics of {stats.obs_mean.size} "
-                                  f"observations, the weights expect {wfp['obs_dim']}")
+    cfg, wfp, state, stats = checked_policy(file_stamp(files.config), file_stamp(files.weights),
+                                            file_stamp(files.stats), env_module)
     low = wfp.get("action_low", [-1.0] * int(wfp["act_dim"]))
     high = wfp.get("action_high", [1.0] * int(wfp["act_dim"]))
     policy = build_policy(cfg, int(wfp["obs_dim"]), low, high)
@@ -314,7 +397,7 @@ def load_policy(path: str | Path | None = None, env: Any = None, name: str | Non
         first = str(exc).strip().splitlines()[0][:160]
         raise PolicyFileError(f"{files.weights}: the weights do not fit the architecture of "
                               f"{files.config} ({first})") from None
-    return PolicyController(policy, cfg, stats, name or _label(files, cfg.algo), env,
+    return PolicyController(policy, cfg, copy.deepcopy(stats), name or _label(files, cfg.algo), env,
                             torch_threads)
 
 
@@ -422,7 +505,8 @@ def evaluate(path: str | Path, env_id: str | None = None, seeds: Iterable[int] =
 
 
 __all__ = ["ALGO_LABELS", "DEFAULT_POLICY", "DSS14_ACT_DIM", "DSS14_OBS_DIM", "POLICIES_DIR",
-           "PPOController", "PolicyController",
-           "PolicyFiles", "shipped_policies", "shipped_policy",
+           "POLICIES_KEPT", "PPOController", "PolicyController",
+           "PolicyFiles", "checked_policy", "file_stamp", "gaussian_mlp_actions", "is_gaussian_mlp",
+           "shipped_policies", "shipped_policy",
            "dss14_policy_problem", "evaluate", "find_policy_files", "load_policy",
            "policy_problem"]

@@ -27,6 +27,8 @@ returned for the tests.  The closed-loop analysis of these designs is in
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import math
 import time
 from collections.abc import Sequence
@@ -681,8 +683,44 @@ def lqg_design_from_config(interface: ControlInterface, cfg: LQGConfig | None = 
         the reduced order are the section's, everything else is ``cfg``'s
     :param pointing_noise: with a pointing design, the Kalman filter also measures the pointing
         (the monopulse sensor) with this noise std per step, rad (:func:`design_lqg`)
+
+    A process designs each combination of these arguments once (:func:`cached_lqg_design`); the
+    design is shared, its arrays read-only.
     """
-    cfg = cfg or default_controllers_config().lqg
+    key = (interface, cfg or default_controllers_config().lqg, order, wind, pointing, pointing_noise)
+    try:
+        hash(key)
+    except TypeError:  # e.g. a wind given as a list: designed every time
+        return _design_from_config(*key)
+    return cached_lqg_design(*key)
+
+
+#: LQG designs a process keeps (:func:`cached_lqg_design`), the least recently used dropped first
+LQG_DESIGNS_KEPT = 256
+
+
+def _read_only(design: LQGDesign) -> LQGDesign:
+    """``design`` with its arrays made read-only (a shared design no caller may change)."""
+    for f in dataclasses.fields(design):
+        value = getattr(design, f.name)
+        if isinstance(value, np.ndarray):
+            value.setflags(write=False)
+    return design
+
+
+@functools.lru_cache(maxsize=LQG_DESIGNS_KEPT)
+def cached_lqg_design(interface: ControlInterface, cfg: LQGConfig, order: Any, wind: Any,
+                      pointing: PointingConfig | None, pointing_noise: float | None) -> LQGDesign:
+    """:func:`lqg_design_from_config`'s design, computed once per process for each combination
+    of its (hashable) arguments and shared, its arrays read-only (``cache_clear()`` forgets
+    them).
+    """
+    return _read_only(_design_from_config(interface, cfg, order, wind, pointing, pointing_noise))
+
+
+def _design_from_config(interface: ControlInterface, cfg: LQGConfig, order: Any, wind: Any,
+                        pointing: PointingConfig | None, pointing_noise: float | None) -> LQGDesign:
+    """The design of :func:`lqg_design_from_config`, computed."""
     noise = math.hypot(interface.encoder_noise, cfg.measurement_noise)
     w_a, w_enc, error_output = cfg.action_change_weight, 0.0, "encoder"
     if order == "config" and (pointing is not None or interface.encoders == "axis"):

@@ -38,6 +38,7 @@ episode.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import math
 import time
 from dataclasses import dataclass
@@ -49,7 +50,7 @@ from scipy import linalg
 
 from dss14_env.baselines.design import LQGConfig, MPCConfig, PointingConfig, default_controllers_config
 from dss14_env.baselines.lqg import LQGController, LQGDesign
-from dss14_env.baselines.qp import ParametricQP
+from dss14_env.baselines.qp import ParametricQP, set_values
 
 
 @dataclass(frozen=True)
@@ -158,8 +159,11 @@ class CondensedMPC:
         if not self.problem.is_dpp():
             raise RuntimeError("the MPC problem is not DPP: it would be re-canonicalised every "
                                "step")
+        # the problem is these numbers' (the canonical data of an equal problem is reused)
+        digest = hashlib.sha256(b"".join(np.ascontiguousarray(a).tobytes() for a in (Hs, Eg))).hexdigest()
+        key = ("CondensedMPC", N, m, Hs.shape, Eg.shape, step, lim_e, w1, w2, digest)
         self.qp = ParametricQP(self.problem, [self.q, self.e0, self.u_prev], self.U,
-                               st.osqp_settings(), fast=fast)
+                               st.osqp_settings(), fast=fast, key=key)
 
     def _prediction(self, design: LQGDesign) -> np.ndarray:
         """Prediction matrices of a design; returns the (unscaled) Hessian ``H``."""
@@ -221,9 +225,9 @@ class CondensedMPC:
         Rss = np.tile(r_ss, N)
         # cost in u~ = U ru - Rss: u~' H u~ + 2 (F z0)' u~  ->  in U (scaled, up to a constant)
         lin = 2.0 * (self.F @ z0 - (self.H_scaled * self._Hs_scale / (ru * ru)) @ Rss)
-        self.q.value = lin * ru / self._Hs_scale
-        self.e0.value = (self.Ephi @ z0 - self.Egam @ Rss) / es
-        self.u_prev.value = np.clip(r_prev / ru, -1.0, 1.0)
+        set_values([self.q, self.e0, self.u_prev], [lin * ru / self._Hs_scale,
+                                                   (self.Ephi @ z0 - self.Egam @ Rss) / es,
+                                                   np.clip(r_prev / ru, -1.0, 1.0)])
 
     def solve(self, z0: np.ndarray, r_ss: np.ndarray, r_prev: np.ndarray) -> MPCStep:
         """Solve one step for one row (``z0`` ``(n_z,)``, ``r_ss`` and ``r_prev`` ``(2,)``).

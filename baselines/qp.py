@@ -10,6 +10,8 @@ internals, namely
   ``Fx <= G``) and ``param_prob.var_id_to_col`` (where a variable sits in ``x``);
 * cvxpy's OSQP interface's status map (``osqp_qpif.OSQP.STATUS_MAP``, OSQP status value ->
   cvxpy status string);
+* ``Leaf.save_value``, which stores a parameter's value without the ``value`` setter's
+  projection check (:func:`set_values`);
 
 and calls OSQP's 1.x Python API (``setup``, ``update(q=, u=)``, ``solve(raise_error=False)``).
 It was checked on cvxpy 1.9.3 with osqp 1.1.3; ``pyproject.toml`` pins ``cvxpy>=1.9,<1.10``
@@ -32,6 +34,7 @@ both paths solve the same problem to the same tolerances (tested).
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Any
 
@@ -83,6 +86,61 @@ def osqp_status_map() -> dict[int, str]:
     return status_map
 
 
+def set_values(params: list[cp.Parameter], values: list[np.ndarray]) -> None:
+    """Set the values of parameters without attributes (``cp.Parameter(shape)``), as their
+    ``value`` setter would store them, without its projection check (about 0.1 ms a
+    parameter: a fifth of an MPC step): each value is a float64 copy of its parameter's shape.
+    A parameter with attributes (``nonneg``, ...) goes through the setter.
+
+    :raises ValueError: as the setter: a value of another shape, or with a NaN (not real),
+        naming the parameter
+    """
+    for p, v in zip(params, values, strict=True):
+        a = np.array(v, dtype=np.float64)
+        if a.shape != p.shape or np.isnan(a).any():
+            raise ValueError(f"parameter {p.name()}: a real value of shape {p.shape}, got shape "
+                             f"{a.shape}{' with NaN' if a.shape == p.shape else ''}")
+        if any(p.attributes[k] for k in p.attributes if k != "bounds") or p.attributes.get("bounds"):
+            p.value = a
+        else:
+            p.save_value(a)
+
+
+class KeptData:
+    """The canonical data of the problems a process has probed (:class:`CanonicalQP`), by key,
+    the least recently used dropped beyond ``size``.
+    """
+
+    def __init__(self, size: int) -> None:
+        self.size = int(size)
+        self._data: OrderedDict[Any, tuple[Any, ...]] = OrderedDict()
+
+    def get(self, key: Any) -> tuple[Any, ...] | None:
+        """The data of ``key``, or None."""
+        data = self._data.get(key)
+        if data is not None:
+            self._data.move_to_end(key)
+        return data
+
+    def put(self, key: Any, data: tuple[Any, ...]) -> None:
+        """Keep ``data`` under ``key``."""
+        self._data[key] = data
+        self._data.move_to_end(key)
+        while len(self._data) > self.size:
+            self._data.popitem(last=False)
+
+    def clear(self) -> None:
+        """Forget every problem's data."""
+        self._data.clear()
+
+    def __len__(self) -> int:
+        return len(self._data)
+
+
+#: the canonical data of the problems this process has probed (:class:`CanonicalQP` ``key``)
+CANONICAL_DATA = KeptData(64)
+
+
 class CanonicalQP:
     """A DPP cvxpy problem, canonicalised once for OSQP, re-solved with new parameter values.
 
@@ -98,14 +156,32 @@ class CanonicalQP:
     :param params: its parameters, in the order of the vector :meth:`solve` reads
     :param variable: the variable to return
     :param settings: OSQP settings (e.g. ``eps_abs``, ``eps_rel``, ``max_iter``, ``polishing``)
+    :param key: what determines the problem entirely (its builder's inputs, e.g. a digest of
+        its matrices), or None: the probed data is kept under it (:data:`CANONICAL_DATA`) and a
+        problem of the same key takes it from there instead of probing again; each instance
+        has its own OSQP workspace
     :raises AdapterError: if cvxpy's data is not as described, or not affine in the parameters
         with constant matrices
     """
 
     def __init__(self, problem: cp.Problem, params: list[cp.Parameter], variable: cp.Variable,
-                 settings: dict[str, Any]) -> None:
+                 settings: dict[str, Any], key: Any = None) -> None:
         self.params = list(params)
         self.status_map = osqp_status_map()
+        data = CANONICAL_DATA.get(key) if key is not None else None
+        if data is None:
+            data = self._probe(problem, variable)
+            if key is not None:
+                CANONICAL_DATA.put(key, data)
+        P, self.q0, F, self.u0, self.Mq, self.Mu, col = data
+        self.sl = slice(col, col + int(variable.size))
+        self.n_variables, self.n_constraints = self.q0.size, self.u0.size
+        self.solver = osqp.OSQP()
+        self.solver.setup(P, self.q0, F, np.full(self.u0.size, -np.inf), self.u0, verbose=False,
+                          **settings)
+
+    def _probe(self, problem: cp.Problem, variable: cp.Variable) -> tuple[Any, ...]:
+        """``(P, q0, F, u0, Mq, Mu, column)`` of the problem, probed and checked (the class)."""
         saved = [None if p.value is None else np.array(p.value, copy=True) for p in self.params]
         sizes = [int(p.size) for p in self.params]
         n_p = sum(sizes)
@@ -133,14 +209,12 @@ class CanonicalQP:
                 or not np.allclose(uc, u0 + Mu @ check, rtol=1e-9, atol=1e-12)):
             raise AdapterError("P or the constraint matrix depends on the parameters, or the data "
                                "is not affine in them")
-        self.q0, self.Mq, self.u0, self.Mu = q0, Mq, u0, Mu
-        self.sl = slice(col, col + int(variable.size))
-        self.n_variables, self.n_constraints = q0.size, u0.size
-        self.solver = osqp.OSQP()
         # rebuilt from (data, indices, indptr) as cvxpy does: OSQP needs 32-bit indices
         P, F = (sp.csc_matrix(M) for M in (P, F))
         P, F = (sp.csc_matrix((M.data, M.indices, M.indptr), shape=M.shape) for M in (P, F))
-        self.solver.setup(P, q0, F, np.full(u0.size, -np.inf), u0, verbose=False, **settings)
+        for a in (P.data, P.indices, P.indptr, F.data, F.indices, F.indptr, q0, u0, Mq, Mu):
+            a.setflags(write=False)  # shared between the problems of one key
+        return P, q0, F, u0, Mq, Mu, col
 
     def solve(self) -> tuple[np.ndarray | None, str]:
         """Solve at the parameters' current values.
@@ -180,10 +254,11 @@ class ParametricQP:
     :param variable: the variable whose value :meth:`solve` returns
     :param settings: OSQP settings, used by both paths
     :param fast: try the fast path (default True); False always uses ``Problem.solve``
+    :param key: what determines the problem entirely, or None (:class:`CanonicalQP`)
     """
 
     def __init__(self, problem: cp.Problem, params: list[cp.Parameter], variable: cp.Variable,
-                 settings: dict[str, Any], fast: bool = True) -> None:
+                 settings: dict[str, Any], fast: bool = True, key: Any = None) -> None:
         self.problem, self.variable = problem, variable
         self.settings = dict(settings)
         self.fast: CanonicalQP | None = None
@@ -191,7 +266,7 @@ class ParametricQP:
         self.adapter_error: str | None = "disabled" if not fast else None
         if fast:
             try:
-                self.fast = CanonicalQP(problem, params, variable, self.settings)
+                self.fast = CanonicalQP(problem, params, variable, self.settings, key)
             except AdapterError as exc:
                 self.adapter_error = str(exc)
 

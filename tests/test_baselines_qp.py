@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from dss14_env.baselines import qp as qp_module
-from dss14_env.baselines.qp import AdapterError, CanonicalQP, ParametricQP
+from dss14_env.baselines.qp import AdapterError, CanonicalQP, ParametricQP, set_values
 
 SETTINGS = {"eps_abs": 1e-9, "eps_rel": 1e-9, "max_iter": 20000, "polishing": True}
 
@@ -83,3 +83,38 @@ def test_equality_constraints_are_refused() -> None:
     prob = cp.Problem(cp.Minimize(cp.sum_squares(x) - p @ x), [cp.sum(x) == 1.0])
     with pytest.raises(AdapterError, match="equality"):
         CanonicalQP(prob, [p], x, SETTINGS)
+
+
+def test_set_values_stores_what_the_value_setter_stores() -> None:
+    p, q = cp.Parameter(3), cp.Parameter(3)
+    v = np.array([1.0, -np.inf, 2.5])
+    set_values([p], [v])
+    q.value = v
+    np.testing.assert_array_equal(p.value, q.value)
+    assert p.value.dtype == q.value.dtype
+    v[0] = 7.0  # a copy is stored
+    assert p.value[0] == 1.0
+    with pytest.raises(ValueError, match="shape"):
+        set_values([p], [np.zeros(2)])
+    with pytest.raises(ValueError, match="NaN"):
+        set_values([p], [np.array([0.0, np.nan, 0.0])])
+    with pytest.raises(ValueError):  # an attribute is still enforced by the setter
+        set_values([cp.Parameter(2, nonneg=True)], [np.array([-1.0, 0.0])])
+
+
+def test_a_problem_of_a_kept_key_is_not_probed_again_and_solves_the_same(monkeypatch) -> None:
+    qp_module.CANONICAL_DATA.clear()
+    probes = []
+    real = qp_module.osqp_data
+    monkeypatch.setattr(qp_module, "osqp_data", lambda *a: probes.append(1) or real(*a))
+    solutions = []
+    for _ in range(2):
+        prob, params, x = _known_problem()
+        fast = CanonicalQP(prob, params, x, SETTINGS, key="known")
+        n_probed = len(probes)
+        params[0].value, params[1].value = np.array([1.0, 1.0, -3.0]), 0.5
+        solutions.append(fast.solve()[0])
+    assert n_probed > 0 and len(probes) == n_probed  # the second problem was not probed
+    np.testing.assert_array_equal(solutions[0], solutions[1])
+    np.testing.assert_allclose(solutions[0], _solution(np.array([1.0, 1.0, -3.0]), 0.5), atol=1e-6)
+    assert len(qp_module.CANONICAL_DATA) == 1

@@ -860,6 +860,31 @@ def headline_table(results: Mapping[str, Any], full_tables: str = FULL_TABLES) -
     return _table(header, rows) + "\n\n" + legend + "\n"
 
 
+#: the entries of a run's results that time it (wall clock and CPU, per run, controller and
+#: episode), which differ from run to run; an episode's column is named by its first part
+#: (``controller_time_ms.median``)
+TIMING_KEYS = frozenset({"controller_time_ms", "controller_wall_time_s", "wall_time_s", "cpu_time_s"})
+#: the sections of results.json that describe the run (command, machine, versions), not its figures
+RUN_SECTIONS = ("bench", "versions")
+
+
+def without_timings(x: Any) -> Any:
+    """``x`` (results.json's content or a part of it) without its :data:`TIMING_KEYS` entries."""
+    if isinstance(x, Mapping):
+        return {k: without_timings(v) for k, v in x.items() if str(k).split(".")[0] not in TIMING_KEYS}
+    if isinstance(x, list):
+        return [without_timings(v) for v in x]
+    return x
+
+
+def run_figures(results: Mapping[str, Any]) -> dict[str, Any]:
+    """What a bench run found: its results without the run's description
+    (:data:`RUN_SECTIONS`) and timings (:func:`without_timings`); two runs of one plan on the
+    same machine give equal figures, whatever their ``--jobs`` and the processes' caches.
+    """
+    return without_timings({k: v for k, v in results.items() if k not in RUN_SECTIONS})
+
+
 def write_results(results: Mapping[str, Any], out: str | Path) -> tuple[Path, Path]:
     """Write results.json and results.md into ``out`` (an existing folder), atomically.
 
@@ -877,5 +902,6 @@ __all__ = ["LEGEND", "RESULT_FILES", "assemble_results", "command_table", "episo
            "main_table",
            "package_versions", "pointing_ratio_table", "pointing_table",
            "three_sigma_table",
-           "precision_table", "ratio_table", "results_json", "results_markdown",
-           "smoothness_tables", "sweep_tables", "wind_sweep_curves", "write_results"]
+           "precision_table", "ratio_table", "results_json", "results_markdown", "RUN_SECTIONS",
+           "run_figures", "smoothness_tables", "sweep_tables", "TIMING_KEYS", "wind_sweep_curves",
+           "without_timings", "write_results"]

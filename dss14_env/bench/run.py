@@ -20,6 +20,7 @@ from dss14_env.bench.plan import SWEEP_DIRECTIONS, BenchPlan, ScenarioRun, sweep
 from dss14_env.bench.runner import Scenario
 from dss14_env.bench.threads import blas_threads
 from dss14_env.core.progress import Progress
+from dss14_env.envs.plant import resolve_factory
 from dss14_env.model.variants import DRIVE_VARIANTS
 
 #: scenarios whose first seed's time histories the figures draw (the catalog's traced rows)
@@ -164,6 +165,32 @@ def _run_unit(item: tuple[int, _Unit]) -> tuple[int, dict[str, Any], float]:
     return i, res, time.perf_counter() - t0
 
 
+#: control periods of the warm-up episode (:func:`warm_up`)
+WARM_UP_STEPS = 2
+#: bootstrap resamples of the warm-up's summaries (discarded)
+WARM_UP_RESAMPLES = 10
+
+
+def warm_up(plan: BenchPlan, units: list[_Unit]) -> None:
+    """Do once, before the pool forks (its workers start as copies of this process), what each
+    worker would otherwise do again: build every controller of the units (the policies' files
+    read and checked, the LQG designs computed) and run it for :data:`WARM_UP_STEPS` periods
+    of the first seed of the first unit's scenario (the environments' compiled loops, numba's,
+    compiled for the single and the vector environment), and build the model of every
+    scenario's model file (a drive variant's calibration).  Nothing of it is scored.
+    """
+    if not units:
+        return
+    rows = list({id(r): r for u in units for r in u.ctrls}.values())
+    first = units[0]
+    runner.run(rows, [("warm-up", catalog.replace_steps(first.scenario, WARM_UP_STEPS))],
+               first.run.seeds[:1], plan.env_kwargs, sequential_seeds=1, reference=None,
+               bootstrap_seed=plan.bootstrap_seed, n_resamples=WARM_UP_RESAMPLES)
+    models = {u.scenario.env.get("model_config") for u in units}
+    for model in sorted(models - {None, first.scenario.env.get("model_config")}, key=str):
+        resolve_factory(model)
+
+
 def _run_pool(plan: BenchPlan, units: list[_Unit], jobs: int,
               done: Callable[[_Unit, dict[str, Any]], None]) -> tuple[list[dict[str, Any]], dict[str, float]]:
     """The units in ``jobs`` worker processes, largest first; their results in the units' order
@@ -173,8 +200,10 @@ def _run_pool(plan: BenchPlan, units: list[_Unit], jobs: int,
     wall = {"main": 0.0, "sweep": 0.0, "variants": 0.0}
     order = sorted(range(len(units)), key=lambda i: -_unit_cost(units[i]))
     # fork: the workers start with the parent's imports and plan (spawn where there is none)
-    ctx = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods()
-                                      else "spawn")
+    fork = "fork" in multiprocessing.get_all_start_methods()
+    ctx = multiprocessing.get_context("fork" if fork else "spawn")
+    if fork:
+        warm_up(plan, units)
     with ctx.Pool(min(jobs, len(units)), _init_worker, (plan,)) as pool:
         for i, res, t in pool.imap_unordered(_run_unit, [(i, units[i]) for i in order], chunksize=1):
             results[i] = res
@@ -244,4 +273,4 @@ def run_plan(plan: BenchPlan, progress: bool = True) -> dict[str, Any]:
 
 
 __all__ = ["controller_entries", "run_plan", "sweep_points", "SWEEP_DIRECTIONS", "variant_name",
-           "variant_points"]
+           "variant_points", "warm_up", "WARM_UP_RESAMPLES", "WARM_UP_STEPS"]

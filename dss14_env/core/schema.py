@@ -48,8 +48,10 @@ dss14_env.core.schema.ConfigError: demo.yaml: field 'dt': must be a number > 0 a
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import difflib
+import functools
 import math
 import re
 from collections.abc import Mapping
@@ -587,12 +589,28 @@ def _a(word: str) -> str:
     return f"{'an' if word[0] in 'aeiou' else 'a'} {word}"
 
 
+#: parsed configuration texts a process keeps (:func:`read_config`), the least recently read
+#: dropped first
+PARSED_CONFIGS_KEPT = 32
+
+
+@functools.lru_cache(maxsize=PARSED_CONFIGS_KEPT)
+def parsed_config(text: str, source: str) -> Any:
+    """:func:`load_yaml` of a configuration's text, parsed once per text and source (an edited
+    file has another text and is parsed again).  The value is shared: :func:`read_config`
+    hands out copies; ``parsed_config.cache_clear()`` forgets every text.
+    """
+    return load_yaml(text, source)
+
+
 def read_config(name_or_path: str | Path, kind: str | None = None) -> tuple[dict[str, Any], str]:
     """Read a YAML configuration (a path or a shipped name, :func:`config_path`).
 
     Parsed by :func:`load_yaml` (``yaml.safe_load``'s loader: no Python objects are ever built
     from a file; YAML 1.2 numbers; a key repeated in one mapping, a recursive alias or an alias
-    bomb refused).
+    bomb refused).  The file is read every time; the same text is parsed once per process (the
+    last :data:`PARSED_CONFIGS_KEPT` texts are kept) and each caller gets its own copy, so an
+    edited file is read anew and a caller's changes reach no other caller.
 
     :param kind: the kind of configuration wanted (:data:`CONFIG_KINDS`; None: any): a file of
         another kind is refused as such (:func:`check_config_kind`)
@@ -610,7 +628,7 @@ def read_config(name_or_path: str | Path, kind: str | None = None) -> tuple[dict
         raise ConfigError(str(exc)) from None
     except OSError as exc:
         raise ConfigError(f"{source}: cannot be read ({exc})") from None
-    data = load_yaml(text, source)
+    data = copy.deepcopy(parsed_config(text, source))
     if data is None:
         data = {}
     if not isinstance(data, Mapping):
