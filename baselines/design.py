@@ -166,18 +166,20 @@ class ScheduleConfig:
     :mod:`dss14_env.baselines.scheduled`).
 
     ``wind_speeds``: the grid (ascending) that a measured mean wind speed is rounded to, the
-    nearest entry; ``gust_model_speeds``: the speed of the gust model that grid point's design
-    carries (one per entry; everything else as ``lqg_pointing``).
+    nearest entry, whose design carries the gust model at that speed;
+    ``measurement_noise``: that design's extra white measurement noise in the Kalman filter
+    (``lqg.measurement_noise`` of the grid point; one per entry; everything else as
+    ``lqg_pointing``).
     """
 
     wind_speeds: tuple = spec("m/s", kind="list", lo=0.0, lo_open=True)
-    gust_model_speeds: tuple = spec("m/s", kind="list", lo=0.0, lo_open=True)
+    measurement_noise: tuple = spec("rad", kind="list", lo=0.0)
 
     def problem(self) -> str | None:
         """What is wrong with the section (lists of other lengths, a grid not ascending), or None."""
-        if len(self.gust_model_speeds) != len(self.wind_speeds):
-            return (f"field 'schedule.gust_model_speeds': needs one entry per wind speed "
-                    f"({len(self.wind_speeds)}), got {len(self.gust_model_speeds)}")
+        if len(self.measurement_noise) != len(self.wind_speeds):
+            return (f"field 'schedule.measurement_noise': needs one entry per wind speed "
+                    f"({len(self.wind_speeds)}), got {len(self.measurement_noise)}")
         if any(np.diff(self.wind_speeds) <= 0):
             return "field 'schedule.wind_speeds': must be strictly ascending"
         return None

@@ -7,7 +7,9 @@ measures it (:meth:`ScheduledPointingLQGController.set_scenario`; the bench's ep
 passes the environment's reset-info ``wind_speed_mps``, the mean wind, never the gust state),
 rounds it to the nearest speed of the grid of section ``schedule`` of
 ``configs/controllers.yaml`` and uses that grid point's design: ``lqg_pointing``'s with the
-gust model at the point's ``gust_model_speeds`` entry.  Everything else is ``lqg_pointing``'s:
+gust model at the point's speed and the point's ``measurement_noise`` (the extra white noise
+of the Kalman design: the lighter the wind, the longer the encoders sit on one count and the
+less their quantisation error is white).  Everything else is ``lqg_pointing``'s:
 the direction read from the start command, the direction-free model below
 ``lqg.min_wind_speed`` of the inferred speed, the reduction, weights, shaper and integrator.
 At the 50-km/h grid point it is ``lqg_pointing``.  Designs are built once per process and
@@ -20,12 +22,13 @@ an episode takes the speed inferred from its start command
 >>> ctrl = ScheduledPointingLQGController()
 >>> [round(s * 3.6) for s in ctrl.grid_speeds]
 [10, 20, 30, 50, 70]
->>> round(ctrl.scheduled_speed(12 / 3.6) * 3.6, 6)  # a 12-km/h reading: the 10-km/h point
-5.0
+>>> ctrl.grid_point(12 / 3.6), ctrl.grid_point(44 / 3.6)  # 12 km/h: the 10-km/h point
+(0, 3)
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from typing import Any
@@ -39,7 +42,7 @@ from dss14_env.baselines.design import (
     default_controllers_config,
     infer_wind,
 )
-from dss14_env.baselines.lqg import LQGDesign, PointingLQGController
+from dss14_env.baselines.lqg import LQGDesign, PointingLQGController, lqg_design_from_config
 from dss14_env.core.units import KMH
 from dss14_env.envs.config import WIND_SPEED_MAX_KMH
 
@@ -64,10 +67,10 @@ def check_readings(wind_speeds: Any, n: int) -> np.ndarray:
 
 
 class ScheduledPointingLQGController(PointingLQGController):
-    """``lqg_pointing`` with its gust model scheduled on the measured mean wind speed (see the
-    module docstring).
+    """``lqg_pointing`` with its gust model and measurement noise scheduled on the measured mean
+    wind speed (see the module docstring).
 
-    ``info["design_wind"]``: ``(gust model speed, direction)``, the direction None for the
+    ``info["design_wind"]``: ``(grid speed, direction)``, the direction None for the
     direction-free model; ``info_batch``: ``design_wind_speed_mps``,
     ``design_wind_direction_rad`` (NaN: direction-free) and ``wind_reading_mps`` (NaN: no
     reading, the inferred speed was used).
@@ -85,14 +88,27 @@ class ScheduledPointingLQGController(PointingLQGController):
         if sc is None:
             raise ValueError("lqg_pointing_sched needs the section 'schedule' of the controllers' "
                              "configuration")
-        self.grid_speeds = np.asarray(sc.wind_speeds, float)
-        self.gust_speeds = tuple(float(s) for s in sc.gust_model_speeds)
+        self.grid_speeds = tuple(float(s) for s in sc.wind_speeds)
+        self.measurement_noise = tuple(float(s) for s in sc.measurement_noise)
         self._reading: float | None = None
         super().__init__(env, name, config, pointing)
 
-    def scheduled_speed(self, wind_speed: float) -> float:
-        """The gust model's speed (m/s) for a mean wind speed (m/s): the nearest grid point's."""
-        return self.gust_speeds[int(np.argmin(np.abs(self.grid_speeds - float(wind_speed))))]
+    def grid_point(self, wind_speed: float) -> int:
+        """The index of the grid speed nearest to a mean wind speed (m/s)."""
+        return int(np.argmin(np.abs(np.asarray(self.grid_speeds) - float(wind_speed))))
+
+    def design_for(self, wind: Any) -> LQGDesign:
+        """The design for a key ``(wind, grid point)`` (cached; :meth:`LQGController.design_for`
+        for a plain wind key): ``wind`` ``("design", speed)`` or ``(speed, direction)``, the
+        Kalman design with the grid point's measurement noise.
+        """
+        if not (isinstance(wind, tuple) and len(wind) == 2 and isinstance(wind[1], int)):
+            return super().design_for(wind)
+        if wind not in self._designs_by_wind:
+            cfg = dataclasses.replace(self.config, measurement_noise=self.measurement_noise[wind[1]])
+            self._designs_by_wind[wind] = lqg_design_from_config(self.interface, cfg, wind=wind[0],
+                                                                 pointing=self.pointing)
+        return self._designs_by_wind[wind]
 
     def _allocate(self, n: int) -> None:
         super()._allocate(n)
@@ -123,12 +139,13 @@ class ScheduledPointingLQGController(PointingLQGController):
         for i, r, v in zip(rows.tolist(), r0, c_rate0, strict=True):
             reading = self._row_readings[i] if math.isfinite(self._row_readings[i]) else self._reading
             self._used_readings[i] = math.nan if reading is None else reading
-            speed = self.scheduled_speed(infer_wind(r, v)[0] if reading is None else reading)
+            j = self.grid_point(infer_wind(r, v)[0] if reading is None else reading)
+            speed = self.grid_speeds[j]
             base = self.wind_key(r, v)  # lqg_pointing's: None (direction-free) or (speed, direction)
-            key = ("design", speed) if base is None else (speed, base[1])
+            wind = ("design", speed) if base is None else (speed, base[1])
             self._design_keys[i] = (speed, None if base is None else base[1])
-            self._wind_keys[i] = key
-            out.append(self.design_for(key))
+            self._wind_keys[i] = None
+            out.append(self.design_for((wind, j)))
         return out
 
     def row_info(self) -> dict[str, np.ndarray]:

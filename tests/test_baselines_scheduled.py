@@ -57,19 +57,24 @@ def test_equals_lqg_pointing_at_its_design_wind(sched: ScheduledPointingLQGContr
 
 
 def test_light_wind_takes_the_light_wind_design(sched: ScheduledPointingLQGController) -> None:
-    """A 10-km/h reading picks the grid's 10-km/h point: its gust model's speed from the file,
-    and other actions than lqg_pointing's on the same episode."""
-    sc = load_controllers_config(SHIPPED).schedule
+    """A 10-km/h reading picks the grid's 10-km/h point: a gust model at 10 km/h and the point's
+    measurement noise in the Kalman design (from the file), and other actions than
+    lqg_pointing's on the same episode."""
+    cfg = load_controllers_config(SHIPPED)
+    sc = cfg.schedule
     i = [round(s / KMH, 6) for s in sc.wind_speeds].index(10.0)
     got = _actions(sched, 10.0, seed=5, reading=10 * KMH)
-    assert sched.info["design_wind"][0] == sc.gust_model_speeds[i]
+    assert sched.info["design_wind"][0] == 10 * KMH
     wind = sched.design.dm.wind  # ("design", speed): direction-free; (speed, direction)
-    assert (wind[1] if wind[0] == "design" else wind[0]) == sc.gust_model_speeds[i]
+    assert (wind[1] if wind[0] == "design" else wind[0]) == 10 * KMH
+    noise = math.hypot(sched.interface.encoder_noise, sc.measurement_noise[i])
+    q2 = sched.design.dm.R[0, 0] - noise ** 2  # the quantisation's q^2 / 12
+    assert q2 == pytest.approx((2 * math.pi / 2 ** 20) ** 2 / 12, rel=1e-9)
+    assert sc.measurement_noise[i] != cfg.lqg.measurement_noise
     assert sched.info["wind_reading_mps"] == 10 * KMH
     ref = _actions(PointingLQGController(_env(10.0)), 10.0, seed=5)
     assert not np.array_equal(got, ref)
-    assert sched.scheduled_speed(14 * KMH) == sc.gust_model_speeds[i]
-    assert sched.scheduled_speed(16 * KMH) == sc.gust_model_speeds[i + 1]
+    assert sched.grid_point(14 * KMH) == i and sched.grid_point(16 * KMH) == i + 1
 
 
 def test_batch_rows_with_different_readings_act_as_alone(sched: ScheduledPointingLQGController) -> None:
@@ -106,7 +111,7 @@ def test_bad_batch_readings_are_refused(sched: ScheduledPointingLQGController) -
 
 
 @pytest.mark.parametrize(("edit", "match"), [
-    ({"gust_model_speeds": [5.0, 20.0]}, "schedule.gust_model_speeds': needs one entry per wind speed"),
+    ({"measurement_noise": [0.5, 0.1]}, "schedule.measurement_noise': needs one entry per wind speed"),
     ({"wind_speeds": [10.0, 30.0, 20.0, 50.0, 70.0]}, "schedule.wind_speeds': must be strictly ascending"),
     ({"wind_speeds": [0.0, 20.0, 30.0, 50.0, 70.0]}, "schedule.wind_speeds"),
 ])
