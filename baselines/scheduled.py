@@ -13,7 +13,8 @@ less their quantisation error is white).  Everything else is ``lqg_pointing``'s:
 the direction read from the start command, the direction-free model below
 ``lqg.min_wind_speed`` of the inferred speed, the reduction, weights, shaper and integrator.
 At the 50-km/h grid point it is ``lqg_pointing``.  Designs are built once per process and
-wind (cached as every LQG design is).
+wind (cached as every LQG design is).  The schedule's figures and its light-wind bound:
+``docs/results/light_wind.md``.
 
 Without a reading (a loop that does not call :meth:`~ScheduledPointingLQGController.set_scenario`)
 an episode takes the speed inferred from its start command

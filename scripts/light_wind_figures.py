@@ -1,5 +1,5 @@
 """The figures behind ``lqg_pointing_sched``'s schedule and its limits, written to
-``docs/results/light_wind.json`` (docs/controllers.md section 12):
+``docs/results/light_wind.json`` (read in ``docs/results/light_wind.md``):
 
 * ``noise_sweep``: the schedule's measurement noise at the 10-, 20- and 30-km/h grid points,
   30-s holds from the front and the side on seeds 1000-1015 (not the grid's 0-63): the

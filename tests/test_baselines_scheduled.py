@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import yaml
 
-from dss14_env.baselines.design import ConfigError, load_controllers_config
+from dss14_env.baselines.design import ConfigError, infer_wind, load_controllers_config
 from dss14_env.baselines.lqg import PointingLQGController
 from dss14_env.baselines.scheduled import ScheduledPointingLQGController
 from dss14_env.bench import runner
@@ -133,3 +133,17 @@ def test_runs_in_the_bench_batched_with_the_episodes_wind() -> None:
     assert res["meta"]["batched"]["lqg_pointing_sched"]
     assert [ep["failure"] for ep in res["episodes"]] == [None, None]
     assert all(math.isfinite(ep["pointing_error_mdeg"]["xel"]["three_sigma"]) for ep in res["episodes"])
+
+
+def test_without_a_reading_the_start_command_gives_the_speed() -> None:
+    """No anemometer reading: the episode's grid point is the one nearest to the speed inferred
+    from its start command, and the info says there was no reading."""
+    ctrl = ScheduledPointingLQGController(_env(70.0))
+    env = _env(70.0)
+    obs, _ = env.reset(seed=1)
+    ctrl.reset(1)
+    ctrl.act(obs)
+    _, _, c_rate0, r0 = ctrl.reader.read(obs[None].astype(float))
+    inferred = infer_wind(r0[0], c_rate0[0])[0]
+    assert math.isnan(ctrl.info["wind_reading_mps"])
+    assert ctrl.info["design_wind"][0] == ctrl.grid_speeds[ctrl.grid_point(inferred)]
