@@ -161,6 +161,31 @@ class MonopulseConfig:
 
 
 @dataclass(frozen=True)
+class ScheduleConfig:
+    """Section ``schedule``: the wind-scheduled pointing LQG (``lqg_pointing_sched``,
+    :mod:`dss14_env.baselines.scheduled`).
+
+    ``wind_speeds``: the grid (ascending) that a measured mean wind speed is rounded to, the
+    nearest entry, whose design carries the gust model at that speed;
+    ``measurement_noise``: that design's extra white measurement noise in the Kalman filter
+    (``lqg.measurement_noise`` of the grid point; one per entry; everything else as
+    ``lqg_pointing``).
+    """
+
+    wind_speeds: tuple = spec("m/s", kind="list", lo=0.0, lo_open=True)
+    measurement_noise: tuple = spec("rad", kind="list", lo=0.0)
+
+    def problem(self) -> str | None:
+        """What is wrong with the section (lists of other lengths, a grid not ascending), or None."""
+        if len(self.measurement_noise) != len(self.wind_speeds):
+            return (f"field 'schedule.measurement_noise': needs one entry per wind speed "
+                    f"({len(self.wind_speeds)}), got {len(self.measurement_noise)}")
+        if any(np.diff(self.wind_speeds) <= 0):
+            return "field 'schedule.wind_speeds': must be strictly ascending"
+        return None
+
+
+@dataclass(frozen=True)
 class ControllersConfig:
     """The whole ``configs/controllers.yaml`` in SI plus its parameter registry."""
 
@@ -171,6 +196,7 @@ class ControllersConfig:
     params: dict
     path: str
     monopulse: MonopulseConfig | None = None
+    schedule: ScheduleConfig | None = None
 
 
 def load_controllers_config(path: str | Path | None = None) -> ControllersConfig:
@@ -184,15 +210,18 @@ def load_controllers_config(path: str | Path | None = None) -> ControllersConfig
     registry: dict[str, Param] = {}
     kw = dict(documented=True, registry=registry, defaults=False)
     sections = {"design": DesignConfig, "lqg": LQGConfig, "mpc": MPCConfig, "pointing": PointingConfig,
-                "monopulse": MonopulseConfig}
+                "monopulse": MonopulseConfig, "schedule": ScheduleConfig}
     extra = set(data) - set(sections)
     if extra:
         raise ConfigError(f"{source}: unknown section(s) {sorted(extra)}; known: {sorted(sections)}")
-    optional = {"monopulse"}  # a file without it has no monopulse controllers' settings
+    optional = {"monopulse", "schedule"}  # a file without them has no such controllers' settings
     blocks = {name: load_section(cls, data.get(name), source, name, **kw)
               for name, cls in sections.items() if name not in optional or name in data}
+    problem = blocks["schedule"].problem() if "schedule" in blocks else None
+    if problem is not None:
+        raise ConfigError(f"{source}: {problem}")
     return ControllersConfig(blocks["design"], blocks["lqg"], blocks["mpc"], blocks["pointing"], registry,
-                             source, blocks.get("monopulse"))
+                             source, blocks.get("monopulse"), blocks.get("schedule"))
 
 
 @lru_cache(maxsize=1)

@@ -1,8 +1,9 @@
 """Run the wind direction and speed grid (:mod:`dss14_env.bench.grid`) and write its results.
 
 The hold scenario at wind directions 0-180 degrees in 45-degree steps at 50 km/h and at 10 and
-70 km/h from the front and the side, for the report's PI, the pointing LQG and the monopulse
-LQG (and a trained policy with ``--ppo-model PATH``), scored on the dish's pointing error (el
+70 km/h from the front and the side, for the report's PI, the pointing LQG, the pointing LQG
+scheduled on the measured wind speed and the monopulse LQG (and a trained policy with
+``--ppo-model PATH``), scored on the dish's pointing error (el
 and xel) with 95 % intervals and paired ratios to the PI::
 
     python scripts/direction_grid.py                        # docs/results/direction_grid.{json,md}
@@ -37,7 +38,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--ppo-model", default=None, help="a trained policy (run folder, eval/best folder or "
                     "zip): its column is added under its own name")
     ap.add_argument("--controllers", nargs="+", default=None, help="catalog controllers (default: pi_kp1 "
-                    "lqg_pointing lqg_monopulse)")
+                    "lqg_pointing lqg_pointing_sched lqg_monopulse)")
     ap.add_argument("--episodes", type=int, default=EPISODES,
                     help=f"episodes per grid point (default {EPISODES})")
     ap.add_argument("--seconds", type=float, default=SECONDS, help=f"episode length, s (default {SECONDS:g})")

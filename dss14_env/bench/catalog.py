@@ -125,6 +125,10 @@ CONTROLLER_ROWS: tuple[ControllerRow, ...] = (
                   "LQG designed for the dish's true pointing error: Kalman filter on the drive "
                   "encoders, the LQR scores the structure's pointing (deformation included) "
                   "(`baselines/lqg.py`, docs/controllers.md)", config="pointing", campaign=True),
+    ControllerRow("lqg_pointing_sched", "dss14_env.baselines.scheduled", "ScheduledPointingLQGController",
+                  "lqg_pointing with its gust model and encoder-noise model scheduled on the measured "
+                  "mean wind speed (the nearest of a 10-70 km/h grid; `baselines/scheduled.py`)",
+                  config="schedule", bench=False),
     ControllerRow("mpc_pointing", "dss14_env.baselines.mpc", "PointingMPCController",
                   "MPC on the pointing LQG's design and estimator, its soft error bound on the "
                   "predicted pointing error (`baselines/mpc.py`)", batchable=False,

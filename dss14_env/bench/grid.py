@@ -35,8 +35,9 @@ SPEED_KMH = 50.0
 OTHER_SPEEDS_KMH: tuple[float, ...] = (10.0, 70.0)
 #: the directions of the light and strong wind: front and side
 SPEED_DIRECTIONS_DEG: tuple[float, ...] = (0.0, 90.0)
-#: the controllers of the committed grid: the report's PI, the pointing LQG and the monopulse LQG
-CONTROLLERS: tuple[str, ...] = ("pi_kp1", "lqg_pointing", "lqg_monopulse")
+#: the controllers of the committed grid: the report's PI, the pointing LQG, the pointing LQG
+#: scheduled on the measured wind speed and the monopulse LQG
+CONTROLLERS: tuple[str, ...] = ("pi_kp1", "lqg_pointing", "lqg_pointing_sched", "lqg_monopulse")
 #: episodes per grid point (seeds 0, 1, ...) and their length, s
 EPISODES = 64
 SECONDS = 30.0
