@@ -35,15 +35,23 @@ def test_the_readme_example_is_the_measured_setting() -> None:
     code = _example()
     setting = ps.SETTINGS[RESULT["setting"]]
     assert RESULT["definition"] == json.loads(json.dumps(setting))
+    assert f'make_vec_env("{setting.get("env_id", "DSS14-v0")}"' in code
+    assert "torch.set_num_threads(1)" in code
     for key, value in setting["env"].items():
-        assert re.search(rf'"{key}":\s*{value}\b', code), key
-    for key, value in setting["ppo"].get("policy_kwargs", {}).items():
-        assert re.search(rf'"{key}":\s*{value}\b', code), key
-    assert ("VecNormalize(" in code) == setting["normalize"]
-    assert set(setting["ppo"]) <= {"policy_kwargs"}  # nothing else differs from SB3's defaults
+        assert re.search(rf'"{key}":\s*{re.escape(repr(value))}\b', code), key
+    ppo = dict(setting["ppo"])
+    for key, value in ppo.pop("policy_kwargs", {}).items():
+        assert re.search(rf'"{key}":\s*{re.escape(repr(value))}\b', code), key
+    for key, value in ppo.items():  # every other PPO keyword named, the rest SB3's defaults
+        assert re.search(rf"\b{key}={re.escape(repr(value))}\b", code), key
+    named = re.findall(r"\b(\w+)=", code.split("PPO(", 1)[1].split(")")[0])
+    assert sorted(named) == sorted([*setting["ppo"], "seed"])
+    assert ("VecNormalize(" in code) == bool(setting["normalize"])
+    if isinstance(setting["normalize"], dict):
+        for key, value in setting["normalize"].items():
+            assert re.search(rf"\b{key}={re.escape(repr(value))}", code), key
     steps = int(re.search(r"total_timesteps=([0-9_]+)", code).group(1).replace("_", ""))
     assert steps == RESULT["steps"]
-    assert 'make_vec_env("DSS14-v0"' in code and "torch.set_num_threads(1)" in code
 
 
 def test_the_result_holds_three_training_seeds_scored_on_unseen_seeds() -> None:
