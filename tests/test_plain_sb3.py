@@ -13,6 +13,7 @@ from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 _spec = importlib.util.spec_from_file_location("plain_sb3", ROOT / "scripts" / "plain_sb3.py")
@@ -65,8 +66,9 @@ def test_the_result_holds_three_training_seeds_scored_on_unseen_seeds() -> None:
             assert len(r["holds"][hold]["three_sigma_mdeg"]) == len(RESULT["eval_seeds"])
 
 
-def test_the_bounded_reward_prototype_stays_in_its_range() -> None:
-    env = ps.LogCost(gym.make("DSS14-v0", action_scale_deg_s=0.25))
+@pytest.mark.parametrize("name", sorted(ps.WRAPPERS))
+def test_the_bounded_reward_prototypes_stay_in_their_range(name: str) -> None:
+    env = ps.WRAPPERS[name](gym.make("DSS14-v0", action_scale_deg_s=0.25))
     env.reset(seed=5)
     rng = np.random.default_rng(0)
     rewards = []
@@ -79,3 +81,18 @@ def test_the_bounded_reward_prototype_stays_in_its_range() -> None:
     assert np.all((live <= 0.0) & (live >= -1.0)) and live.min() < live.max()
     if term:
         assert -1.0 - ps.LOG_PENALTY <= rewards[-1] <= -ps.LOG_PENALTY
+
+
+def test_the_holds_are_scored_with_the_interface_keys_only() -> None:
+    keys = {"action_scale_deg_s": 0.02, "max_error_deg": 0.05, "action_change_weight": 0.0064}
+    assert ps.interface(keys) == {"action_scale_deg_s": 0.02}
+
+
+def test_the_readme_states_the_measured_ratios_and_budget() -> None:
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    for hold in ps.HOLDS:
+        ratios = [r["ratio_to_pi"][hold] for r in RESULT["runs"]]
+        assert f"{min(ratios):.2f}–{max(ratios):.2f}×" in text, hold
+    cpu = [r["cpu_s"] for r in RESULT["runs"]]
+    assert f"{min(cpu):.0f}–{max(cpu):.0f} CPU-s a run" in text
+    assert f"Budget {RESULT['steps'] // 1000} k steps" in text
