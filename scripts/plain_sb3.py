@@ -88,6 +88,10 @@ SETTINGS: dict[str, dict[str, Any]] = {
     "bound_acw_normobs": {"env": {**ACW, **BOUND}, "ppo": STD1, "normalize": True},
     "bound_acw_std3": {"env": {**ACW, **BOUND}, "ppo": STD3, "normalize": REWNORM},
     "snippet_std_bound": {"env": {**S02, **BOUND}, "ppo": STD3, "normalize": True},
+    "bound_raw": {"env": {**S02, **BOUND}, "ppo": STD1, "normalize": False},
+    "bound_unit": {"env": {**S02, **BOUND}, "ppo": STD1, "normalize": False, "wrapper": "unit"},
+    "bound_raw_p100": {"env": {**S02, **BOUND, "termination_penalty": 100.0}, "ppo": STD1,
+                       "normalize": False},
 }
 
 #: the bounded reward's termination penalty: 1 / (1 - 0.99), the per-step worst summed at discount 0.99
@@ -133,8 +137,24 @@ class ExpCost(gym.Wrapper):
         return obs, float(np.expm1(-max(cost, 0.0))) - (LOG_PENALTY if term else 0.0), term, trunc, info
 
 
+class UnitCost(gym.Wrapper):
+    """Prototype of a reward in units of its value at the error bound: the environment's reward
+    divided by ``2 (max_error / error_scale)^2`` (-1 with both axes at the bound; the
+    termination penalty is divided alike)."""
+
+    def __init__(self, env: gym.Env) -> None:
+        super().__init__(env)
+        cfg = env.unwrapped.config
+        self.unit = float(2.0 * (cfg.max_error_deg * 1e3 / cfg.error_scale_mdeg) ** 2)
+
+    def step(self, action: Any) -> Any:
+        """The environment's step with the rescaled reward."""
+        obs, r, term, trunc, info = self.env.step(action)
+        return obs, float(r) / self.unit, term, trunc, info
+
+
 #: the reward prototypes by name
-WRAPPERS: dict[str, type[gym.Wrapper]] = {"log": LogCost, "exp": ExpCost}
+WRAPPERS: dict[str, type[gym.Wrapper]] = {"log": LogCost, "exp": ExpCost, "unit": UnitCost}
 
 
 class SB3Controller(Controller):
