@@ -21,7 +21,7 @@ The committed ``docs/results/plain_sb3.json`` takes those runs with ``--runs-fro
 training: ``--seeds`` empty) and summarises the other settings' files under ``explored``
 (``--explored``); its ``command`` says which.  ``snippet_bound`` is the README's example;
 ``defaults`` is SB3's PPO untouched; :class:`LogCost` and :class:`ExpCost` prototype bounded
-rewards.
+rewards, :class:`UnitCost` the reward in units of its value at the error bound.
 """
 
 from __future__ import annotations
