@@ -589,13 +589,12 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
             fast = False
         if not fast:
             action = as_actions(action, (2,))
-        A = action.reshape(1, 2)
         B = self._block
-        if limit_one(A, B, j, S) >= 0:
+        if limit_one(action, B, j, S) >= 0:
             as_actions(action, (2,))  # raises: not finite
         inp, nxt = self._views[j]
         inp.dot(self._M, nxt)  # the plant map (the method: no dispatch of np.dot)
-        obs = np.empty((1, self._width), np.float32)
+        obs = np.empty(self._width, np.float32)
         if after_one(B, j, self._rows, S, obs) & NON_FINITE:
             f = S[ONE_INFO].tolist()[2:]
             raise FloatingPointError(f"the reward became {f[REWARD_ROW]} (servo errors {f[0]}, {f[1]} mdeg): "
@@ -603,21 +602,20 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         self._j = j + 1
         v = S[ONE_INFO].tolist()
         f = v[2:]
-        info = StepInfo({
-            "servo_error_az_mdeg": f[0], "servo_error_el_mdeg": f[1], "measured_error_az_mdeg": f[2],
-            "measured_error_el_mdeg": f[3], "pointing_error_el_mdeg": f[4],
-            "pointing_error_xel_mdeg": f[5], "wind_speed_mps": f[6], "wind_direction_rad": f[7],
-            "action_unclipped": tuple(action.tolist()),
-            "rate_command_az_deg_s": f[8], "rate_command_el_deg_s": f[9],
-            "rate_limited": v[0] != 0.0, "accel_limited": v[1] != 0.0,
-            "n_rate_limited": int(f[12]), "n_accel_limited": int(f[13])})
+        info = StepInfo(
+            servo_error_az_mdeg=f[0], servo_error_el_mdeg=f[1], measured_error_az_mdeg=f[2],
+            measured_error_el_mdeg=f[3], pointing_error_el_mdeg=f[4], pointing_error_xel_mdeg=f[5],
+            wind_speed_mps=f[6], wind_direction_rad=f[7], action_unclipped=tuple(action.tolist()),
+            rate_command_az_deg_s=f[8], rate_command_el_deg_s=f[9],
+            rate_limited=v[0] != 0.0, accel_limited=v[1] != 0.0,
+            n_rate_limited=int(f[12]), n_accel_limited=int(f[13]))
         if self.monopulse is not None:
             mp = self._mp
             p = S[ONE_INFO][2 + POINTING_ROWS[0]:2 + POINTING_ROWS[1] + 1, None]
             sensor_step(mp.history, mp.out, mp.k, p, self._W, j,
-                        self._mc, 1.0 / self.constants.error_scale, obs)
+                        self._mc, 1.0 / self.constants.error_scale, obs[None])
             info["monopulse_el_mdeg"], info["monopulse_xel_mdeg"] = mp.out[0].tolist()
-        result = obs[0], f[REWARD_ROW], f[TERMINATED_ROW] != 0.0, False, info
+        result = obs, f[REWARD_ROW], f[TERMINATED_ROW] != 0.0, False, info
         if self._extras:
             self._step_extras(info)
         return result

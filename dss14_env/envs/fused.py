@@ -345,12 +345,12 @@ def pack_one(kc: np.ndarray, episode: np.ndarray, state: StepState, clamp_always
 
 @njit(nogil=True)
 def limit_one(A: np.ndarray, B: np.ndarray, j: int, S: np.ndarray) -> int:
-    """:func:`limit_commands` of the single environment: the action ``A`` ``(1, 2)`` (float32 or
+    """:func:`limit_commands` of the single environment: the action ``A`` ``(2,)`` (float32 or
     float64), its state vector ``S`` (:func:`pack_one`), the rate command written into row ``j``
     of its step block ``B`` (:func:`dss14_env.envs.plant.step_block`), the plant map's input.
     """
     a = np.empty((1, 2))
-    a[0, 0], a[0, 1] = A[0, 0], A[0, 1]
+    a[0, 0], a[0, 1] = A[0], A[1]
     return limit_commands(a, S[_R_PREV:_R_PREV + 2].reshape((1, 2)), S[_KC:_KC + _N_CONSTANTS],
                           S[_A:_A + 2].reshape((1, 2)), B[j, 0:2].reshape((1, 2)),
                           S[_HIT:_HIT + 2].reshape((2, 1)))
@@ -362,7 +362,7 @@ def after_one(B: np.ndarray, j: int, R: np.ndarray, S: np.ndarray, obs: np.ndarr
     its step block ``B``: the step's rows ``R`` ``(3, T, 1, 2)`` (command, its rate, encoder
     noise: :func:`dss14_env.envs.scenarios.block_rows`), its vector ``S`` (:func:`pack_one`: the outputs
     into its ``out`` rows, the state advanced unless a reward is not finite), the observation
-    into ``obs`` ``(1, >= 12)``.
+    into ``obs`` ``(>= 12,)``.
     """
     n_in = B.shape[1] - N_STEP_OUTPUTS
     flags = after_product(B[j + 1, n_in:].reshape((N_STEP_OUTPUTS, 1)), np.zeros(1, np.int64), R[0], R[1],
@@ -371,7 +371,8 @@ def after_one(B: np.ndarray, j: int, R: np.ndarray, S: np.ndarray, obs: np.ndarr
                           S[_A_PREV:_A_PREV + 2].reshape((1, 2)), S[_EM_PREV:_EM_PREV + 2].reshape((1, 2)),
                           B[j, 0:2].reshape((1, 2)), S[_HIT:_HIT + 2].reshape((2, 1)),
                           S[_HITS:_HITS + 2].reshape((1, 2)), S[_KC:_KC + _N_CONSTANTS], S[_CLAMP] != 0.0,
-                          obs, S[_EM:_EM + 2].reshape((1, 2)), S[_OUT:_OUT + OUT_ROWS].reshape((OUT_ROWS, 1)))
+                          obs.reshape((1, obs.size)), S[_EM:_EM + 2].reshape((1, 2)),
+                          S[_OUT:_OUT + OUT_ROWS].reshape((OUT_ROWS, 1)))
     if not flags & NON_FINITE:
         for m in range(2):
             S[_R_PREV + m] = B[j, m]
