@@ -19,8 +19,9 @@ A new run refuses a folder that already holds a run (finished or interrupted) un
 ``overwrite`` (which removes exactly what training owns there); an ``--out`` that is a file
 or cannot be written fails before any work.  Ctrl-C (SIGINT) or SIGTERM stops the run at the
 next environment step with a checkpoint of that step and raises :class:`TrainingInterrupted`
-naming it and the command that resumes from it.  The run's steps show on stderr as it trains
-(:mod:`dss14_env.agents.train_control`).
+naming it and the command that resumes from it; a validation round under way ends after its
+current task, unrecorded, and a stopped run gets no final validation.  The run's steps show
+on stderr as it trains (:mod:`dss14_env.agents.train_control`).
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ import re
 import shlex
 import signal
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from datetime import datetime
 from pathlib import Path
 from typing import Any
@@ -478,8 +479,11 @@ class _Evaluator:
     """
 
     def __init__(self, cfg: TrainConfig, plan: EnvPlan, run: Path, run_id: str, config_text: str,
-                 venv: Any, start: int) -> None:
+                 venv: Any, start: int, stopped: Callable[[], bool] = lambda: False) -> None:
         self.cfg, self.plan, self.run, self.run_id = cfg, plan, run, run_id
+        #: true once a stop is asked for: a round not yet begun is not begun, one under way ends
+        #: after its current task and is not recorded (a stop acts within one task's episodes)
+        self.stopped = stopped
         self.config_text, self.venv = config_text, venv
         self.tasks = validation_tasks(cfg, plan)
         if cfg.select_by != "return" and not any(t.axis for t in self.tasks):
@@ -506,9 +510,14 @@ class _Evaluator:
             self.ctrl = PolicyController(model.policy, cfg, None, "eval", None, None)
         self.ctrl.stats = _stats(cfg, self.venv)
         steps = cfg.eval_episode_steps if self.plan.dss14 else None
-        res = {t.name: run_task(self.ctrl, t, cfg.eval_seeds, steps if t.axis is not None else None,
-                                cfg.n_eval_episodes)
-               for t in self.tasks}
+        res = {}
+        for t in self.tasks:
+            if self.stopped():
+                return
+            res[t.name] = run_task(self.ctrl, t, cfg.eval_seeds, steps if t.axis is not None else None,
+                                   cfg.n_eval_episodes)
+        if self.stopped():
+            return
         h = self.history
         h["timesteps"].append(int(model.num_timesteps))
         h["results"].append(np.concatenate([r["returns"] for r in res.values()]))
@@ -570,6 +579,8 @@ def _eval_callback(evaluator: _Evaluator, every: int, start: int) -> Any:
             ``eval_freq`` still gets ``eval/best`` and ``eval/evaluations.npz``.
             """
             done = evaluator.history["timesteps"]
+            if evaluator.stopped():  # a stopped run is not scored on its way out
+                return
             if not done or done[-1] != self.num_timesteps:
                 evaluator(self.model, self.logger)
 
@@ -577,12 +588,13 @@ def _eval_callback(evaluator: _Evaluator, every: int, start: int) -> Any:
 
 
 def _callbacks(cfg: TrainConfig, plan: EnvPlan, run: Path, run_id: str, config_text: str,
-               venv: Any, start: int, ckpts: list[Path]) -> list[Any]:
+               venv: Any, start: int, ckpts: list[Path], requests: StopRequests) -> list[Any]:
     out: list[Any] = [_tensorboard_folder_callback(run)]
     if cfg.checkpoint_freq > 0:
         out.append(_checkpoint_callback(cfg, run, run_id, config_text, venv, start, ckpts))
     if cfg.eval_freq > 0:
-        ev = _Evaluator(cfg, plan, run, run_id, config_text, venv, start)
+        ev = _Evaluator(cfg, plan, run, run_id, config_text, venv, start,
+                        stopped=lambda: requests.signum is not None)
         out.append(_eval_callback(ev, cfg.eval_freq, start))
     return out
 
@@ -805,7 +817,7 @@ def _train_in(cfg: TrainConfig, run: Path, src: _Resume | None, plan: EnvPlan, o
                 say(f"resuming {src.path} at {start} steps")
             atomic_write_text(run / CONFIG, config_text)
             update_manifest(run)
-            callbacks = _callbacks(cfg, plan, run, run_id, config_text, venv, start, ckpts)
+            callbacks = _callbacks(cfg, plan, run, run_id, config_text, venv, start, ckpts, requests)
             say(f"{cfg.algo} on {cfg.env_id}: {cfg.n_envs} envs ({vec_env_kind(cfg, plan)}), "
                 f"obs {obs_space.shape}, action {act_space.shape}, {cfg.total_timesteps - start} "
                 f"steps -> {run}")

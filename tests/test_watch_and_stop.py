@@ -429,3 +429,23 @@ def test_a_stop_as_a_seed_ends_keeps_it_whole_and_still_stops_the_campaign(tmp_p
     last = capsys.readouterr().err.strip().splitlines()[-1]
     assert "kept in" in last and "seed_0 finished, seed_1 nothing yet" in last
     assert not (out / "seed_1").exists()
+
+
+@pytest.mark.parametrize("at,eval_freq", [(256, 256), (128, 4096)])
+def test_a_stop_skips_the_validation_it_would_start_and_the_final_one(
+        tmp_path: Path, monkeypatch, at: int, eval_freq: int) -> None:
+    """A stop asked for as a validation round is due (256, every 256 steps), or before a run
+    that would be validated at its end (every 4096 steps, a 512-step run), is not followed by
+    that validation: the run stops with its checkpoint and records no evaluation.
+    """
+    from dss14_env.agents.train import TrainingInterrupted, train
+
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(yaml.safe_dump({**TINY, "eval_freq": eval_freq}))
+    _signal_at(monkeypatch, "r", at, signal.SIGTERM)
+    with pytest.raises(TrainingInterrupted) as info:
+        train(cfg, run_dir=tmp_path / "r", progress=False)
+    assert info.value.steps >= at
+    assert not (tmp_path / "r" / "eval" / "evaluations.npz").exists()
+    assert not (tmp_path / "r" / "eval" / "best").exists()
+    assert list((tmp_path / "r" / "checkpoints").iterdir())
