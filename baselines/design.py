@@ -95,11 +95,14 @@ class LQGConfig:
 
     ``wind_model`` (a string, not a number): ``"inferred"`` (the wind direction and speed read
     from the start command, :func:`infer_wind`) or ``"direction-free"``.
+    ``axis_action_change_weight`` replaces ``action_change_weight`` when the encoders sit at the
+    axes (the environment's ``encoders="axis"``).
     """
 
     wind_model: str = spec(None, kind="str", choices=("inferred", "direction-free"))
     error_weight: float = spec("1", lo=0.0, lo_open=True)
     action_change_weight: float = spec("1", lo=0.0, lo_open=True)
+    axis_action_change_weight: float = spec("1", lo=0.0, lo_open=True)
     integral_weight: float = spec("1", lo=0.0, lo_open=True)
     integral_clip: float = spec("rad", lo=0.0, lo_open=True)
     input_noise: float = spec("1", lo=0.0)

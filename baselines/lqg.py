@@ -722,7 +722,8 @@ def _design_from_config(interface: ControlInterface, cfg: LQGConfig, order: Any,
                         pointing: PointingConfig | None, pointing_noise: float | None) -> LQGDesign:
     """The design of :func:`lqg_design_from_config`, computed."""
     noise = math.hypot(interface.encoder_noise, cfg.measurement_noise)
-    w_a, w_enc, error_output = cfg.action_change_weight, 0.0, "encoder"
+    w_a = cfg.axis_action_change_weight if interface.encoders == "axis" else cfg.action_change_weight
+    w_enc, error_output = 0.0, "encoder"
     if order == "config" and (pointing is not None or interface.encoders == "axis"):
         # the deformation is in the cost or in the measurement: the order that balances it
         order = default_controllers_config().pointing.order

@@ -255,18 +255,19 @@ def axis_holds() -> dict:
                reference=None)
 
 
-@pytest.mark.parametrize("ctrl", ["lqg_pointing"])
+@pytest.mark.parametrize("ctrl", ["lqg", "lqg_pointing"])
 @pytest.mark.parametrize("scenario", HOLDS)
 def test_designs_on_axis_encoders_beat_the_pi_on_them(axis_holds, ctrl: str, scenario: str) -> None:
-    """The pointing LQG designed for axis encoders (read from the environment's configuration)
-    points better than the PI on the same axis encoders, paired 95 % interval below 1 (4 short
-    holds), and no episode terminates.  The encoder LQG is not claimed: with its action-change
-    weight (tuned on the drive shipped before) it limit-cycles on the acceleration limit with
-    axis encoders on the shipped drive (default bench: the limiter clips 2,964 of 3,000 steps in
-    hold_front_axis), a known defect of its tuning (docs/controllers.md)."""
+    """The encoder and pointing LQGs designed for axis encoders (read from the environment's
+    configuration) point better than the PI on the same axis encoders, paired 95 % interval
+    below 1 (4 short holds), no episode terminates, and neither rides the acceleration limit
+    (the encoder LQG with its drive-encoder action-change weight clipped 97 % of the steps)."""
     r = _paired(axis_holds, ctrl, "pi_kp1", scenario, DOMINANT[scenario])
     assert r.high < 1.0, r
     assert axis_holds["summary"][ctrl][scenario]["terminated"] == 0
+    hits = [e["smoothness"]["accel_limit_hits_pct"] for e in axis_holds["episodes"]
+            if e["controller"] == ctrl and e["scenario"] == scenario]
+    assert max(hits) < 2.0, hits
 
 
 def test_yardsticks_table_is_the_committed_results() -> None:
