@@ -158,8 +158,10 @@ class CondensedMPC:
             raise ValueError(f"MPC Hessian not positive definite (min eigenvalue {lam_min:.3g})")
         self.H_scaled = Hs
         self.shortcut = bool(shortcut)
-        self._chol = linalg.cho_factor(Hs)
+        # U* = -H^{-1} q / 2: the factor's inverse once (H is well conditioned: cond ~ 24)
+        self._U_of_q = -0.5 * linalg.cho_solve(linalg.cho_factor(Hs), np.eye(N * m))
         self._warm: np.ndarray | None = None  # the last shortcut's U*, until the next QP solve
+        self._parameter_maps()
         # ---- cvxpy problem (DPP)
         self.U = cp.Variable(N * m, name="U")
         self.s = cp.Variable(N * m, nonneg=True, name="slack")
@@ -188,7 +190,12 @@ class CondensedMPC:
         key = ("CondensedMPC", N, m, Hs.shape, Eg.shape, step, lim_e, w1, w2, digest)
         self.qp = ParametricQP(self.problem, [self.q, self.e0, self.u_prev], self.U,
                                st.osqp_settings(), fast=fast, key=key)
-        self._Eg, self._step, self._lim_e = Eg, step, lim_e
+        # the constraint rows of U, stacked: U (rate), D U (rate change), Eg U (errors), and
+        # their bounds; the shortcut checks |C U - c0| <= bound in one product
+        self._C = np.vstack([np.eye(N * m), D, Eg])
+        self._C_bound = (1.0 - SHORTCUT_MARGIN) * np.concatenate([np.ones(N * m), np.full(N * m, step),
+                                                                  np.full(N * m, lim_e)])
+        self._c0 = np.zeros(3 * N * m)
 
     def _prediction(self, design: LQGDesign) -> np.ndarray:
         """Prediction matrices of a design; returns the (unscaled) Hessian ``H``."""
@@ -224,6 +231,18 @@ class CondensedMPC:
         self.H = 0.5 * (H + H.T)
         return self.H
 
+    def _parameter_maps(self) -> None:
+        """The parameters as affine maps of ``(z0, r_ss)`` for the current design (scaled):
+        ``q = Qz z0 + Qr r_ss``, ``e0 = Ez z0 + Er r_ss`` (:meth:`set_parameters`).
+        """
+        ru, es, N, m = self._ru, self._es, self.N, self.m
+        T = np.kron(np.ones((N, 1)), np.eye(m))  # the ramp's steady commands over the horizon
+        # cost in u~ = U ru - T r_ss: u~' H u~ + 2 (F z0)' u~  ->  in U (scaled, up to a constant)
+        k = 2.0 * ru / self._Hs_scale
+        H = self.H_scaled * self._Hs_scale / (ru * ru)
+        self._Qz, self._Qr = k * self.F, -k * (H @ T)
+        self._Ez, self._Er = self.Ephi / es, -(self.Egam @ T) / es
+
     def load_design(self, design: LQGDesign) -> None:
         """Switch to another design with the same controllable part (e.g. another wind model).
 
@@ -238,41 +257,41 @@ class CondensedMPC:
         H = self._prediction(design)
         if np.max(np.abs(H - H_old)) > 1e-8 * np.max(np.abs(H_old)):
             raise ValueError("the new design changes the MPC Hessian; build a new CondensedMPC")
+        self._parameter_maps()
 
-    def set_parameters(self, z0: np.ndarray, r_ss: np.ndarray, r_prev: np.ndarray) -> None:
-        """Load the state-dependent parameters of one step.
+    def parameters(self, z0: np.ndarray, r_ss: np.ndarray, r_prev: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The state-dependent parameters of one step, scaled: ``(q, e_free, r_prev)``.
 
         :param z0: LQR state ``[x - x_ref; xi; r_prev - r_ss]`` (SI)
         :param r_ss: steady command of the ramp (rad/s), shape (2,)
         :param r_prev: previous applied command (rad/s), shape (2,)
         """
-        N, ru, es = self.N, self._ru, self._es
-        Rss = np.tile(r_ss, N)
-        # cost in u~ = U ru - Rss: u~' H u~ + 2 (F z0)' u~  ->  in U (scaled, up to a constant)
-        lin = 2.0 * (self.F @ z0 - (self.H_scaled * self._Hs_scale / (ru * ru)) @ Rss)
-        set_values([self.q, self.e0, self.u_prev], [lin * ru / self._Hs_scale,
-                                                   (self.Ephi @ z0 - self.Egam @ Rss) / es,
-                                                   np.clip(r_prev / ru, -1.0, 1.0)])
+        return (self._Qz @ z0 + self._Qr @ r_ss, self._Ez @ z0 + self._Er @ r_ss,
+                np.clip(r_prev / self._ru, -1.0, 1.0))
 
-    def unconstrained(self) -> np.ndarray | None:
-        """The minimiser ``U* = -H^{-1} q / 2`` at the parameters' current values when it meets
-        every constraint with the slacks at zero (each bound by the relative margin
-        :data:`SHORTCUT_MARGIN`), else None; when it does, it is the QP's solution (module
-        docstring).
+    def set_parameters(self, z0: np.ndarray, r_ss: np.ndarray, r_prev: np.ndarray) -> None:
+        """Load the parameters of one step (:meth:`parameters`) into the cvxpy problem."""
+        set_values([self.q, self.e0, self.u_prev], list(self.parameters(z0, r_ss, r_prev)))
+
+    def unconstrained(self, q: np.ndarray, e_free: np.ndarray, u_prev: np.ndarray) -> np.ndarray | None:
+        """The minimiser ``U* = -H^{-1} q / 2`` of the parameters ``(q, e_free, u_prev)``
+        (:meth:`parameters`) when it meets every constraint with the slacks at zero (each bound
+        by the relative margin :data:`SHORTCUT_MARGIN`), else None; when it does, it is the
+        QP's solution (module docstring).
         """
-        U = -0.5 * linalg.cho_solve(self._chol, self.q.value)
-        inside = 1.0 - SHORTCUT_MARGIN
-        if not np.max(np.abs(U)) <= inside:
-            return None
-        dU = np.diff(U.reshape(self.N, self.m), axis=0, prepend=self.u_prev.value[None])
-        if not np.max(np.abs(dU)) <= inside * self._step:
-            return None
-        if not np.max(np.abs(self.e0.value + self._Eg @ U)) <= inside * self._lim_e:
+        U = self._U_of_q @ q
+        n, m = self.N * self.m, self.m
+        c0 = self._c0
+        c0[n:n + m] = u_prev
+        c0[2 * n:] = -e_free
+        rows = self._C @ U - c0
+        if not np.all(np.abs(rows) <= self._C_bound):
             return None
         return U
 
     def solve_qp(self) -> tuple[np.ndarray | None, str, str, str | None]:
-        """Solve the QP at the parameters' current values (:class:`ParametricQP`), warm-started
+        """Solve the QP at the loaded parameters' values (:class:`ParametricQP`), warm-started
         from the last shortcut's solution when the previous step took it.
 
         :return: ``(U or None, status, path, fast status)``; a solver exception gives None and
@@ -295,14 +314,14 @@ class CondensedMPC:
         :return: the :class:`MPCStep`; its ``r`` (rad/s) is None when the solve failed or the
             first move violates the hard limits
         """
-        self.set_parameters(z0, r_ss, r_prev)
+        values = self.parameters(z0, r_ss, r_prev)
         t0 = time.perf_counter()
-        U = self.unconstrained() if self.shortcut else None
-        if U is not None:
+        U = self.unconstrained(*values) if self.shortcut else None
+        if U is not None:  # inside every bound: no clip or limit check to do
             self._warm = U
-            status, path, fast_status = cp.OPTIMAL, PATH_UNCONSTRAINED, None
-        else:
-            U, status, path, fast_status = self.solve_qp()
+            return MPCStep(U[:self.m] * self._ru, cp.OPTIMAL, time.perf_counter() - t0, PATH_UNCONSTRAINED)
+        set_values([self.q, self.e0, self.u_prev], list(values))
+        U, status, path, fast_status = self.solve_qp()
         dt = time.perf_counter() - t0
         if status != cp.OPTIMAL or U is None:
             return MPCStep(None, status, dt, path, fast_status)

@@ -100,7 +100,7 @@ def set_values(params: list[cp.Parameter], values: list[np.ndarray]) -> None:
         if a.shape != p.shape or np.isnan(a).any():
             raise ValueError(f"parameter {p.name()}: a real value of shape {p.shape}, got shape "
                              f"{a.shape}{' with NaN' if a.shape == p.shape else ''}")
-        if any(p.attributes[k] for k in p.attributes if k != "bounds") or p.attributes.get("bounds"):
+        if any(p.attributes.values()):  # nonneg, bounds, ...: all falsy on a plain parameter
             p.value = a
         else:
             p.save_value(a)

@@ -194,12 +194,12 @@ def test_fallback_on_infeasible_problem_equals_clipped_lqg(monkeypatch) -> None:
     ctrl.reset(1)
     ctrl.act(obs)
     cm = ctrl.problem_for(ctrl.design)
-    real = cm.set_parameters
+    real = cm.parameters
 
     def impossible(z0, r_ss, r_prev):  # a previous command beyond the rate limit: |U_0| <= 1 and
-        real(z0, r_ss, r_prev)         # |U_0 - u_prev| <= step cannot both hold
-        cm.u_prev.value = np.array([5.0, 5.0])
-    monkeypatch.setattr(cm, "set_parameters", impossible)
+        q, e_free, _ = real(z0, r_ss, r_prev)  # |U_0 - u_prev| <= step cannot both hold
+        return q, e_free, np.array([5.0, 5.0])
+    monkeypatch.setattr(cm, "parameters", impossible)
     a = ctrl.act(obs)
     assert ctrl.info["status"] == cp.INFEASIBLE and ctrl.info["n_fallbacks"] == 1
     assert ctrl.info["fallbacks"] == [{"step": 1, "status": cp.INFEASIBLE}]
@@ -262,7 +262,7 @@ def test_shortcut_equals_the_qp_solution_where_it_is_taken(mpc) -> None:
         r_prev = r_ss + rng.uniform(-1, 1, 2) * 0.2 * mpc.settings.rate_step
         z0[-2:] = r_prev - r_ss
         mpc.set_parameters(z0, r_ss, r_prev)
-        U = mpc.unconstrained()
+        U = mpc.unconstrained(*mpc.parameters(z0, r_ss, r_prev))
         if U is None:
             continue
         taken += 1
@@ -273,13 +273,20 @@ def test_shortcut_equals_the_qp_solution_where_it_is_taken(mpc) -> None:
     assert taken >= 20
 
 
+def _scaled_bounds(cm: CondensedMPC) -> tuple[np.ndarray, float, float]:
+    """``(Eg, rate step, error bound)`` of the problem in its scaled units (the module docstring)."""
+    ru, es = cm.settings.rate_limit, cm.design.weights.error_scale
+    return cm.Egam * ru / es, cm.settings.rate_step / ru, cm.settings.error_soft_limit / es
+
+
 def _feasible_target(cm: CondensedMPC) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Parameters whose unconstrained minimiser is a chosen command plan well inside every
     bound: ``(U_target, q, e0)`` with ``q = -2 H U_target`` and zero predicted errors."""
     N, m = cm.N, cm.m
-    U = np.tile([0.5, -0.3], N) + np.repeat(np.linspace(0.0, 0.2 * cm._step * N, N), m)
+    Eg, step, _ = _scaled_bounds(cm)
+    U = np.tile([0.5, -0.3], N) + np.repeat(np.linspace(0.0, 0.2 * step * N, N), m)
     q = -2.0 * cm.H_scaled @ U
-    e0 = -cm._Eg @ U
+    e0 = -Eg @ U
     return U, q, e0
 
 
@@ -289,24 +296,25 @@ def test_shortcut_taken_exactly_when_every_constraint_holds(mpc, case: str) -> N
     past one bound (the rate, the acceleration from the previous command or within the horizon,
     a predicted error) sends the step to the QP, whose solution then differs from the plan (the
     plan was not the optimum: the check matters)."""
-    cm, N, m, step = mpc, mpc.N, mpc.m, mpc._step
+    cm, N, m = mpc, mpc.N, mpc.m
+    Eg, step, lim_e = _scaled_bounds(cm)
     U, q, e0 = _feasible_target(cm)
     u_prev = U[:m].copy()
     if case == "rate":
         U = U.copy()
         U[0::m] += 1.02 - U[0::m].max()        # one axis past the rate limit, same increments
-        u_prev, q, e0 = U[:m].copy(), -2.0 * cm.H_scaled @ U, -cm._Eg @ U
+        u_prev, q, e0 = U[:m].copy(), -2.0 * cm.H_scaled @ U, -Eg @ U
     elif case == "accel_first":
         u_prev = u_prev + [1.02 * step, 0.0]
     elif case == "accel_later":
         U = U.copy()
         U[(N // 2) * m:] += [1.02 * step, 0.0] * (N - N // 2)  # a jump half-way along the horizon
-        q, e0 = -2.0 * cm.H_scaled @ U, -cm._Eg @ U
+        q, e0 = -2.0 * cm.H_scaled @ U, -Eg @ U
     elif case == "error":
         e0 = e0.copy()
-        e0[3] += 1.02 * cm._lim_e
+        e0[3] += 1.02 * lim_e
     _load(cm, q, e0, u_prev)
-    got = cm.unconstrained()
+    got = cm.unconstrained(q, e0, u_prev)
     if case == "inside":
         assert got is not None
         np.testing.assert_allclose(got, U, atol=1e-12)
