@@ -34,11 +34,12 @@ definite), minimised at ``U* = -H^{-1} q / 2``.  When ``U*`` meets every constra
 acceleration including the ``r_prev`` row, and the error bounds with ``s = 0``), ``(U*, 0)``
 with all inequality multipliers zero except the slacks' ``s >= 0`` (multiplier ``lambda_1 >= 0``)
 satisfies the KKT conditions of the convex QP: it IS the optimum, exactly, not an approximation.
-So :meth:`CondensedMPC.solve` factors ``H`` once (Cholesky), computes ``U*`` each step and
-returns it (path ``"unconstrained"``) when it meets the constraints with a relative margin of
-:data:`SHORTCUT_MARGIN`; otherwise it solves the QP, its OSQP workspace warm-started from the
-previous step's solution when that step took the shortcut (``U*``, zero slacks and duals: what
-OSQP would have started from had it solved that step).
+So :class:`CondensedMPC` keeps ``-H^{-1} / 2`` (from a Cholesky factor, once); each step
+:meth:`CondensedMPC.solve` computes ``U*`` and returns it (path ``"unconstrained"``) when it
+meets the constraints with a relative margin of :data:`SHORTCUT_MARGIN`; otherwise it solves the
+QP, its OSQP workspace warm-started from the previous step's solution when that step took the
+shortcut (``U*``, zero slacks and duals: what OSQP would have started from had it solved that
+step).
 
 A solver exception, a status other than optimal on both paths, or a first move that violates
 the hard limits makes the controller use the LQG action (clipped to the limits) for that step;
@@ -158,7 +159,7 @@ class CondensedMPC:
             raise ValueError(f"MPC Hessian not positive definite (min eigenvalue {lam_min:.3g})")
         self.H_scaled = Hs
         self.shortcut = bool(shortcut)
-        # U* = -H^{-1} q / 2: the factor's inverse once (H is well conditioned: cond ~ 24)
+        # U* = -H^{-1} q / 2: -H^{-1}/2 once, from the Cholesky factor (H is checked definite)
         self._U_of_q = -0.5 * linalg.cho_solve(linalg.cho_factor(Hs), np.eye(N * m))
         self._warm: np.ndarray | None = None  # the last shortcut's U*, until the next QP solve
         self._parameter_maps()
@@ -340,8 +341,8 @@ class MPCController(LQGController):
     """The MPC behind the controller interface: the LQG's estimator, wind inference, reference
     and integrator, with the constrained problem as the law and the LQG law as the fallback.
 
-    Not batchable (``batchable = False``): one QP per episode and step; run one instance per
-    episode.  ``info`` carries ``mpc_solve_time_s`` (the solve), ``status`` and ``qp_path``
+    Not batchable (``batchable = False``): one problem per episode and step; run one instance
+    per episode.  ``info`` carries ``mpc_solve_time_s`` (the solve), ``status`` and ``qp_path``
     of the step, and the episode's ``n_solves``, ``qp_paths`` (path -> steps: ``unconstrained``,
     ``osqp``, ``cvxpy``; :class:`MPCStep`), ``n_fallbacks``, ``fallbacks`` (a list of
     ``{"step": k, "status": s}``, see :mod:`dss14_env.baselines.base`), ``fallback_statuses``
