@@ -29,6 +29,18 @@ entry (120 extra variables that appear in no cost), a degenerate QP on which OSQ
 polishing never succeeded and its duality-gap test needed thousands of iterations; as pairs the
 QP has the 80 decision variables only and polishing succeeds.
 
+The unconstrained shortcut.  With ``s = 0`` the objective is ``U' H U + q' U`` (``H`` positive
+definite), minimised at ``U* = -H^{-1} q / 2``.  When ``U*`` meets every constraint (rate,
+acceleration including the ``r_prev`` row, and the error bounds with ``s = 0``), ``(U*, 0)``
+with all inequality multipliers zero except the slacks' ``s >= 0`` (multiplier ``lambda_1 >= 0``)
+satisfies the KKT conditions of the convex QP: it IS the optimum, exactly, not an approximation.
+So :class:`CondensedMPC` keeps ``-H^{-1} / 2`` (from a Cholesky factor, once); each step
+:meth:`CondensedMPC.solve` computes ``U*`` and returns it (path ``"unconstrained"``) when it
+meets the constraints with a relative margin of :data:`SHORTCUT_MARGIN`; otherwise it solves the
+QP, its OSQP workspace warm-started from the previous step's solution when that step took the
+shortcut (``U*``, zero slacks and duals: what OSQP would have started from had it solved that
+step).
+
 A solver exception, a status other than optimal on both paths, or a first move that violates
 the hard limits makes the controller use the LQG action (clipped to the limits) for that step;
 the fallbacks are recorded in ``info`` (each with its step and status) and never end the
@@ -51,6 +63,12 @@ from scipy import linalg
 from dss14_env.baselines.design import LQGConfig, MPCConfig, PointingConfig, default_controllers_config
 from dss14_env.baselines.lqg import LQGController, LQGDesign
 from dss14_env.baselines.qp import ParametricQP, set_values
+
+#: the path of a step whose unconstrained minimiser meets every constraint (no QP solved)
+PATH_UNCONSTRAINED = "unconstrained"
+#: the relative margin by which the unconstrained minimiser must meet each bound to be taken
+#: (far above the rounding of its Cholesky solve, far below OSQP's tolerances)
+SHORTCUT_MARGIN = 1e-9
 
 
 @dataclass(frozen=True)
@@ -99,7 +117,8 @@ class MPCStep:
     :param r: first move (rad/s), None when the solve failed or the move violates the limits
     :param status: cvxpy status (or ``"limits_violated"``, ``"solver_error: ..."``)
     :param time_s: wall time of the solve, s
-    :param path: ``"osqp"`` (fast path) or ``"cvxpy"`` (``Problem.solve``)
+    :param path: ``"unconstrained"`` (no active constraint, :data:`PATH_UNCONSTRAINED`),
+        ``"osqp"`` (fast path) or ``"cvxpy"`` (``Problem.solve``)
     :param fast_status: the fast path's status when it was re-solved through cvxpy, else None
     """
 
@@ -116,9 +135,12 @@ class CondensedMPC:
     :param design: the LQG design whose model, weights and Riccati solution are used
     :param settings: horizon, limits, penalties and OSQP settings
     :param fast: use the OSQP fast path (default True; False: ``Problem.solve`` every step)
+    :param shortcut: take the unconstrained minimiser when it meets the constraints (default
+        True; False: a QP every step)
     """
 
-    def __init__(self, design: LQGDesign, settings: MPCSettings, fast: bool = True) -> None:
+    def __init__(self, design: LQGDesign, settings: MPCSettings, fast: bool = True,
+                 shortcut: bool = True) -> None:
         self.design = design
         self.settings = st = settings
         N = int(st.horizon)
@@ -136,6 +158,11 @@ class CondensedMPC:
         if lam_min <= 0:
             raise ValueError(f"MPC Hessian not positive definite (min eigenvalue {lam_min:.3g})")
         self.H_scaled = Hs
+        self.shortcut = bool(shortcut)
+        # U* = -H^{-1} q / 2: -H^{-1}/2 once, from the Cholesky factor (H is checked definite)
+        self._U_of_q = -0.5 * linalg.cho_solve(linalg.cho_factor(Hs), np.eye(N * m))
+        self._warm: np.ndarray | None = None  # the last shortcut's U*, until the next QP solve
+        self._parameter_maps()
         # ---- cvxpy problem (DPP)
         self.U = cp.Variable(N * m, name="U")
         self.s = cp.Variable(N * m, nonneg=True, name="slack")
@@ -164,6 +191,12 @@ class CondensedMPC:
         key = ("CondensedMPC", N, m, Hs.shape, Eg.shape, step, lim_e, w1, w2, digest)
         self.qp = ParametricQP(self.problem, [self.q, self.e0, self.u_prev], self.U,
                                st.osqp_settings(), fast=fast, key=key)
+        # the constraint rows of U, stacked: U (rate), D U (rate change), Eg U (errors), and
+        # their bounds; the shortcut checks |C U - c0| <= bound in one product
+        self._C = np.vstack([np.eye(N * m), D, Eg])
+        self._C_bound = (1.0 - SHORTCUT_MARGIN) * np.concatenate([np.ones(N * m), np.full(N * m, step),
+                                                                  np.full(N * m, lim_e)])
+        self._c0 = np.zeros(3 * N * m)
 
     def _prediction(self, design: LQGDesign) -> np.ndarray:
         """Prediction matrices of a design; returns the (unscaled) Hessian ``H``."""
@@ -199,6 +232,18 @@ class CondensedMPC:
         self.H = 0.5 * (H + H.T)
         return self.H
 
+    def _parameter_maps(self) -> None:
+        """The parameters as affine maps of ``(z0, r_ss)`` for the current design (scaled):
+        ``q = Qz z0 + Qr r_ss``, ``e0 = Ez z0 + Er r_ss`` (:meth:`set_parameters`).
+        """
+        ru, es, N, m = self._ru, self._es, self.N, self.m
+        T = np.kron(np.ones((N, 1)), np.eye(m))  # the ramp's steady commands over the horizon
+        # cost in u~ = U ru - T r_ss: u~' H u~ + 2 (F z0)' u~  ->  in U (scaled, up to a constant)
+        k = 2.0 * ru / self._Hs_scale
+        H = self.H_scaled * self._Hs_scale / (ru * ru)
+        self._Qz, self._Qr = k * self.F, -k * (H @ T)
+        self._Ez, self._Er = self.Ephi / es, -(self.Egam @ T) / es
+
     def load_design(self, design: LQGDesign) -> None:
         """Switch to another design with the same controllable part (e.g. another wind model).
 
@@ -213,35 +258,71 @@ class CondensedMPC:
         H = self._prediction(design)
         if np.max(np.abs(H - H_old)) > 1e-8 * np.max(np.abs(H_old)):
             raise ValueError("the new design changes the MPC Hessian; build a new CondensedMPC")
+        self._parameter_maps()
 
-    def set_parameters(self, z0: np.ndarray, r_ss: np.ndarray, r_prev: np.ndarray) -> None:
-        """Load the state-dependent parameters of one step.
+    def parameters(self, z0: np.ndarray, r_ss: np.ndarray, r_prev: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The state-dependent parameters of one step, scaled: ``(q, e_free, r_prev)``.
 
         :param z0: LQR state ``[x - x_ref; xi; r_prev - r_ss]`` (SI)
         :param r_ss: steady command of the ramp (rad/s), shape (2,)
         :param r_prev: previous applied command (rad/s), shape (2,)
         """
-        N, ru, es = self.N, self._ru, self._es
-        Rss = np.tile(r_ss, N)
-        # cost in u~ = U ru - Rss: u~' H u~ + 2 (F z0)' u~  ->  in U (scaled, up to a constant)
-        lin = 2.0 * (self.F @ z0 - (self.H_scaled * self._Hs_scale / (ru * ru)) @ Rss)
-        set_values([self.q, self.e0, self.u_prev], [lin * ru / self._Hs_scale,
-                                                   (self.Ephi @ z0 - self.Egam @ Rss) / es,
-                                                   np.clip(r_prev / ru, -1.0, 1.0)])
+        return (self._Qz @ z0 + self._Qr @ r_ss, self._Ez @ z0 + self._Er @ r_ss,
+                np.clip(r_prev / self._ru, -1.0, 1.0))
+
+    def set_parameters(self, z0: np.ndarray, r_ss: np.ndarray, r_prev: np.ndarray) -> None:
+        """Load the parameters of one step (:meth:`parameters`) into the cvxpy problem."""
+        set_values([self.q, self.e0, self.u_prev], list(self.parameters(z0, r_ss, r_prev)))
+
+    def unconstrained(self, q: np.ndarray, e_free: np.ndarray, u_prev: np.ndarray) -> np.ndarray | None:
+        """The minimiser ``U* = -H^{-1} q / 2`` of the parameters ``(q, e_free, u_prev)``
+        (:meth:`parameters`) when it meets every constraint with the slacks at zero (each bound
+        by the relative margin :data:`SHORTCUT_MARGIN`), else None; when it does, it is the
+        QP's solution (module docstring).
+        """
+        U = self._U_of_q @ q
+        n, m = self.N * self.m, self.m
+        c0 = self._c0
+        c0[n:n + m] = u_prev
+        c0[2 * n:] = -e_free
+        rows = self._C @ U - c0
+        if not np.all(np.abs(rows) <= self._C_bound):
+            return None
+        return U
+
+    def solve_qp(self) -> tuple[np.ndarray | None, str, str, str | None]:
+        """Solve the QP at the loaded parameters' values (:class:`ParametricQP`), warm-started
+        from the last shortcut's solution when the previous step took it.
+
+        :return: ``(U or None, status, path, fast status)``; a solver exception gives None and
+            the status ``"solver_error: <type>: <message>"``
+        """
+        try:
+            if self._warm is not None:
+                self.qp.warm_start(self._warm)
+            res = self.qp.solve()
+            return res.x, res.status, res.path, res.fast_status
+        except (cp.error.SolverError, ValueError, ArithmeticError) as exc:
+            return None, f"solver_error: {type(exc).__name__}: {exc}", "", None
+        finally:
+            self._warm = None
 
     def solve(self, z0: np.ndarray, r_ss: np.ndarray, r_prev: np.ndarray) -> MPCStep:
-        """Solve one step for one row (``z0`` ``(n_z,)``, ``r_ss`` and ``r_prev`` ``(2,)``).
+        """Solve one step for one row (``z0`` ``(n_z,)``, ``r_ss`` and ``r_prev`` ``(2,)``):
+        the unconstrained minimiser when it meets the constraints, else the QP.
 
         :return: the :class:`MPCStep`; its ``r`` (rad/s) is None when the solve failed or the
             first move violates the hard limits
         """
-        self.set_parameters(z0, r_ss, r_prev)
+        values = self.parameters(z0, r_ss, r_prev)
         t0 = time.perf_counter()
-        try:
-            res = self.qp.solve()
-            U, status, path, fast_status = res.x, res.status, res.path, res.fast_status
-        except (cp.error.SolverError, ValueError, ArithmeticError) as exc:
-            U, status, path, fast_status = None, f"solver_error: {type(exc).__name__}: {exc}", "", None
+        U = self.unconstrained(*values) if self.shortcut else None
+        if U is not None:  # inside every bound: no clip or limit check to do
+            self._warm = U
+            return MPCStep(U[:self.m] * self._ru, cp.OPTIMAL, time.perf_counter() - t0, PATH_UNCONSTRAINED)
+        set_values([self.q, self.e0, self.u_prev], list(values))
+        U, status, path, fast_status = self.solve_qp()
         dt = time.perf_counter() - t0
         if status != cp.OPTIMAL or U is None:
             return MPCStep(None, status, dt, path, fast_status)
@@ -260,9 +341,10 @@ class MPCController(LQGController):
     """The MPC behind the controller interface: the LQG's estimator, wind inference, reference
     and integrator, with the constrained problem as the law and the LQG law as the fallback.
 
-    Not batchable (``batchable = False``): one QP per episode and step; run one instance per
-    episode.  ``info`` carries ``mpc_solve_time_s`` (the QP solve), ``status`` and ``qp_path``
-    of the step, and the episode's ``n_solves``, ``n_fallbacks``, ``fallbacks`` (a list of
+    Not batchable (``batchable = False``): one problem per episode and step; run one instance
+    per episode.  ``info`` carries ``mpc_solve_time_s`` (the solve), ``status`` and ``qp_path``
+    of the step, and the episode's ``n_solves``, ``qp_paths`` (path -> steps: ``unconstrained``,
+    ``osqp``, ``cvxpy``; :class:`MPCStep`), ``n_fallbacks``, ``fallbacks`` (a list of
     ``{"step": k, "status": s}``, see :mod:`dss14_env.baselines.base`), ``fallback_statuses``
     (status -> count) and ``resolves`` (steps whose fast solve was not optimal and was re-solved
     through ``Problem.solve``, as ``{"step": k, "status": fast status}``).
@@ -274,6 +356,8 @@ class MPCController(LQGController):
     :param lqg_config: settings of the shared estimator/fallback, default section ``lqg``
     :param fast: use the OSQP fast path of :class:`~dss14_env.baselines.qp.ParametricQP`
         (default True)
+    :param shortcut: take the unconstrained minimiser when it meets the constraints
+        (:class:`CondensedMPC`, default True)
     :param pointing: None (the encoder design) or the pointing design's settings (section
         ``pointing``: :class:`PointingMPCController`); its ``mpc_action_change_weight`` is the
         MPC's action-change multiplier
@@ -285,7 +369,8 @@ class MPCController(LQGController):
 
     def __init__(self, env: Any = None, name: str = "MPC", config: MPCConfig | None = None,
                  lqg_config: LQGConfig | None = None, fast: bool = True,
-                 pointing: PointingConfig | None = None, *, pointing_noise: float | None = None) -> None:
+                 pointing: PointingConfig | None = None, *, pointing_noise: float | None = None,
+                 shortcut: bool = True) -> None:
         cc = default_controllers_config()
         self.mpc_config = mcfg = config or cc.mpc
         lcfg = lqg_config or cc.lqg
@@ -293,7 +378,7 @@ class MPCController(LQGController):
                                    action_change_weight=mcfg.action_change_weight)
         if pointing is not None:
             pointing = dataclasses.replace(pointing, action_change_weight=pointing.mpc_action_change_weight)
-        self.fast = bool(fast)
+        self.fast, self.shortcut = bool(fast), bool(shortcut)
         self._mpcs: dict[int, CondensedMPC] = {}
         super().__init__(env, name, lcfg, pointing, pointing_noise=pointing_noise)
         ci = self.interface
@@ -310,7 +395,7 @@ class MPCController(LQGController):
         """
         nz = design.n_z
         if nz not in self._mpcs:
-            self._mpcs[nz] = CondensedMPC(design, self.settings, fast=self.fast)
+            self._mpcs[nz] = CondensedMPC(design, self.settings, fast=self.fast, shortcut=self.shortcut)
         else:
             self._mpcs[nz].load_design(design)
         return self._mpcs[nz]
@@ -318,6 +403,7 @@ class MPCController(LQGController):
     def reset(self, seed: int | None = None) -> None:
         super().reset(seed)
         self.n_solves = 0
+        self.qp_paths: dict[str, int] = {}
         self.fallbacks: list[dict[str, Any]] = []
         self.resolves: list[dict[str, Any]] = []
         self._last = MPCStep(None, "", 0.0, "")
@@ -336,6 +422,7 @@ class MPCController(LQGController):
         step = int(self._k[rows[0]])
         res = self._last = mpc.solve(z[0], r_ss[0], r_prev[0])
         self.n_solves += 1
+        self.qp_paths[res.path] = self.qp_paths.get(res.path, 0) + 1
         if res.fast_status is not None:
             self.resolves.append({"step": step, "status": res.fast_status})
         if res.r is None:
@@ -350,6 +437,7 @@ class MPCController(LQGController):
             statuses[key] = statuses.get(key, 0) + 1
         return {**super().episode_info(), "mpc_solve_time_s": self._last.time_s,
                 "status": self._last.status, "qp_path": self._last.path, "n_solves": self.n_solves,
+                "qp_paths": dict(self.qp_paths),
                 "n_fallbacks": len(self.fallbacks), "fallbacks": [dict(f) for f in self.fallbacks],
                 "fallback_statuses": statuses, "resolves": [dict(r) for r in self.resolves]}
 
@@ -367,10 +455,11 @@ class PointingMPCController(MPCController):
     :param lqg_config: the shared estimator settings, default section ``lqg``
     :param fast: use the OSQP fast path (default True)
     :param pointing: the pointing settings, default section ``pointing``
+    :param shortcut: take the unconstrained minimiser when it meets the constraints (default True)
     """
 
     def __init__(self, env: Any = None, name: str = "MPC-pointing", config: MPCConfig | None = None,
                  lqg_config: LQGConfig | None = None, fast: bool = True,
-                 pointing: PointingConfig | None = None) -> None:
+                 pointing: PointingConfig | None = None, *, shortcut: bool = True) -> None:
         super().__init__(env, name, config, lqg_config, fast,
-                         pointing or default_controllers_config().pointing)
+                         pointing or default_controllers_config().pointing, shortcut=shortcut)

@@ -100,7 +100,7 @@ def set_values(params: list[cp.Parameter], values: list[np.ndarray]) -> None:
         if a.shape != p.shape or np.isnan(a).any():
             raise ValueError(f"parameter {p.name()}: a real value of shape {p.shape}, got shape "
                              f"{a.shape}{' with NaN' if a.shape == p.shape else ''}")
-        if any(p.attributes[k] for k in p.attributes if k != "bounds") or p.attributes.get("bounds"):
+        if any(p.attributes.values()):  # nonneg, bounds, ...: all falsy on a plain parameter
             p.value = a
         else:
             p.save_value(a)
@@ -216,6 +216,21 @@ class CanonicalQP:
             a.setflags(write=False)  # shared between the problems of one key
         return P, q0, F, u0, Mq, Mu, col
 
+    def warm_start(self, x: np.ndarray) -> None:
+        """Start the next solve from ``x`` for the variable, every other variable and every dual
+        at zero: the solution of a problem none of whose constraints is active, when the other
+        variables are zero there (e.g. non-negative slacks under a positive penalty).
+
+        :raises ValueError: if ``x`` is not a finite vector of the variable's size
+        """
+        v = np.asarray(x, float)
+        if v.shape != (self.sl.stop - self.sl.start,) or not np.isfinite(v).all():
+            raise ValueError(f"warm start: a finite vector of {self.sl.stop - self.sl.start} values, "
+                             f"got shape {v.shape}")
+        full = np.zeros(self.n_variables)
+        full[self.sl] = v
+        self.solver.warm_start(x=full, y=np.zeros(self.n_constraints))
+
     def solve(self) -> tuple[np.ndarray | None, str]:
         """Solve at the parameters' current values.
 
@@ -269,6 +284,13 @@ class ParametricQP:
                 self.fast = CanonicalQP(problem, params, variable, self.settings, key)
             except AdapterError as exc:
                 self.adapter_error = str(exc)
+
+    def warm_start(self, x: np.ndarray) -> None:
+        """Start the fast path's next solve from ``x`` (:meth:`CanonicalQP.warm_start`); no-op
+        without the fast path (``Problem.solve`` warm-starts from its own last solve).
+        """
+        if self.fast is not None:
+            self.fast.warm_start(x)
 
     def solve_cvxpy(self) -> tuple[np.ndarray | None, str]:
         """Solve through :meth:`cvxpy.Problem.solve` (OSQP, warm-started by cvxpy).

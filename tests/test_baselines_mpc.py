@@ -167,7 +167,7 @@ def test_mpc_through_problem_solve_gives_the_fast_paths_actions() -> None:
 
 def test_fallback_on_solver_exception(monkeypatch) -> None:
     env = _hold_env()
-    ctrl = MPCController(env)
+    ctrl = MPCController(env, shortcut=False)  # every step solves the QP
     obs, _ = env.reset(seed=0)
     ctrl.reset(0)
     ctrl.act(obs)  # selects the design and its problem
@@ -194,12 +194,12 @@ def test_fallback_on_infeasible_problem_equals_clipped_lqg(monkeypatch) -> None:
     ctrl.reset(1)
     ctrl.act(obs)
     cm = ctrl.problem_for(ctrl.design)
-    real = cm.set_parameters
+    real = cm.parameters
 
     def impossible(z0, r_ss, r_prev):  # a previous command beyond the rate limit: |U_0| <= 1 and
-        real(z0, r_ss, r_prev)         # |U_0 - u_prev| <= step cannot both hold
-        cm.u_prev.value = np.array([5.0, 5.0])
-    monkeypatch.setattr(cm, "set_parameters", impossible)
+        q, e_free, _ = real(z0, r_ss, r_prev)  # |U_0 - u_prev| <= step cannot both hold
+        return q, e_free, np.array([5.0, 5.0])
+    monkeypatch.setattr(cm, "parameters", impossible)
     a = ctrl.act(obs)
     assert ctrl.info["status"] == cp.INFEASIBLE and ctrl.info["n_fallbacks"] == 1
     assert ctrl.info["fallbacks"] == [{"step": 1, "status": cp.INFEASIBLE}]
@@ -235,3 +235,114 @@ def test_mpc_is_not_batchable() -> None:
         ctrl.reset_batch(2)
     with pytest.raises(NotImplementedError, match="not batchable"):
         ctrl.act_batch(np.zeros((1, 12)))
+
+
+# ------------------------------------------------------------------ the unconstrained shortcut
+def _tight_solution(cm: CondensedMPC) -> np.ndarray:
+    """The QP at its parameters solved by an interior-point solver (Clarabel), tightly: an
+    independent reference for the shortcut."""
+    cm.problem.solve(solver=cp.CLARABEL, tol_gap_abs=1e-12, tol_gap_rel=1e-12, tol_feas=1e-12)
+    assert cm.problem.status == cp.OPTIMAL
+    return np.array(cm.U.value)
+
+
+def _load(cm: CondensedMPC, q: np.ndarray, e0: np.ndarray, u_prev: np.ndarray) -> None:
+    cm.q.value, cm.e0.value, cm.u_prev.value = q, e0, u_prev
+
+
+def test_shortcut_equals_the_qp_solution_where_it_is_taken(mpc) -> None:
+    """On random states, previous commands and ramps, wherever the unconstrained minimiser is
+    taken it is the QP's optimum (Clarabel, tight) to solver tolerance, and the step returns
+    its first move; most of the draws take it (the test is not vacuous)."""
+    rng = np.random.default_rng(11)
+    taken = 0
+    for _ in range(40):
+        z0 = rng.standard_normal(mpc.nz) * 10.0 ** rng.uniform(-8, -5)
+        r_ss = rng.uniform(-1, 1, 2) * 0.5 * mpc.settings.rate_limit
+        r_prev = r_ss + rng.uniform(-1, 1, 2) * 0.2 * mpc.settings.rate_step
+        z0[-2:] = r_prev - r_ss
+        mpc.set_parameters(z0, r_ss, r_prev)
+        U = mpc.unconstrained(*mpc.parameters(z0, r_ss, r_prev))
+        if U is None:
+            continue
+        taken += 1
+        np.testing.assert_allclose(U, _tight_solution(mpc), atol=1e-8)
+        res = mpc.solve(z0, r_ss, r_prev)
+        assert (res.status, res.path) == (cp.OPTIMAL, "unconstrained")
+        np.testing.assert_allclose(res.r, U[:2] * mpc.settings.rate_limit, rtol=1e-12, atol=0)
+    assert taken >= 20
+
+
+def _scaled_bounds(cm: CondensedMPC) -> tuple[np.ndarray, float, float]:
+    """``(Eg, rate step, error bound)`` of the problem in its scaled units (the module docstring)."""
+    ru, es = cm.settings.rate_limit, cm.design.weights.error_scale
+    return cm.Egam * ru / es, cm.settings.rate_step / ru, cm.settings.error_soft_limit / es
+
+
+def _feasible_target(cm: CondensedMPC) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Parameters whose unconstrained minimiser is a chosen command plan well inside every
+    bound: ``(U_target, q, e0)`` with ``q = -2 H U_target`` and zero predicted errors."""
+    N, m = cm.N, cm.m
+    Eg, step, _ = _scaled_bounds(cm)
+    U = np.tile([0.5, -0.3], N) + np.repeat(np.linspace(0.0, 0.2 * step * N, N), m)
+    q = -2.0 * cm.H_scaled @ U
+    e0 = -Eg @ U
+    return U, q, e0
+
+
+@pytest.mark.parametrize("case", ["inside", "rate", "accel_first", "accel_later", "error"])
+def test_shortcut_taken_exactly_when_every_constraint_holds(mpc, case: str) -> None:
+    """The minimiser of a chosen plan is taken when it is inside every bound; pushing it just
+    past one bound (the rate, the acceleration from the previous command or within the horizon,
+    a predicted error) sends the step to the QP, whose solution then differs from the plan (the
+    plan was not the optimum: the check matters)."""
+    cm, N, m = mpc, mpc.N, mpc.m
+    Eg, step, lim_e = _scaled_bounds(cm)
+    U, q, e0 = _feasible_target(cm)
+    u_prev = U[:m].copy()
+    if case == "rate":
+        U = U.copy()
+        U[0::m] += 1.02 - U[0::m].max()        # one axis past the rate limit, same increments
+        u_prev, q, e0 = U[:m].copy(), -2.0 * cm.H_scaled @ U, -Eg @ U
+    elif case == "accel_first":
+        u_prev = u_prev + [1.02 * step, 0.0]
+    elif case == "accel_later":
+        U = U.copy()
+        U[(N // 2) * m:] += [1.02 * step, 0.0] * (N - N // 2)  # a jump half-way along the horizon
+        q, e0 = -2.0 * cm.H_scaled @ U, -Eg @ U
+    elif case == "error":
+        e0 = e0.copy()
+        e0[3] += 1.02 * lim_e
+    _load(cm, q, e0, u_prev)
+    got = cm.unconstrained(q, e0, u_prev)
+    if case == "inside":
+        assert got is not None
+        np.testing.assert_allclose(got, U, atol=1e-12)
+        np.testing.assert_allclose(_tight_solution(cm), U, atol=1e-8)
+        return
+    assert got is None
+    x, status, path, _ = cm.solve_qp()
+    assert (status, path) == (cp.OPTIMAL, "osqp")
+    ref = _tight_solution(cm)
+    np.testing.assert_allclose(x, ref, atol=1e-5)
+    assert np.max(np.abs(ref - U)) > 1e-4  # the push is 2 % of a bound, OSQP meets 1e-5
+
+
+def test_shortcut_and_qp_every_step_give_the_same_actions() -> None:
+    """A 50 km/h hold, both controllers fed the same observations: with the shortcut (most
+    steps) and with a QP every step the actions agree to OSQP's tolerance; the episode's record
+    counts each step's path."""
+    env = _hold_env()
+    on, off = MPCController(env), MPCController(env, shortcut=False)
+    obs, _ = env.reset(seed=3)
+    on.reset(3)
+    off.reset(3)
+    for _ in range(300):
+        a, b = on.act(obs), off.act(obs)
+        np.testing.assert_allclose(a, b, atol=1e-5)
+        obs, *_ = env.step(b)
+    paths = on.info["qp_paths"]
+    assert set(paths) == {"unconstrained", "osqp"} and paths["unconstrained"] > paths["osqp"]
+    assert sum(paths.values()) == on.info["n_solves"] == 300
+    assert off.info["qp_paths"] == {"osqp": 300}
+    assert on.info["n_fallbacks"] == off.info["n_fallbacks"] == 0

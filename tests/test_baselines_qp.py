@@ -118,3 +118,18 @@ def test_a_problem_of_a_kept_key_is_not_probed_again_and_solves_the_same(monkeyp
     np.testing.assert_array_equal(solutions[0], solutions[1])
     np.testing.assert_allclose(solutions[0], _solution(np.array([1.0, 1.0, -3.0]), 0.5), atol=1e-6)
     assert len(qp_module.CANONICAL_DATA) == 1
+
+
+def test_warm_start_from_a_point_gives_the_same_solution() -> None:
+    """A solve started from a given point (duals zero) reaches the same optimum; a point of
+    the wrong size or not finite is refused, naming what was expected."""
+    prob, params, x = _known_problem()
+    qp = ParametricQP(prob, params, x, SETTINGS)
+    params[0].value, params[1].value = np.array([3.0, 3.0, 0.0]), -0.5
+    qp.warm_start(np.array([0.9, -0.9, 0.5]))
+    res = qp.solve()
+    assert (res.status, res.path) == (cp.OPTIMAL, "osqp")
+    np.testing.assert_allclose(res.x, _solution(np.array([3.0, 3.0, 0.0]), -0.5), atol=1e-7)
+    for bad in (np.zeros(2), np.array([0.0, np.nan, 0.0])):
+        with pytest.raises(ValueError, match="warm start: a finite vector of 3 values"):
+            qp.warm_start(bad)
