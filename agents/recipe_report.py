@@ -191,6 +191,10 @@ def _f(v: float, nd: int = 2) -> str:
     return "–" if v is None or not np.isfinite(v) else f"{v:.{nd}f}"
 
 
+def _ci_cell(e: Mapping[str, Any]) -> str:
+    return f"{_f(e['value'])} [{_f(e['low'])}, {_f(e['high'])}]"
+
+
 def _iqm_cell(e: Mapping[str, Any]) -> str:
     return f"{_f(e['iqm'])} [{_f(e['ci95'][0])}, {_f(e['ci95'][1])}]"
 
@@ -269,15 +273,16 @@ def recipe_markdown(report: Mapping[str, Any]) -> str:
             for n in names) + " |")
     if report.get("grid"):
         g = report["grid"]
-        lines += ["", f"Direction/speed grid ({g['what']}):", "",
-                  "| wind | " + " | ".join(g["controllers"]) + " | policy / PI [95 % CI] | "
-                  "policy / lqg_pointing [95 % CI] |", "|---|" + "---|" * (len(g["controllers"]) + 2)]
+        refs = [k.removeprefix("ratio_") for k in g["conditions"][0] if k.startswith("ratio_")]
+        policy = f", policy: {g['policy']}" if g.get("policy") else ""
+        lines += ["", f"Direction/speed grid ({g['what']}{policy}):", "",
+                  "| wind | " + " | ".join(g["controllers"]) + " | "
+                  + " | ".join(f"policy / {r} [95 % CI]" for r in refs) + " |",
+                  "|---|" + "---|" * (len(g["controllers"]) + len(refs))]
         for c in g["conditions"]:
-            rp, rl = c["ratio_pi_kp1"], c["ratio_lqg_pointing"]
             lines.append(f"| {c['wind_speed_kmh']:g} km/h, {c['wind_direction_deg']:g}° | " + " | ".join(
-                _f(c["pointing_mdeg"][k]) for k in g["controllers"])
-                + f" | {_f(rp['value'])} [{_f(rp['low'])}, {_f(rp['high'])}] | "
-                  f"{_f(rl['value'])} [{_f(rl['low'])}, {_f(rl['high'])}] |")
+                _f(c["pointing_mdeg"][k]) for k in g["controllers"]) + " | " + " | ".join(
+                _ci_cell(c[f"ratio_{r}"]) for r in refs) + " |")
     return "\n".join(lines) + "\n"
 
 
