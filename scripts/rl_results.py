@@ -424,37 +424,42 @@ def _cpu_per_seed(cpu_log: Path, n: int) -> list[float | None]:
 
 
 def recipe(campaign: Path, out: Path, cpu_log: Path | None) -> None:
-    """The general recipe's report from its campaign (module doc): the pointing-aware LQG scored
-    on the campaign's test episodes beside its PI and LQG, each seed's validation score, the
-    report (:func:`dss14_env.agents.recipe_report.recipe_report`) and its profile figure."""
+    """The general recipe's report from its campaign (module doc): the pointing-aware LQGs (fixed
+    and scheduled on the wind reading) scored on the campaign's test episodes beside its PI and
+    LQG, each seed's validation score, the report
+    (:func:`dss14_env.agents.recipe_report.recipe_report`) and its profile figure."""
     from dss14_env.agents.campaign import selected_evaluation
     from dss14_env.agents.campaign_report import task_scores
     from dss14_env.agents.evaluation import FINAL_SCORING, dss14_tasks, task_env
     from dss14_env.agents.recipe_report import recipe_report
     from dss14_env.baselines.lqg import PointingLQGController
+    from dss14_env.baselines.scheduled import ScheduledPointingLQGController
 
     summary = json.loads((campaign / "summary.json").read_text())
     proto = summary["protocol"]
-    lqgp: dict = {}
+    extra: dict = {"lqg_pointing": {}, "lqg_pointing_sched": {}}
     for t in dss14_tasks(scenarios=[t["name"] for t in proto["tasks"]]):
-        env = task_env(t)
-        try:
-            lqgp.update(task_scores(PointingLQGController(env), [t], proto["test_seeds"],
-                                    proto["test_steps"], FINAL_SCORING))
-        finally:
-            env.close()
+        for name, cls in (("lqg_pointing", PointingLQGController),
+                          ("lqg_pointing_sched", ScheduledPointingLQGController)):
+            env = task_env(t)
+            try:
+                extra[name].update(task_scores(cls(env), [t], proto["test_seeds"], proto["test_steps"],
+                                               FINAL_SCORING))
+            finally:
+                env.close()
     validation = {}
     for e in summary["per_seed"]:
         sel = selected_evaluation(campaign / e["run"] / "eval" / "evaluations.npz")
         validation[e["seed_index"]] = None if sel is None else float(sel[1][1])
-    report = recipe_report(summary, {"lqg_pointing": lqgp}, validation)
+    report = recipe_report(summary, extra, validation)
     if cpu_log is not None:
         for r, cpu in zip(report["per_seed"], _cpu_per_seed(cpu_log, len(report["per_seed"])), strict=True):
             r["cpu_s_train_and_score"] = cpu
     cfg_src = summary["config"]
     doc = {"what": "the general recipe on >= 10 training seeds: each seed's validation-selected policy "
                    "(eval/best) scored once on the sealed test seeds beside the PI, the LQG and the "
-                   "pointing-aware LQG on the same episodes (dss14_env.agents.recipe_report)",
+                   "pointing-aware LQGs (fixed, scheduled on the wind reading) on the same episodes "
+                   "(dss14_env.agents.recipe_report)",
            "config": "configs/" + Path(cfg_src).name if "/configs/" in cfg_src else cfg_src,
            "date_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"), "machine": _machine(),
            "protocol": proto, **report}
