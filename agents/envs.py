@@ -41,6 +41,7 @@ import gymnasium as gym
 from dss14_env.agents.config import TrainConfig
 from dss14_env.agents.interface import (
     NO_ABSOLUTE_ANGLES,
+    READING_CONTEXT,
     SCHEDULED_BASE,
     InterfaceSpec,
     InterfaceWrapper,
@@ -312,8 +313,11 @@ def _wrap_batched(venv: Any, cfg: TrainConfig, plan: EnvPlan, env_config: Any,
 
 
 def reads_wind(plan: EnvPlan) -> bool:
-    """Whether the plan's interface has a base scheduled on the rows' wind readings."""
-    return plan.interface is not None and plan.interface.base == SCHEDULED_BASE
+    """Whether the plan's interface reads the rows' wind readings (a base scheduled on them, or
+    the ``wind_reading`` context).
+    """
+    spec = plan.interface
+    return spec is not None and (spec.base == SCHEDULED_BASE or READING_CONTEXT in spec.context)
 
 
 def monitor_files(cfg: TrainConfig, plan: EnvPlan, monitor_dir: Path) -> list[Path]:

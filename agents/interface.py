@@ -49,7 +49,8 @@ a batched vector env) and for scoring (:class:`dss14_env.agents.policy.PolicyCon
   step the first observation repeated, the steady state the episode starts in), then the
   low-passed entries (``history_filters``), then the ``context``: constants of the environment's
   configuration that a user knows before the first step (:data:`CONTEXTS`; ``"axis_encoders"``:
-  1 where the encoders sit at the axes, 0 at the drives), so that one policy may learn a law per
+  1 where the encoders sit at the axes, 0 at the drives; ``"wind_reading"``: the episode's mean
+  wind speed reading over 90 km/h, 0 without one), so that one policy may learn a law per
   configuration (gain scheduling on a known quantity, as the report designs its loop per encoder
   location).
 
@@ -74,7 +75,7 @@ from dss14_env.agents.base_rows import RowGroupedLQG, batched_base, batched_lqg
 from dss14_env.baselines.design import default_controllers_config
 from dss14_env.baselines.lqg import LQGController
 from dss14_env.baselines.pi import PIController
-from dss14_env.baselines.scheduled import check_readings
+from dss14_env.baselines.scheduled import MAX_READING, check_readings
 from dss14_env.core.units import DEG, MDEG
 from dss14_env.envs.core import OBS, OBS_HIGH, OBS_SIZE, as_actions
 
@@ -96,7 +97,11 @@ LQG_BASES = ("lqg", "lqg_pointing", "lqg_pointing_sched")
 SCHEDULED_BASE = "lqg_pointing_sched"
 #: the context features (:class:`InterfaceSpec` ``context``): name -> its value for an
 #: environment configuration
-CONTEXTS = {"axis_encoders": lambda cfg: 1.0 if getattr(cfg, "encoders", None) == "axis" else 0.0}
+CONTEXTS = {"axis_encoders": lambda cfg: 1.0 if getattr(cfg, "encoders", None) == "axis" else 0.0,
+            "wind_reading": lambda cfg: 0.0}
+#: the context entry that each row's episode sets (:meth:`PolicyInterface.set_wind_readings`), not
+#: its environment's configuration
+READING_CONTEXT = "wind_reading"
 
 
 def context_values(names: tuple[str, ...], env_config: Any) -> np.ndarray:
@@ -156,7 +161,8 @@ class InterfaceSpec:
         ``obs_symlog``): memory of seconds in a few entries, from which a feed-forward network
         can form lead and lag; default none
     :param context: names of :data:`CONTEXTS` appended last (constants of the environment's
-        configuration, e.g. ``["axis_encoders"]``); default none
+        configuration, e.g. ``["axis_encoders"]``, or the episode's ``"wind_reading"``); default
+        none
     :param action_filter_s: time constant (s, in [0, 10]) of a first-order low-pass
         filter on the environment action the action map gives (base and residual together;
         an episode's first action passes unfiltered): smooth commands by construction, the
@@ -333,6 +339,7 @@ class PolicyInterface:
             if self.lqg:
                 self.lqg[i].reset()
         self.wind_readings[mask] = math.nan  # the ended episodes' readings
+        self._reading_context()
         if self.wind_source is not None and mask.any():
             rows = np.flatnonzero(mask)
             self.set_wind_readings(self.wind_source(rows), rows)
@@ -347,12 +354,19 @@ class PolicyInterface:
         idx = np.arange(self.n) if rows is None else np.asarray(rows, int).reshape(-1)
         speeds = check_readings(wind_speeds, idx.size)
         self.wind_readings[idx] = speeds
+        self._reading_context()
         if self.spec.base == SCHEDULED_BASE:
             self.lqg_batch.set_row_readings(idx, speeds)
 
+    def _reading_context(self) -> None:
+        """The ``wind_reading`` context entry of every row from its reading (0 without one)."""
+        if READING_CONTEXT in self.spec.context:
+            col = self.spec.context.index(READING_CONTEXT)
+            self.context[:, col] = np.nan_to_num(self.wind_readings / MAX_READING, nan=0.0)
+
     #: the attributes of the dynamic state (:meth:`get_state`)
     _STATE = ("pi", "lqg", "lqg_batch", "_base_encoders", "base_action", "command_rate", "_past", "_filt",
-              "_fresh", "filtered_action", "_act_fresh", "wind_readings")
+              "_fresh", "filtered_action", "_act_fresh", "wind_readings", "context")
 
     def get_state(self) -> dict[str, Any]:
         """A copy of the dynamic state (base controllers, last base action, history) that
@@ -399,6 +413,7 @@ class PolicyInterface:
         else:
             configs = [env_configs] * self.n
         self.context = np.stack([context_values(self.spec.context, c) for c in configs])
+        self._reading_context()
         encoders = [getattr(c, "encoders", None) for c in configs]
         if self.spec.base not in LQG_BASES or None in encoders or encoders == self._base_encoders:
             return
@@ -675,7 +690,8 @@ def spec_from_kwargs(kwargs: dict[str, Any], defaults: InterfaceSpec) -> tuple[I
     return InterfaceSpec(**d), kw
 
 
-__all__ = ["ACTIONS", "BASES", "CONTEXTS", "FEATURE_BOUND", "HISTORY_ENTRIES", "LQG_BASES", "SCHEDULED_BASE",
+__all__ = ["ACTIONS", "BASES", "CONTEXTS", "FEATURE_BOUND", "HISTORY_ENTRIES", "LQG_BASES", "READING_CONTEXT",
+           "SCHEDULED_BASE",
            "InterfaceSpec",
            "InterfaceWrapper", "LQG_FEATURES", "LQG_FEATURE_WIDTHS", "NO_ABSOLUTE_ANGLES",
            "PolicyInterface", "action_curve", "context_values", "interface_observation_space",

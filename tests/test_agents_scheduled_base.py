@@ -17,7 +17,7 @@ from dss14_env.agents.vec_env import InterfaceVecEnv  # noqa: E402
 from dss14_env.agents.wind_readings import make_reading_vec_env, wind_source  # noqa: E402
 
 SPEC = InterfaceSpec(base="lqg_pointing_sched", action="residual", residual_scale=0.01,
-                     lqg_features=("command", "disturbance"))
+                     lqg_features=("command", "disturbance"), context=("axis_encoders", "wind_reading"))
 KMH = 1 / 3.6
 
 
@@ -69,6 +69,7 @@ def test_rows_follow_their_own_readings_over_autoresets() -> None:
         expect = grid[np.argmin(np.abs(grid[None] - readings[:, None]), axis=1)]
         assert np.allclose(_design_speeds(iface), expect)
         assert np.allclose(iface.wind_readings, readings)
+        assert np.allclose(iface.context[:, 1], readings / (90 / 3.6))  # the policy sees it too
         seen.append(_design_speeds(iface))
         iv.step_async(np.zeros((4, 2), np.float32))
         iv.step_wait()
