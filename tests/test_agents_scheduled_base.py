@@ -90,3 +90,20 @@ def test_single_env_reads_its_reset_info() -> None:
 def test_scheduled_base_refuses_the_per_row_features() -> None:
     with pytest.raises(ValueError, match="lqg_features: base lqg_pointing_sched"):
         InterfaceSpec(base="lqg_pointing_sched", action="residual", lqg_features=("output",))
+
+
+def test_a_scored_policy_takes_the_episode_loops_readings() -> None:
+    """The shipped general policy (on the scheduled base) is told each episode's reading by the
+    bench's episode loop: one per row in a batch, and one kept over the episodes of ``act``."""
+    from dss14_env.agents.policy import load_policy, shipped_policy
+
+    ctrl = load_policy(shipped_policy("ppo_general"))
+    assert ctrl.spec.base == "lqg_pointing_sched"
+    ctrl.reset_batch(2)
+    ctrl.set_scenario_batch([10 * KMH, 70 * KMH], [0.0, 0.0])
+    assert np.allclose(ctrl.interface.wind_readings, [10 * KMH, 70 * KMH])
+    ctrl.set_scenario(30 * KMH, 0.0)  # the sequential loop: before reset, kept over episodes
+    ctrl.reset()
+    assert ctrl.interface.wind_readings[0] == pytest.approx(30 * KMH)
+    with pytest.raises(ValueError, match="wind speed reading"):
+        ctrl.set_scenario_batch([1.0, 2.0])  # two readings for one row
