@@ -39,7 +39,14 @@ from typing import TYPE_CHECKING, Any
 import gymnasium as gym
 
 from dss14_env.agents.config import TrainConfig
-from dss14_env.agents.interface import NO_ABSOLUTE_ANGLES, InterfaceSpec, InterfaceWrapper, spec_from_kwargs
+from dss14_env.agents.interface import (
+    NO_ABSOLUTE_ANGLES,
+    READING_CONTEXT,
+    SCHEDULED_BASE,
+    InterfaceSpec,
+    InterfaceWrapper,
+    spec_from_kwargs,
+)
 
 if TYPE_CHECKING:  # annotations only: the SB3 VecEnvs (torch) are imported where they are built
     from dss14_env.agents.vec_env import MixtureVecEnv
@@ -228,7 +235,7 @@ def is_dss14_id(env_id: str) -> bool:
 
 
 def make_mixture_vec_env(mixture: list[dict[str, Any]], common: Mapping[str, Any], seed: int | None,
-                         env_config: Any, source: str = "<config>") -> MixtureVecEnv:
+                         env_config: Any, source: str = "<config>", readings: bool = False) -> MixtureVecEnv:
     """The batched VecEnv of a ``mixture`` (:func:`dss14_env.agents.config`'s checked parts):
     one :class:`~dss14_env.agents.vec_env.SB3VecEnv` per part -- its preset's registration, the
     ``common`` keys laid over, then the part's own ``env_kwargs`` -- side by side
@@ -236,9 +243,12 @@ def make_mixture_vec_env(mixture: list[dict[str, Any]], common: Mapping[str, Any
 
     :param env_config: the configuration the policy interface is built for: every part must
         share its :data:`MIXTURE_SHARED_KEYS`
+    :param readings: the parts keep their rows' mean wind speed readings
+        (:func:`dss14_env.agents.wind_readings.make_reading_vec_env`)
     :raises ValueError: a part whose environment differs in those keys, naming it
     """
     from dss14_env.agents.vec_env import MixtureVecEnv, make_sb3_vec_env
+    from dss14_env.agents.wind_readings import make_reading_vec_env
     from dss14_env.envs.presets import PRESETS
 
     kw = dict(common)
@@ -247,8 +257,8 @@ def make_mixture_vec_env(mixture: list[dict[str, Any]], common: Mapping[str, Any
     for k, part in enumerate(mixture):
         preset = PRESETS[part["preset"]]
         steps = part["max_episode_steps"] or default_steps or preset.max_episode_steps
-        venv = make_sb3_vec_env(preset.env_id, part["n_envs"], max_episode_steps=steps,
-                                **{**kw, **part["env_kwargs"]})
+        make = make_reading_vec_env if readings else make_sb3_vec_env
+        venv = make(preset.env_id, part["n_envs"], max_episode_steps=steps, **{**kw, **part["env_kwargs"]})
         cfg = venv.venv.config
         bad = [key for key in MIXTURE_SHARED_KEYS
                if env_config is not None and getattr(cfg, key) != getattr(env_config, key)]
@@ -284,6 +294,7 @@ def _wrap_batched(venv: Any, cfg: TrainConfig, plan: EnvPlan, env_config: Any,
 
     from dss14_env.agents.vec_env import ActionChangePenaltyVecEnv, InterfaceVecEnv, LogRewardVecEnv
 
+    inner = venv
     if monitor_dir is not None:
         monitor_dir.mkdir(parents=True, exist_ok=True)
     venv = VecMonitor(venv, None if monitor_dir is None else str(monitor_dir / "monitor.csv"))
@@ -291,7 +302,22 @@ def _wrap_batched(venv: Any, cfg: TrainConfig, plan: EnvPlan, env_config: Any,
         venv = ActionChangePenaltyVecEnv(venv, cfg.action_change_penalty)
     if cfg.reward_log_scale is not None:
         venv = LogRewardVecEnv(venv, cfg.reward_log_scale, env_config, cfg.gamma, cfg.action_change_penalty)
-    return venv if plan.interface is None else InterfaceVecEnv(venv, plan.interface, env_config)
+    if plan.interface is None:
+        return venv
+    out = InterfaceVecEnv(venv, plan.interface, env_config)
+    if reads_wind(plan):  # each row's base designed for its episode's reading
+        from dss14_env.agents.wind_readings import wind_source
+
+        out.interface.wind_source = wind_source(inner)
+    return out
+
+
+def reads_wind(plan: EnvPlan) -> bool:
+    """Whether the plan's interface reads the rows' wind readings (a base scheduled on them, or
+    the ``wind_reading`` context).
+    """
+    spec = plan.interface
+    return spec is not None and (spec.base == SCHEDULED_BASE or READING_CONTEXT in spec.context)
 
 
 def monitor_files(cfg: TrainConfig, plan: EnvPlan, monitor_dir: Path) -> list[Path]:
@@ -321,13 +347,21 @@ def make_train_vec_env(cfg: TrainConfig, plan: EnvPlan, env_config: Any,
         if kind != "batched":
             raise ValueError(f"{cfg.source}: key 'mixture': needs the batched VecEnv (vec_env: auto "
                              f"or batched on a DSS14 environment)")
-        venv = make_mixture_vec_env(cfg.mixture, plan.base_kwargs, cfg.seed, env_config, cfg.source)
+        venv = make_mixture_vec_env(cfg.mixture, plan.base_kwargs, cfg.seed, env_config, cfg.source,
+                                    reads_wind(plan))
         return _wrap_batched(venv, cfg, plan, env_config, monitor_dir)
     if kind == "batched":
         kw = dict(plan.base_kwargs)
         steps = kw.pop("max_episode_steps", None)
-        venv = make_sb3_vec_env(plan.base_id, cfg.n_envs, seed=cfg.seed, max_episode_steps=steps,
-                                **kw)
+        if reads_wind(plan):
+            from dss14_env.agents.wind_readings import make_reading_vec_env
+
+            venv = make_reading_vec_env(plan.base_id, cfg.n_envs, max_episode_steps=steps, **kw)
+            if cfg.seed is not None:
+                venv.seed(cfg.seed)
+        else:
+            venv = make_sb3_vec_env(plan.base_id, cfg.n_envs, seed=cfg.seed, max_episode_steps=steps,
+                                    **kw)
         return _wrap_batched(venv, cfg, plan, env_config, monitor_dir)
     if cfg.action_change_penalty:
         raise ValueError(f"{cfg.source}: key 'action_change_penalty': needs the batched VecEnv "

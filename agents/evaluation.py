@@ -163,6 +163,8 @@ FIGURES: Mapping[str, tuple[str, ...]] = MappingProxyType({
     "overshoot_pct_el": ("step", "el", "overshoot_pct"),
     "settling_time_s_az": ("step", "az", "settling_time_s"),
     "settling_time_s_el": ("step", "el", "settling_time_s"),
+    "pointing_settled_rms_mdeg_el": ("step", "pointing", "el", "settled_rms_mdeg"),
+    "pointing_settled_rms_mdeg_xel": ("step", "pointing", "xel", "settled_rms_mdeg"),
     "rate_limit_hits": ("limit_hits", "rate"),
     "accel_limit_hits": ("limit_hits", "accel"),
 })

@@ -13,8 +13,13 @@ a batched vector env) and for scoring (:class:`dss14_env.agents.policy.PolicyCon
   (:class:`dss14_env.baselines.lqg.LQGController`, one per row: steady-state Kalman filter +
   LQR); ``"lqg_pointing"``: the LQG designed for the dish's true pointing error
   (:class:`dss14_env.baselines.lqg.PointingLQGController`: the same Kalman filter on the drive
-  encoders, the LQR scoring the structure's pointing; its features are the LQG's); None: no
-  base controller.
+  encoders, the LQR scoring the structure's pointing; its features are the LQG's);
+  ``"lqg_pointing_sched"``: that LQG scheduled on the episode's mean wind speed reading
+  (:class:`dss14_env.baselines.scheduled.ScheduledPointingLQGController`; command and
+  disturbance features only): each row's episode is designed for its own environment's
+  reading (:meth:`PolicyInterface.set_wind_readings`, or a ``wind_source`` the rows' readings
+  are taken from at every (auto)reset), a row without one for the speed inferred from its
+  start command; None: no base controller.
 * ``action``: ``"absolute"`` -- the policy's output is the rate command (action units);
   ``"residual"`` -- ``a = a_base + residual_scale * u`` (residual policy learning: Johannink et
   al., *Residual Reinforcement Learning for Robot Control*, ICRA 2019; Silver et al.,
@@ -44,7 +49,8 @@ a batched vector env) and for scoring (:class:`dss14_env.agents.policy.PolicyCon
   step the first observation repeated, the steady state the episode starts in), then the
   low-passed entries (``history_filters``), then the ``context``: constants of the environment's
   configuration that a user knows before the first step (:data:`CONTEXTS`; ``"axis_encoders"``:
-  1 where the encoders sit at the axes, 0 at the drives), so that one policy may learn a law per
+  1 where the encoders sit at the axes, 0 at the drives; ``"wind_reading"``: the episode's mean
+  wind speed reading over 90 km/h, 0 without one), so that one policy may learn a law per
   configuration (gain scheduling on a known quantity, as the report designs its loop per encoder
   location).
 
@@ -57,6 +63,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -68,6 +75,7 @@ from dss14_env.agents.base_rows import RowGroupedLQG, batched_base, batched_lqg
 from dss14_env.baselines.design import default_controllers_config
 from dss14_env.baselines.lqg import LQGController
 from dss14_env.baselines.pi import PIController
+from dss14_env.baselines.scheduled import MAX_READING, check_readings
 from dss14_env.core.units import DEG, MDEG
 from dss14_env.envs.core import OBS, OBS_HIGH, OBS_SIZE, as_actions
 
@@ -83,11 +91,17 @@ LQG_FEATURE_WIDTHS = {"command": 2, "disturbance": 2, "output": 2, "law": 6}
 #: the action maps (:class:`InterfaceSpec`)
 ACTIONS = ("absolute", "residual", "feedforward")
 #: the base controllers: None, the PI, and the LQG designs (encoder or pointing error)
-BASES = (None, "pi", "lqg", "lqg_pointing")
-LQG_BASES = ("lqg", "lqg_pointing")
+BASES = (None, "pi", "lqg", "lqg_pointing", "lqg_pointing_sched")
+LQG_BASES = ("lqg", "lqg_pointing", "lqg_pointing_sched")
+#: the base scheduled on each row's mean wind speed reading
+SCHEDULED_BASE = "lqg_pointing_sched"
 #: the context features (:class:`InterfaceSpec` ``context``): name -> its value for an
 #: environment configuration
-CONTEXTS = {"axis_encoders": lambda cfg: 1.0 if getattr(cfg, "encoders", None) == "axis" else 0.0}
+CONTEXTS = {"axis_encoders": lambda cfg: 1.0 if getattr(cfg, "encoders", None) == "axis" else 0.0,
+            "wind_reading": lambda cfg: 0.0}
+#: the context entry that each row's episode sets (:meth:`PolicyInterface.set_wind_readings`), not
+#: its environment's configuration
+READING_CONTEXT = "wind_reading"
 
 
 def context_values(names: tuple[str, ...], env_config: Any) -> np.ndarray:
@@ -109,11 +123,25 @@ def _entries(value: Any, name: str) -> tuple[int, ...]:
     return tuple(int(i) for i in value)
 
 
+def _lqg_features(feats: Any, base: str | None, estimate: bool) -> tuple[str, ...]:
+    """Distinct names of :data:`LQG_FEATURE_WIDTHS`, command and disturbance only for the scheduled
+    base (a clear error naming ``lqg_features`` otherwise).
+    """
+    if isinstance(feats, str) or not isinstance(feats, (list, tuple)) or not feats or \
+            any(f not in LQG_FEATURE_WIDTHS for f in feats) or len(set(feats)) != len(feats):
+        raise ValueError(f"lqg_features must be distinct names of {list(LQG_FEATURE_WIDTHS)}, "
+                         f"got {feats!r}")
+    if base == SCHEDULED_BASE and estimate is True and {"output", "law"} & set(feats):
+        raise ValueError(f"lqg_features: base {SCHEDULED_BASE} gives the command and disturbance "
+                         f"features only, got {list(feats)}")
+    return tuple(feats)
+
+
 @dataclass(frozen=True)
 class InterfaceSpec:
     """What the policy sees and how its output becomes the environment action (module doc).
 
-    :param base: ``None``, ``"pi"``, ``"lqg"`` or ``"lqg_pointing"``
+    :param base: ``None``, ``"pi"``, ``"lqg"``, ``"lqg_pointing"`` or ``"lqg_pointing_sched"``
     :param action: ``"absolute"`` or ``"residual"``
     :param gains: PI gain set of ``configs/model.yaml`` or ``(kp, ki)``, default ``"kp1"``
     :param residual_scale: action units per unit of policy output, default 0.05
@@ -133,7 +161,8 @@ class InterfaceSpec:
         ``obs_symlog``): memory of seconds in a few entries, from which a feed-forward network
         can form lead and lag; default none
     :param context: names of :data:`CONTEXTS` appended last (constants of the environment's
-        configuration, e.g. ``["axis_encoders"]``); default none
+        configuration, e.g. ``["axis_encoders"]``, or the episode's ``"wind_reading"``); default
+        none
     :param action_filter_s: time constant (s, in [0, 10]) of a first-order low-pass
         filter on the environment action the action map gives (base and residual together;
         an episode's first action passes unfiltered): smooth commands by construction, the
@@ -159,12 +188,13 @@ class InterfaceSpec:
 
     def __post_init__(self) -> None:
         if self.base not in BASES:
-            raise ValueError(f"base must be null, 'pi', 'lqg' or 'lqg_pointing', got {self.base!r}")
+            raise ValueError(f"base must be null, 'pi', 'lqg', 'lqg_pointing' or 'lqg_pointing_sched', "
+                             f"got {self.base!r}")
         if self.action not in ACTIONS:
             raise ValueError(f"action must be 'absolute', 'residual' or 'feedforward', got {self.action!r}")
         if self.action == "residual" and self.base is None:
-            raise ValueError("a residual action needs a base controller (base: pi, lqg or "
-                             "lqg_pointing)")
+            raise ValueError("a residual action needs a base controller (base: pi, lqg, lqg_pointing "
+                             "or lqg_pointing_sched)")
         scale = self.residual_scale
         if isinstance(scale, bool) or not isinstance(scale, (int, float)) or \
                 not (math.isfinite(scale) and scale > 0.0):
@@ -175,12 +205,7 @@ class InterfaceSpec:
         object.__setattr__(self, "history_entries", _entries(self.history_entries, "history_entries"))
         if self.obs_entries is not None:
             object.__setattr__(self, "obs_entries", _entries(self.obs_entries, "obs_entries"))
-        feats = self.lqg_features
-        if isinstance(feats, str) or not isinstance(feats, (list, tuple)) or not feats or \
-                any(f not in LQG_FEATURE_WIDTHS for f in feats) or len(set(feats)) != len(feats):
-            raise ValueError(f"lqg_features must be distinct names of {list(LQG_FEATURE_WIDTHS)}, "
-                             f"got {feats!r}")
-        object.__setattr__(self, "lqg_features", tuple(feats))
+        object.__setattr__(self, "lqg_features", _lqg_features(self.lqg_features, self.base, self.estimate))
         taus = self.history_filters
         if isinstance(taus, (str, bytes)) or not isinstance(taus, (list, tuple)) or len(taus) > 8 or not all(
                 isinstance(t, (int, float)) and not isinstance(t, bool) and 0.0 < t <= 60.0 for t in taus):
@@ -261,13 +286,13 @@ class PolicyInterface:
             n_feat = 2
         elif spec.base in LQG_BASES:
             n_feat = sum(LQG_FEATURE_WIDTHS[f] for f in spec.lqg_features) if spec.estimate else 0
-            pointing = default_controllers_config().pointing if spec.base == "lqg_pointing" else None
+            pointing = default_controllers_config().pointing if spec.base != "lqg" else None
             self._pointing = pointing
             if spec.estimate and {"output", "law"} & set(spec.lqg_features):
                 # the LQR state z of every row: one recording controller per row
                 self.lqg = [_RecordingLQG(env_config, pointing=pointing) for _ in range(self.n)]
             else:  # command and disturbance only: one batched LQG for all rows
-                self.lqg_batch = batched_lqg(env_config, pointing, self.n)
+                self.lqg_batch = batched_lqg(env_config, pointing, self.n, spec.base == SCHEDULED_BASE)
         #: where each row's base controller expects the encoders (:meth:`set_context`)
         self._base_encoders = [getattr(env_config, "encoders", None)] * self.n
         self.n_features = n_feat
@@ -287,6 +312,10 @@ class PolicyInterface:
         self._act_fresh = np.ones(self.n, bool)
         self._past = np.zeros((self.n, spec.history, len(spec.history_entries)), np.float32)
         self._fresh = np.ones(self.n, bool)
+        #: each row's mean wind speed reading of its episode (m/s; NaN: none), and where the rows'
+        #: readings come from at every (auto)reset (:meth:`restart`): ``rows -> speeds``, or None
+        self.wind_readings = np.full(self.n, math.nan)
+        self.wind_source: Callable[[np.ndarray], Any] | None = None
 
     # ------------------------------------------------------------------ state
     def reset(self) -> None:
@@ -309,10 +338,35 @@ class PolicyInterface:
         for i in np.flatnonzero(mask).tolist():
             if self.lqg:
                 self.lqg[i].reset()
+        self.wind_readings[mask] = math.nan  # the ended episodes' readings
+        self._reading_context()
+        if self.wind_source is not None and mask.any():
+            rows = np.flatnonzero(mask)
+            self.set_wind_readings(self.wind_source(rows), rows)
+
+    def set_wind_readings(self, wind_speeds: Any, rows: Sequence[int] | None = None) -> None:
+        """The mean wind speed readings (m/s) of the episodes rows ``rows`` (default all) start
+        next or have just started (before their first :meth:`observe`); a scheduled base
+        (``lqg_pointing_sched``) designs each of those episodes for its reading.
+
+        :raises ValueError: one line, unless one finite speed in 0..90 km/h per row
+        """
+        idx = np.arange(self.n) if rows is None else np.asarray(rows, int).reshape(-1)
+        speeds = check_readings(wind_speeds, idx.size)
+        self.wind_readings[idx] = speeds
+        self._reading_context()
+        if self.spec.base == SCHEDULED_BASE:
+            self.lqg_batch.set_row_readings(idx, speeds)
+
+    def _reading_context(self) -> None:
+        """The ``wind_reading`` context entry of every row from its reading (0 without one)."""
+        if READING_CONTEXT in self.spec.context:
+            col = self.spec.context.index(READING_CONTEXT)
+            self.context[:, col] = np.nan_to_num(self.wind_readings / MAX_READING, nan=0.0)
 
     #: the attributes of the dynamic state (:meth:`get_state`)
     _STATE = ("pi", "lqg", "lqg_batch", "_base_encoders", "base_action", "command_rate", "_past", "_filt",
-              "_fresh", "filtered_action", "_act_fresh")
+              "_fresh", "filtered_action", "_act_fresh", "wind_readings", "context")
 
     def get_state(self) -> dict[str, Any]:
         """A copy of the dynamic state (base controllers, last base action, history) that
@@ -359,6 +413,7 @@ class PolicyInterface:
         else:
             configs = [env_configs] * self.n
         self.context = np.stack([context_values(self.spec.context, c) for c in configs])
+        self._reading_context()
         encoders = [getattr(c, "encoders", None) for c in configs]
         if self.spec.base not in LQG_BASES or None in encoders or encoders == self._base_encoders:
             return
@@ -367,7 +422,11 @@ class PolicyInterface:
             self.lqg = [_RecordingLQG(dataclasses.replace(self.env_config, encoders=e),
                                       pointing=self._pointing) for e in encoders]
         else:
-            self.lqg_batch = batched_base(self.env_config, self._pointing, encoders)
+            self.lqg_batch = batched_base(self.env_config, self._pointing, encoders,
+                                          self.spec.base == SCHEDULED_BASE)
+            known = np.flatnonzero(np.isfinite(self.wind_readings))
+            if known.size:  # the new base gets the readings given so far
+                self.set_wind_readings(self.wind_readings[known], known)
 
     # ------------------------------------------------------------------ observation
     def observe(self, obs: np.ndarray) -> np.ndarray:
@@ -599,6 +658,8 @@ class InterfaceWrapper(gym.Wrapper):
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
         obs, info = self.env.reset(seed=seed, options=options)
         self.interface.reset()
+        if "wind_speed_mps" in info:  # the episode's mean wind speed reading
+            self.interface.set_wind_readings([info["wind_speed_mps"]])
         return self.interface.observe(obs[None])[0], info
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
@@ -629,7 +690,9 @@ def spec_from_kwargs(kwargs: dict[str, Any], defaults: InterfaceSpec) -> tuple[I
     return InterfaceSpec(**d), kw
 
 
-__all__ = ["ACTIONS", "BASES", "CONTEXTS", "FEATURE_BOUND", "HISTORY_ENTRIES", "LQG_BASES", "InterfaceSpec",
+__all__ = ["ACTIONS", "BASES", "CONTEXTS", "FEATURE_BOUND", "HISTORY_ENTRIES", "LQG_BASES", "READING_CONTEXT",
+           "SCHEDULED_BASE",
+           "InterfaceSpec",
            "InterfaceWrapper", "LQG_FEATURES", "LQG_FEATURE_WIDTHS", "NO_ABSOLUTE_ANGLES",
            "PolicyInterface", "action_curve", "context_values", "interface_observation_space",
            "spec_from_kwargs",

@@ -50,6 +50,7 @@ from dss14_env.agents.storage import (
     policy_problem,
 )
 from dss14_env.baselines.base import Controller
+from dss14_env.baselines.scheduled import check_readings
 from dss14_env.core.schema import read_config
 from dss14_env.envs.core import OBS_HIGH
 
@@ -166,6 +167,8 @@ class PolicyController(Controller):
                                       f"{config.env_id!r} gives {probe.obs_dim} observations, the "
                                       f"weights expect {self.obs_dim}")
         self.info_batch: dict[str, np.ndarray] = {}
+        #: the mean wind speed reading of :meth:`set_scenario` (m/s), kept over episodes
+        self._reading: float | None = None
         self.reset_batch(1)
 
     def target_env(self, env: Any) -> None:
@@ -219,9 +222,31 @@ class PolicyController(Controller):
                           else PolicyInterface(self.spec, self.train_env_config, self._n))
         if self.interface is not None and self.target_config is not None:
             self.interface.set_context(self.target_config)  # e.g. where its encoders sit
+        if self.interface is not None and self._reading is not None:
+            self.interface.set_wind_readings(np.full(self._n, self._reading))
         self._state: Any = None
         self._starts = np.ones(self._n, bool)
         self.info_batch = {}
+
+    def set_scenario(self, wind_speed: float, direction: Any = None) -> None:
+        """The mean wind speed reading (m/s) of the following episodes (kept until the next call;
+        the bench's episode loop passes the reset info's): a base scheduled on it designs for
+        it. ``direction`` is not used.
+
+        :raises ValueError: one line, for a speed that is not finite or outside 0..90 km/h
+        """
+        self._reading = float(check_readings(wind_speed, 1)[0])
+        if self.interface is not None:
+            self.interface.set_wind_readings(np.full(self._n, self._reading))
+
+    def set_scenario_batch(self, wind_speeds: Any, directions: Any = None) -> None:
+        """The rows' mean wind speed readings (m/s) of the episodes they start next (after
+        :meth:`reset_batch` or :meth:`restart`); ``directions`` are not used.
+
+        :raises ValueError: one line, unless one finite speed in 0..90 km/h per row
+        """
+        if self.interface is not None:
+            self.interface.set_wind_readings(wind_speeds)
 
     def restart(self, mask: np.ndarray) -> None:
         """Rows ``mask`` (bool ``(n,)``) start new episodes at the next :meth:`act_batch`."""

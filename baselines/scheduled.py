@@ -135,6 +135,27 @@ class ScheduledPointingLQGController(PointingLQGController):
         """
         self._row_readings = check_readings(wind_speeds, self.n)
 
+    def set_row_readings(self, rows: Sequence[int], wind_speeds: Sequence[float]) -> None:
+        """The mean wind speed readings (m/s) of the next episodes of rows ``rows`` only (each
+        row's first :meth:`act_batch` after :meth:`reset_batch` or :meth:`restart`); the other
+        rows keep theirs.
+
+        :raises ValueError: one line, for a row outside ``0..n-1`` or a reading that is not a
+            finite speed in 0..90 km/h
+        """
+        idx = np.asarray(rows, int).reshape(-1)
+        if idx.size and (idx.min() < 0 or idx.max() >= self.n):
+            raise ValueError(f"wind speed reading: rows must lie in 0..{self.n - 1}, got {idx.tolist()}")
+        self._row_readings[idx] = check_readings(wind_speeds, idx.size)
+
+    def restart(self, mask: np.ndarray) -> None:
+        """The rows ``mask`` start a new episode at the next :meth:`act_batch` and forget their
+        reading (it was the ended episode's): give the new one with :meth:`set_row_readings`,
+        else the episode takes the speed of :meth:`set_scenario` or the inferred one.
+        """
+        super().restart(mask)
+        self._row_readings[np.asarray(mask, bool)] = math.nan
+
     def select_designs(self, rows: np.ndarray, r0: np.ndarray, c_rate0: np.ndarray) -> list[LQGDesign]:
         out = []
         for i, r, v in zip(rows.tolist(), r0, c_rate0, strict=True):

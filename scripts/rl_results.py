@@ -20,7 +20,8 @@ Three steps, each writing what the next reads::
     python scripts/rl_results.py render --check        # exit 1 if a document is out of date
 
 The general recipe's many-seed reports (one results file per version: configs/ppo_general_lqg.yaml
--> rl_recipe.json, configs/ppo_general_lqg2.yaml -> rl_recipe2.json)::
+-> rl_recipe.json, configs/ppo_general_lqg2.yaml -> rl_recipe2.json, configs/ppo_general_lqg3.yaml
+-> rl_recipe3.json and its tables in rl_recipe3.md)::
 
     dss14 train ppo --config ppo_general_lqg2 --train-seeds 0-9 --out runs/ppo_general_lqg2
     python scripts/rl_results.py recipe --campaign runs/ppo_general_lqg2 --out docs/results/rl_recipe2.json
@@ -28,7 +29,9 @@ The general recipe's many-seed reports (one results file per version: configs/pp
         --report docs/results/rl_recipe2.json   # its best-validation seed (the other report's
                                                 # shipped entry becomes its shipped_before)
     python scripts/rl_results.py grid      # the shipped policy on the wind grid (its report)
-    python scripts/rl_results.py render    # their tables too (blocks rl-recipe, rl-recipe2)
+    python scripts/rl_results.py grid --report docs/results/rl_recipe3.json \
+        --campaign runs/ppo_general_lqg3   # a report's best-validation seed, shipped or not
+    python scripts/rl_results.py render    # their tables too (blocks rl-recipe, rl-recipe2, rl-recipe3)
 
 (tests/test_agents_results.py runs the check.)  The statistics are those of
 :mod:`dss14_env.agents.results`.
@@ -59,7 +62,7 @@ SCENARIO_REFERENCES = ROOT / "docs" / "results" / "rl_scenario_references.json"
 FIGURES = ROOT / "docs" / "results" / "rl"
 #: the generated blocks and the documents that show them
 DOCUMENTS = {ROOT / "docs" / "results" / "rl_results.md": ("rl-table", "rl-seeds", "rl-campaign",
-                                                           "rl-recipe", "rl-recipe2")}
+                                                           "rl-recipe", "rl-recipe2", "rl-recipe3")}
 #: the robustness campaign of the learned policies beside PI and LQG (``dss14 campaign``,
 #: :func:`dss14_env.bench.campaign_report.compact_results` of its results.json), and the command
 CAMPAIGN = ROOT / "docs" / "results" / "campaign_policies.json"
@@ -67,7 +70,8 @@ CAMPAIGN = ROOT / "docs" / "results" / "campaign_policies.json"
 #: the wind grid it is checked on: (speed km/h, direction deg)
 RECIPE = ROOT / "docs" / "results" / "rl_recipe.json"
 #: every version's report, by the generated block that tables it
-RECIPE_REPORTS = {"rl-recipe": RECIPE, "rl-recipe2": ROOT / "docs" / "results" / "rl_recipe2.json"}
+RECIPE_REPORTS = {"rl-recipe": RECIPE, "rl-recipe2": ROOT / "docs" / "results" / "rl_recipe2.json",
+                  "rl-recipe3": ROOT / "docs" / "results" / "rl_recipe3.json"}
 RECIPE_SHIPPED = "ppo_general"
 RECIPE_GRID = tuple((50.0, d) for d in (0.0, 45.0, 90.0, 135.0, 180.0)) + tuple(
     (v, d) for v in (10.0, 70.0) for d in (0.0, 90.0))
@@ -420,46 +424,65 @@ def _cpu_per_seed(cpu_log: Path, n: int) -> list[float | None]:
 
 
 def recipe(campaign: Path, out: Path, cpu_log: Path | None) -> None:
-    """The general recipe's report from its campaign (module doc): the pointing-aware LQG scored
-    on the campaign's test episodes beside its PI and LQG, each seed's validation score, the
-    report (:func:`dss14_env.agents.recipe_report.recipe_report`) and its profile figure."""
+    """The general recipe's report from its campaign (module doc): the pointing-aware LQGs (fixed
+    and scheduled on the wind reading) scored on the campaign's test episodes beside its PI and
+    LQG, each seed's validation score, the report
+    (:func:`dss14_env.agents.recipe_report.recipe_report`) and its profile figure."""
     from dss14_env.agents.campaign import selected_evaluation
     from dss14_env.agents.campaign_report import task_scores
     from dss14_env.agents.evaluation import FINAL_SCORING, dss14_tasks, task_env
     from dss14_env.agents.recipe_report import recipe_report
     from dss14_env.baselines.lqg import PointingLQGController
+    from dss14_env.baselines.scheduled import ScheduledPointingLQGController
 
     summary = json.loads((campaign / "summary.json").read_text())
     proto = summary["protocol"]
-    lqgp: dict = {}
+    extra: dict = {"lqg_pointing": {}, "lqg_pointing_sched": {}}
     for t in dss14_tasks(scenarios=[t["name"] for t in proto["tasks"]]):
-        env = task_env(t)
-        try:
-            lqgp.update(task_scores(PointingLQGController(env), [t], proto["test_seeds"],
-                                    proto["test_steps"], FINAL_SCORING))
-        finally:
-            env.close()
+        for name, cls in (("lqg_pointing", PointingLQGController),
+                          ("lqg_pointing_sched", ScheduledPointingLQGController)):
+            env = task_env(t)
+            try:
+                extra[name].update(task_scores(cls(env), [t], proto["test_seeds"], proto["test_steps"],
+                                               FINAL_SCORING))
+            finally:
+                env.close()
     validation = {}
     for e in summary["per_seed"]:
         sel = selected_evaluation(campaign / e["run"] / "eval" / "evaluations.npz")
         validation[e["seed_index"]] = None if sel is None else float(sel[1][1])
-    report = recipe_report(summary, {"lqg_pointing": lqgp}, validation)
+    report = recipe_report(summary, extra, validation)
     if cpu_log is not None:
         for r, cpu in zip(report["per_seed"], _cpu_per_seed(cpu_log, len(report["per_seed"])), strict=True):
             r["cpu_s_train_and_score"] = cpu
     cfg_src = summary["config"]
     doc = {"what": "the general recipe on >= 10 training seeds: each seed's validation-selected policy "
                    "(eval/best) scored once on the sealed test seeds beside the PI, the LQG and the "
-                   "pointing-aware LQG on the same episodes (dss14_env.agents.recipe_report)",
+                   "pointing-aware LQGs (fixed, scheduled on the wind reading) on the same episodes "
+                   "(dss14_env.agents.recipe_report)",
            "config": "configs/" + Path(cfg_src).name if "/configs/" in cfg_src else cfg_src,
            "date_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"), "machine": _machine(),
            "protocol": proto, **report}
     if out.is_file():  # a grid or shipped entry of an earlier run of the other commands stays
         old = json.loads(out.read_text())
         doc.update({k: old[k] for k in ("grid", "shipped") if k in old})
-    out.write_text(json.dumps(doc, indent=1) + "\n")
+    _write_report(doc, out)
     _profile_figure(doc, FIGURES / f"{out.stem.removeprefix('rl_')}_profile.png")
-    print(f"wrote {out}")
+
+
+def _write_report(doc: dict, path: Path) -> None:
+    """A recipe report and, for a report with the moves' settled figures, its tables beside it
+    (``<name>.md``, :func:`dss14_env.agents.recipe_report.recipe_markdown`)."""
+    from dss14_env.agents.recipe_report import recipe_markdown
+
+    path.write_text(json.dumps(doc, indent=1) + "\n")
+    print(f"wrote {path}")
+    if "success_rate_headline" in doc:
+        md = path.with_suffix(".md")
+        md.write_text(f"# {doc['config']}: the general recipe on {len(doc['per_seed'])} training seeds\n\n"
+                      f"Generated from `{path.name}` by `scripts/rl_results.py` (never typed).\n\n"
+                      + recipe_markdown(doc))
+        print(f"wrote {md}")
 
 
 def _profile_figure(doc: dict, path: Path) -> None:
@@ -523,11 +546,13 @@ def ship_recipe(campaign: Path, report_path: Path) -> None:
     print(f"seed index {k}: {run} -> {dest.relative_to(ROOT)}")
 
 
-def grid(report_path: Path) -> None:
-    """The shipped general policy, the PI and the pointing-aware LQG in holds over
+def grid(report_path: Path, campaign: Path | None = None) -> None:
+    """The general policy, the PI and the pointing-aware LQGs (fixed and scheduled) in holds over
     :data:`RECIPE_GRID` (the test seeds, :data:`RECIPE_GRID_STEPS` steps): the worse axis's 3σ
     pointing error per episode, and the policy's ratio to each with a paired bootstrap interval
-    over the test seeds (:func:`dss14_env.core.stats.ratio_ci`); into the report's ``grid``."""
+    over the test seeds (:func:`dss14_env.core.stats.ratio_ci`); into the report's ``grid``.
+    The policy is the shipped one, or with ``campaign`` the report's best-validation seed's
+    (``shipped_seed_index``, its ``eval/best``) of that campaign."""
     import math
 
     from dss14_env.agents.evaluation import FINAL_SCORING, dss14_tasks, run_task, task_env
@@ -535,10 +560,21 @@ def grid(report_path: Path) -> None:
     from dss14_env.agents.recipe_report import BOOTSTRAP_SEED
     from dss14_env.baselines.lqg import PointingLQGController
     from dss14_env.baselines.pi import PIController
+    from dss14_env.baselines.scheduled import ScheduledPointingLQGController
     from dss14_env.core.stats import ratio_ci
 
-    makers = {RECIPE_SHIPPED: lambda env: load_policy(shipped_policy(RECIPE_SHIPPED)),
-              "pi_kp1": lambda env: PIController(env, "kp1"), "lqg_pointing": PointingLQGController}
+    if campaign is None:
+        folder = shipped_policy(RECIPE_SHIPPED)
+        label = f"agents/policies/{RECIPE_SHIPPED}"
+    else:
+        k = json.loads(report_path.read_text())["shipped_seed_index"]
+        summary = json.loads((campaign / "summary.json").read_text())
+        entry = next(e for e in summary["per_seed"] if e["seed_index"] == k)
+        folder = campaign / entry["run"] / "eval" / "best"
+        label = f"the best-validation seed's policy (training seed {entry['training_seed']})"
+    makers = {RECIPE_SHIPPED: lambda env: load_policy(folder),
+              "pi_kp1": lambda env: PIController(env, "kp1"), "lqg_pointing": PointingLQGController,
+              "lqg_pointing_sched": ScheduledPointingLQGController}
     rng = np.random.default_rng(BOOTSTRAP_SEED)
     conditions = []
     for speed, direction in RECIPE_GRID:
@@ -555,7 +591,7 @@ def grid(report_path: Path) -> None:
         c = {"wind_speed_kmh": speed, "wind_direction_deg": direction,
              "pointing_mdeg": {k: float(np.mean(v)) for k, v in vals.items()},
              "per_test_seed": {k: v.tolist() for k, v in vals.items()}}
-        for ref in ("pi_kp1", "lqg_pointing"):
+        for ref in ("pi_kp1", "lqg_pointing", "lqg_pointing_sched"):
             est = ratio_ci(vals[RECIPE_SHIPPED], vals[ref], np.mean, rng, paired=True)
             c[f"ratio_{ref}"] = {"value": est.value, "low": est.low, "high": est.high}
         conditions.append(c)
@@ -565,9 +601,8 @@ def grid(report_path: Path) -> None:
     doc["grid"] = {"what": f"holds, test seeds {TEST_SEEDS[0]}-{TEST_SEEDS[-1]}, {RECIPE_GRID_STEPS} steps, "
                            "5-s warm-up; the worse axis's 3-sigma pointing error (mdeg), mean over the "
                            "seeds; ratios of means with 95 % paired percentile-bootstrap intervals",
-                   "controllers": list(makers), "conditions": conditions}
-    report_path.write_text(json.dumps(doc, indent=1) + "\n")
-    print(f"wrote the grid into {report_path}")
+                   "policy": label, "controllers": list(makers), "conditions": conditions}
+    _write_report(doc, report_path)
 
 
 def stale(results_path: Path, out: Path) -> None:
@@ -649,8 +684,11 @@ def main(argv: list[str] | None = None) -> int:
     sh = sub.add_parser("ship-recipe", help="ship the recipe's best-validation seed")
     sh.add_argument("--campaign", type=Path, default=Path("runs") / "ppo_general_lqg")
     sh.add_argument("--report", type=Path, default=RECIPE, help="the campaign's recipe report")
-    sub.add_parser("grid", help="the shipped general policy on the wind direction/speed grid "
-                                "(into the shipping report)")
+    g = sub.add_parser("grid", help="the shipped general policy on the wind direction/speed grid "
+                                    "(into the shipping report)")
+    g.add_argument("--report", type=Path, default=None, help="the report (default: the shipping one)")
+    g.add_argument("--campaign", type=Path, default=None,
+                   help="score the report's best-validation seed of this campaign, not the shipped folder")
     sub.add_parser("stale", help="re-score the stale shipped policies on the shipped drive")
     d = sub.add_parser("render", help="the tables of docs/results/rl_results.md")
     d.add_argument("--results", type=Path, default=RESULTS)
@@ -670,7 +708,7 @@ def main(argv: list[str] | None = None) -> int:
     elif args.cmd == "ship-recipe":
         ship_recipe(args.campaign, args.report)
     elif args.cmd == "grid":
-        grid(shipping_report() or RECIPE)
+        grid(args.report or shipping_report() or RECIPE, args.campaign)
     elif args.cmd == "stale":
         stale(RESULTS, STALE)
     else:

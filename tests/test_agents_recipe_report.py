@@ -57,3 +57,42 @@ def test_a_summary_without_the_pi_is_refused() -> None:
     s["references"] = {}
     with pytest.raises(ValueError, match="no PI"):
         recipe_report(s)
+
+
+def _with_step(summary: dict, settled: list[tuple[list[float], list[float]]],
+               three_sigma: list[list[float]]) -> dict:
+    """The summary with a step scenario: per controller (PI first, then the seeds) the settled
+    rms el / xel per episode and the 3σ of the move (el = xel)."""
+    summary["protocol"]["tasks"] = TASKS + [{"name": "step", "pointing_axis": None, "steps": 100}]
+    entries = [summary["references"]["test"]["pi_kp1"]] + [e["best"] for e in summary["per_seed"]]
+    for scores, (el, xel), ts in zip(entries, settled, three_sigma, strict=True):
+        scores["step"] = {"figures": {"pointing_three_sigma_mdeg_el": ts,
+                                      "pointing_three_sigma_mdeg_xel": ts,
+                                      "pointing_settled_rms_mdeg_el": el,
+                                      "pointing_settled_rms_mdeg_xel": xel,
+                                      "accel_limit_hits": [0, 0], "command_hf_share": [0.0, 0.0]}}
+    return summary
+
+
+def test_moves_are_scored_by_the_worse_axis_rms_after_settling() -> None:
+    """The headline success rate scores the step by the pointing rms after settling (worse axis),
+    the earlier rule by its 3σ; an episode that never settles loses."""
+    s = _with_step(_summary(),
+                   [([0.5, 0.5], [0.3, 0.7]),        # PI: worse axis 0.5, 0.7 -> mean 0.6
+                    ([0.3, 0.4], [0.2, 0.2]),        # seed 0: 0.3, 0.4 -> 0.35 / 0.6 < 1
+                    ([0.1, 0.1], [0.1, 0.1]),        # seed 1: 0.1 (loses the hold anyway)
+                    ([0.1, float("nan")], [0.1, 0.1])],  # seed 2: never settles -> inf
+                   [[60.0, 60.0], [70.0, 70.0], [50.0, 50.0], [50.0, 50.0]])  # PI's 3σ lowest but two
+    rep = recipe_report(s)
+    step = [row["scenarios"]["step"] for row in rep["per_seed"]]
+    assert [x["ratio_pi_kp1"] for x in step] == pytest.approx([70 / 60, 50 / 60, 50 / 60])
+    assert step[0]["ratio_pi_kp1_settled"] == pytest.approx(0.35 / 0.6)
+    assert step[1]["ratio_pi_kp1_settled"] == pytest.approx(0.1 / 0.6)
+    assert step[2]["ratio_pi_kp1_settled"] == np.inf
+    assert [r["beats_pi_everywhere_headline"] for r in rep["per_seed"]] == [True, False, False]
+    assert [r["beats_pi_everywhere"] for r in rep["per_seed"]] == [False, False, False]
+    assert rep["success_rate_headline"]["seeds_beating_pi_everywhere"] == 1
+    assert rep["success_rate_headline"]["settled_scenarios"] == ["step"]
+    assert rep["success_rate"]["seeds_beating_pi_everywhere"] == 0
+    md = recipe_markdown(rep)
+    assert "**1 of 3**" in md and "earlier rule" in md and "| 10000 | 0.58 | 0.58 | yes |" in md

@@ -162,6 +162,8 @@ RECIPES = {  # config -> (algo, policy observation size, action scale the policy
     "ppo_general_random": ("ppo", 8 + (8 + 3) * 4, 0.25),
     "ppo_general_lqg": ("ppo", 8 + 4 + 4 * 4, 0.25),  # general, on the beam: residual on lqg_pointing
     "ppo_general_lqg2": ("ppo", 8 + 4 + 4 * 4 + 1, 0.25),  # the same + where the encoders sit
+    "ppo_general_lqg3": ("ppo", 8 + 4 + 4 * 4 + 1, 0.25),  # the same on the scheduled base
+    "ppo_general_lqg4": ("ppo", 8 + 4 + 4 * 4 + 2, 0.25),  # + the episode's wind reading
 }
 
 
