@@ -92,6 +92,7 @@ from dss14_env.core.outdir import (
     reopen_output_dir,
     update_manifest,
 )
+from dss14_env.core.schema import config_label
 from dss14_env.core.stop import Stopped, StopRequests, signal_name
 
 #: what a training run owns in its folder (removed by ``overwrite``)
@@ -257,7 +258,7 @@ def _installed(*modules: str) -> bool:
 
 
 def _config_text(cfg: TrainConfig, run_id: str) -> str:
-    return (f"# resolved {cfg.algo} configuration of run {run_id} (from {cfg.source})\n"
+    return (f"# resolved {cfg.algo} configuration of run {run_id} (from {config_label(cfg.source)})\n"
             + yaml.safe_dump(cfg.to_dict(), sort_keys=False))
 
 

@@ -33,6 +33,17 @@ def test_policy_rows_name_shipped_policies_that_load() -> None:
             assert row.batchable and row.policy_problem() is None, row.name
 
 
+def test_results_name_a_shipped_policy_by_its_place_in_the_package_not_a_machines_folder(tmp_path) -> None:
+    """A results file records ``agents/policies/<name>`` for a shipped policy wherever the package
+    is installed, and a user's policy path as given."""
+    assert catalog.CONTROLLERS["ppo_plain"].policy_label() == "agents/policies/ppo_plain"
+    assert catalog.policy_row("runs/mine").policy_label() == "runs/mine"
+    assert catalog.CONTROLLERS["pi_kp1"].policy_label() is None
+    plan = P.build_plan(controllers=["pi_kp1", "ppo_plain"], scenarios=["hold_front"], seeds=1,
+                        sweep=False, figures=False, out=tmp_path / "b")
+    assert plan.as_dict()["policies"] == {"ppo_plain": "agents/policies/ppo_plain"}
+
+
 def test_every_list_derives_from_the_rows() -> None:
     names = [r.name for r in catalog.CONTROLLER_ROWS]
     scens = [r.name for r in catalog.SCENARIO_ROWS]

@@ -89,6 +89,14 @@ class ControllerRow:
         from dss14_env.agents.policy import POLICIES_DIR
         return POLICIES_DIR / self.policy
 
+    def policy_label(self) -> str | None:
+        """The row's policy as results files name it: ``agents/policies/<name>`` for a shipped
+        one (no machine's folder recorded), else its path as given; None without a policy.
+        """
+        if self.policy is None:
+            return None
+        return f"agents/policies/{self.policy}" if self.shipped else str(self.policy)
+
     def policy_problem(self) -> str | None:
         """Why the row's policy cannot act on a DSS14 environment (its files loaded and its
         observation and action sizes checked), or None.

@@ -168,7 +168,7 @@ class BenchPlan:
         d["sweep"] = self._run_dict(self.sweep, SWEEP_WARMUP_S)
         d["variant_run"] = self._run_dict(self.variant_run, SWEEP_WARMUP_S)
         d["rows"] = [r.name for r in self.rows]
-        d["policies"] = {r.name: str(r.policy_path()) for r in self.rows if r.policy is not None}
+        d["policies"] = {r.name: r.policy_label() for r in self.rows if r.policy is not None}
         return d
 
     def _run_dict(self, r: ScenarioRun, warmup_s: float) -> dict[str, Any]:

@@ -437,6 +437,25 @@ def config_path(name_or_path: str | Path) -> Path:
                       f"configuration: {', '.join(shipped_configs())})")
 
 
+def config_label(source: str | Path) -> str:
+    """How a written file names a configuration: ``configs/<file>`` for a shipped one (wherever
+    the package is installed, so that no machine's folder is recorded), else ``source`` as given.
+
+    >>> config_label(config_path("env"))
+    'configs/env.yaml'
+    >>> config_label("my/own.yaml")
+    'my/own.yaml'
+    """
+    p = Path(source)
+    shipped = Path(str(resources.files("dss14_env.configs")))
+    try:
+        if p.parent.resolve() == shipped.resolve():
+            return f"configs/{p.name}"
+    except OSError:
+        pass
+    return str(source)
+
+
 def default_config_path(name: str = "model.yaml") -> Path:
     """Path of a configuration file shipped in :mod:`dss14_env.configs`."""
     return Path(str(resources.files("dss14_env.configs").joinpath(name)))
