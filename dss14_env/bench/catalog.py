@@ -150,7 +150,8 @@ CONTROLLER_ROWS: tuple[ControllerRow, ...] = (
     _policy_row("ppo_residual_lqg", "ppo_residual_lqg", "model-informed PPO, a residual on the LQG "
                 "(`agents/policies/ppo_residual_lqg`, docs/rl.md)"),
     _policy_row("ppo_general", "ppo_general", "general model-informed PPO, one policy for every "
-                "scenario: a residual on lqg_pointing (designed for each row's encoders) through a 25-ms "
+                "scenario: a residual on lqg_pointing_sched (designed for each row's encoders and measured "
+                "mean wind speed) through a 25-ms "
                 "command filter, trained on the pointing error in a mixture of tracks, holds with "
                 "drive or axis encoders, steps and slews in wind drawn over 10-70 km/h and "
                 "0-180 degrees (`agents/policies/ppo_general`, docs/rl.md)"),
