@@ -383,6 +383,27 @@ def test_rgb_array_render_is_an_image_of_the_recent_history() -> None:
     assert not np.array_equal(first, frame)
 
 
+def test_render_history_holds_every_step_as_its_info() -> None:
+    # across noise blocks and a snapshot restore: the samples are the steps' own values
+    env = DSS14Env(render_mode="rgb_array", max_error_deg=90.0)
+    env.reset(seed=3)
+    acts = np.random.default_rng(3).uniform(-1.0, 1.0, (600, 2))
+    rows = []
+    for k, a in enumerate(acts):
+        if k == 300:
+            state = env.get_state()
+        if k == 400:  # back to step 300: the history keeps the steps taken, the restored ones follow
+            env.set_state(state)
+        info = env.step(a)[4]
+        rows.append((info["servo_error_az_mdeg"], info["servo_error_el_mdeg"], info["rate_command_az_deg_s"],
+                     info["rate_command_el_deg_s"], env.episode.wind_speed + env.wind_gust()))
+    env.render()
+    h = np.array(env._renderer.samples)
+    assert h.shape == (601, 8) and h[0, 0] == 0.0
+    np.testing.assert_allclose(h[1:, 0], np.r_[1:401, 301:501] * env.config.dt, rtol=1e-15)
+    np.testing.assert_allclose(h[1:, [1, 2, 3, 4, 7]], np.array(rows), rtol=1e-12, atol=1e-12)
+
+
 def test_render_without_mode_warns_and_returns_none() -> None:
     env = DSS14Env()
     env.reset(seed=0)

@@ -73,11 +73,11 @@ def _after(k: StepConstants, theta=(0.0, 0.0), point=(0.0, 0.0), c=(0.0, 0.0), c
            start=(0.0, 0.5), me=1e3, a=(0.0, 0.0), a_prev=(0.0, 0.0), em_prev=(0.0, 0.0), r=(0.0, 0.0),
            noise=(0.0, 0.0), xel=0.7, clamp_always=False, hits=(0, 0), rate_hit=False, acc_hit=False) -> dict:
     """One sub-environment through :func:`fused.after_product`; its results by name."""
-    Y = np.array([[theta[0]], [theta[1]], [point[0]], [point[1]]])
+    Y = np.array([[theta[0], theta[1], point[0], point[1]]])
     ep = fused.episode_rows(np.array([start]), np.array([me]), np.array([[3.0, 0.25]]))
     obs, em, out = fused.step_outputs(1)
     h = np.array([hits], float)
-    flags = fused.after_product(Y, np.zeros(1, np.int64), np.array([[c]]), np.array([[cd]]),
+    flags = fused.after_product(Y, 0, np.zeros(1, np.int64), np.array([[c]]), np.array([[cd]]),
                                 np.array([[noise]]), 0, ep, np.array([a]), np.array([a_prev]),
                                 np.array([em_prev]), np.array([r]), np.array([[rate_hit], [acc_hit]], float),
                                 h, fused.constants(k, xel), clamp_always, obs, em, out)

@@ -440,6 +440,8 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         #: step's row in its noise block
         self._S: np.ndarray | None = None
         self._j = 0
+        #: the block rows whose steps the render history holds (:meth:`_record_steps`)
+        self._drawn = 0
         self._block: np.ndarray | None = None
         self._views: list = []
         self._riders: list = []
@@ -491,7 +493,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         st, obs, rinfo = reset_state(c, cd, y0[None], ne[None], ep.r0[None], episode, self._kc, k,
                                      self._width)
         self._M = MT  # input @ M^T, the fastest product here
-        self._extras = cfg.info_state or self._renderer is not None
+        self._extras = cfg.info_state or self.render_mode == "human"
         self._info_state = cfg.info_state
         self._S, self._j = pack_one(self._kc, episode, st, k.clamp_always(me)), 0
         info = {**episode_info(ep, self.plants.wind_loads), **{key: float(v[0]) for key, v in rinfo.items()}}
@@ -522,6 +524,9 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         """
         k = self.constants
         mp = self.monopulse is not None
+        if k0:  # the steps of the block ending now, before their rows are replaced
+            self._record_steps()
+        self._drawn = 0
         if normals is None:
             normals = draw_noise_block(self.np_random, self._rank, k.encoder_sigma > 0.0, monopulse=mp)
         if mp:  # the sensor's columns: the last two
@@ -622,17 +627,31 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
 
     def _step_extras(self, info: dict) -> None:
         """``info["plant_state"]`` and the render history, when asked for."""
-        x = self._plant_state()
         if self._info_state:
-            info["plant_state"] = self._state_map @ x
-        if self._renderer is not None:
-            cd = self._rows[1, self._j - 1, 0]
-            self._renderer.record(self.elapsed_steps * self.constants.dt, info["servo_error_az_mdeg"],
-                                  info["servo_error_el_mdeg"], info["rate_command_az_deg_s"],
-                                  info["rate_command_el_deg_s"], cd[0] * R2D, cd[1] * R2D,
-                                  self.episode.wind_speed + self._gust_of(x))
-            if self.render_mode == "human":
-                self._renderer.show()
+            info["plant_state"] = self._state_map @ self._plant_state()
+        if self.render_mode == "human":
+            self._record_steps()
+            self._renderer.show()
+
+    def _record_steps(self) -> None:
+        """Add the steps of the current block that the render history lacks (rows ``_drawn ..
+        _j``) to it, from the step block and the block's rows: the history is made when it is
+        drawn, or when the block is replaced, not at every step.
+        """
+        d, j = self._drawn, self._j
+        if self._renderer is None or j <= d:
+            return
+        B, m = self._block, self._m
+        n_in = B.shape[1] - N_STEP_OUTPUTS
+        after = B[d + 1:j + 1]  # the rows the steps d .. j - 1 wrote: state and outputs at their end
+        e = (self._rows[0, d:j, 0] - after[:, n_in:n_in + 2]) * R2MD  # true servo errors, as the step's
+        r = B[d:j, 0:2] * R2D
+        cd = self._rows[1, d:j, 0] * R2D
+        gust = after[:, n_in - m:n_in] @ self._C_gust[0 if self._gust_az else 1] * self._gust_inv
+        t = np.arange(self._k0 + d + 1, self._k0 + j + 1) * self.constants.dt
+        self._renderer.extend(t, e[:, 0], e[:, 1], r[:, 0], r[:, 1], cd[:, 0], cd[:, 1],
+                              self.episode.wind_speed + gust)
+        self._drawn = j
 
     # ------------------------------------------------------------------ copies and state
     #: the attributes of the dynamic state (:meth:`get_state`)
@@ -685,7 +704,9 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         check_snapshot(self, state, self._STATE, tuple(self._riders))
         self._check_shapes(state.data)
         shared = tuple(state.data[n] for n in self._SHARED)
+        self._record_steps()  # the history keeps the steps taken; the snapshot's continue it
         self.__setstate__(restore(self, state, shared, tuple(self._riders)))
+        self._drawn = self._j
 
     def _check_shapes(self, data: dict) -> None:
         """The snapshot's plant buffers, map, step state and noise rows fit this environment's
@@ -714,6 +735,7 @@ class DSS14Env(gym.Env[np.ndarray, np.ndarray]):
         if self._renderer is None:
             gym.logger.warn("render() called without a render_mode; use render_mode='rgb_array' or 'human'")
             return None
+        self._record_steps()
         if self.render_mode == "rgb_array":
             return self._renderer.rgb()
         self._renderer.show()

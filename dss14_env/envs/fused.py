@@ -171,8 +171,8 @@ def limit_commands(A: np.ndarray, r_prev: np.ndarray, kc: np.ndarray, a_out: np.
 def before_product(A: np.ndarray, r_prev: np.ndarray, kc: np.ndarray, perm: np.ndarray, kappa_s: np.ndarray,
                    t_mean_s: np.ndarray, normals: np.ndarray, noise_on: bool, n: int, k: int, Z: np.ndarray,
                    a_out: np.ndarray, r_out: np.ndarray, hit: np.ndarray) -> None:
-    """The vector environment's :func:`limit_commands` and its plant product's input rows
-    ``n ..`` in slot order (sub-environment ``perm[s]`` in slot ``s``): the applied rate
+    """The vector environment's :func:`limit_commands` and its plant product's input columns
+    ``n ..`` in slot order (sub-environment ``perm[s]`` in row ``s``): the applied rate
     commands, the mean wind torques and, with ``noise_on``, the gust normals scaled by the
     direction factors.
 
@@ -180,33 +180,35 @@ def before_product(A: np.ndarray, r_prev: np.ndarray, kc: np.ndarray, perm: np.n
     :param kappa_s: direction factors ``(2, N)`` and ``t_mean_s`` mean torques ``(2, N)``, in
         slot order
     :param normals: this step's standard normals ``(N, >= k)``, the gust's first
-    :param Z: the product's input ``(n + 4 + 2 k, N)``
+    :param Z: the product's input ``(N, n + 4 + 2 k)``, one row per slot
     """
     limit_commands(A, r_prev, kc, a_out, r_out, hit)
     N = A.shape[0]
     for s in range(N):
         i = perm[s]
-        Z[n, s] = r_out[i, 0]
-        Z[n + 1, s] = r_out[i, 1]
-        Z[n + 2, s] = t_mean_s[0, s]
-        Z[n + 3, s] = t_mean_s[1, s]
+        Z[s, n] = r_out[i, 0]
+        Z[s, n + 1] = r_out[i, 1]
+        Z[s, n + 2] = t_mean_s[0, s]
+        Z[s, n + 3] = t_mean_s[1, s]
         if noise_on:
+            ka, ke = kappa_s[0, s], kappa_s[1, s]
             for m in range(k):
-                Z[n + 4 + m, s] = normals[i, m] * kappa_s[0, s]
-                Z[n + 4 + k + m, s] = normals[i, m] * kappa_s[1, s]
+                Z[s, n + 4 + m] = normals[i, m] * ka
+                Z[s, n + 4 + k + m] = normals[i, m] * ke
 
 
 @njit(nogil=True)
-def after_product(Y: np.ndarray, inv: np.ndarray, C: np.ndarray, CD: np.ndarray, NZ: np.ndarray, j: int,
-                  episode: np.ndarray, a: np.ndarray, a_prev: np.ndarray, em_prev: np.ndarray, r: np.ndarray,
-                  hit: np.ndarray, hits: np.ndarray, kc: np.ndarray, clamp_always: bool, obs: np.ndarray,
-                  em: np.ndarray, out: np.ndarray) -> int:
+def after_product(Y: np.ndarray, y0: int, inv: np.ndarray, C: np.ndarray, CD: np.ndarray, NZ: np.ndarray,
+                  j: int, episode: np.ndarray, a: np.ndarray, a_prev: np.ndarray, em_prev: np.ndarray,
+                  r: np.ndarray, hit: np.ndarray, hits: np.ndarray, kc: np.ndarray, clamp_always: bool,
+                  obs: np.ndarray, em: np.ndarray, out: np.ndarray) -> int:
     """Everything of a step after the plant product, for every sub-environment: encoders,
     servo and pointing errors, episode end, reward, observation (float32), the info values and
     the limiter hit counts.
 
-    :param Y: the product's step outputs ``(4, N)`` in slot order (encoder angles az, el;
-        pointing angles el, xel; rad), sub-environment ``i`` in slot ``inv[i]``
+    :param Y: the product's output rows in slot order, sub-environment ``i`` in row ``inv[i]``,
+        with the step outputs in the columns ``y0 .. y0 + 3`` (encoder angles az, el; pointing
+        angles el, xel; rad)
     :param C: commands at the step's end ``(T, N, 2)``, rad, of which ``C[j]`` is this step's;
         ``CD`` their rates (rad/s), ``NZ`` the encoder noise (rad; read only with encoder
         noise, :data:`NO_NOISE` without)
@@ -234,7 +236,7 @@ def after_product(Y: np.ndarray, inv: np.ndarray, C: np.ndarray, CD: np.ndarray,
     total = 0.0
     for i in range(N):
         s = inv[i]
-        th0, th1 = Y[0, s], Y[1, s]
+        th0, th1 = Y[s, y0], Y[s, y0 + 1]
         s0, s1 = episode[i, 0], episode[i, 1]
         # encoders: the absolute angle (plus noise), rounded to the nearest count
         x0 = s0 + th0
@@ -263,8 +265,8 @@ def after_product(Y: np.ndarray, inv: np.ndarray, C: np.ndarray, CD: np.ndarray,
         out[TERMINATED_ROW, i] = t
         any_term |= t
         # pointing errors
-        pe0 = (c1 - Y[2, s]) * R2MD
-        pe1 = (c0 * xel - Y[3, s]) * R2MD
+        pe0 = (c1 - Y[s, y0 + 2]) * R2MD
+        pe1 = (c0 * xel - Y[s, y0 + 3]) * R2MD
         # reward: the scored errors and the action change, the penalty where terminated
         q0, q1 = (pe0, pe1) if pointing else (e0, e1)
         d0 = a[i, 0] - a_prev[i, 0]
@@ -364,9 +366,8 @@ def after_one(B: np.ndarray, j: int, R: np.ndarray, S: np.ndarray, obs: np.ndarr
     into its ``out`` rows, the state advanced unless a reward is not finite), the observation
     into ``obs`` ``(>= 12,)``.
     """
-    n_in = B.shape[1] - N_STEP_OUTPUTS
-    flags = after_product(B[j + 1, n_in:].reshape((N_STEP_OUTPUTS, 1)), np.zeros(1, np.int64), R[0], R[1],
-                          R[2], j,
+    flags = after_product(B[j + 1].reshape((1, B.shape[1])), B.shape[1] - N_STEP_OUTPUTS,
+                          np.zeros(1, np.int64), R[0], R[1], R[2], j,
                           S[_EPISODE:_EPISODE + 5].reshape((1, 5)), S[_A:_A + 2].reshape((1, 2)),
                           S[_A_PREV:_A_PREV + 2].reshape((1, 2)), S[_EM_PREV:_EM_PREV + 2].reshape((1, 2)),
                           B[j, 0:2].reshape((1, 2)), S[_HIT:_HIT + 2].reshape((2, 1)),
@@ -416,7 +417,7 @@ def reset_state(c: np.ndarray, cd: np.ndarray, y: np.ndarray, noise: np.ndarray,
     a0 = np.clip(rp / k.action_scale, -1.0, 1.0)  # the action that reproduces rp
     obs, em, out = step_outputs(n, width)
     hits = np.zeros((n, 2))
-    after_product(np.ascontiguousarray(y[:, :4].T), np.arange(n), c[None], cd[None], noise[None], 0, episode,
+    after_product(y, 0, np.arange(n), c[None], cd[None], noise[None], 0, episode,
                   a0, a0, np.zeros((n, 2)), rp, np.zeros((2, n)), hits, kc, True, obs, em, out)
     obs[:, 2:4] = 0.0
     info = dict(zip(INFO_FLOAT_ROWS, out, strict=False))

@@ -2,7 +2,9 @@
 
 ``rgb_array`` draws on an off-screen Agg canvas (no pyplot, no window); ``human`` draws the
 same figure through pyplot and shows it when the backend is interactive.  History is kept
-only when a render mode is set, so rendering costs nothing otherwise.
+only when a render mode is set, so rendering costs nothing otherwise; the environment adds the
+steps of a noise block to it from its step block when it draws or replaces the block, not per
+step (``rgb_array``).
 """
 
 from __future__ import annotations
@@ -51,6 +53,10 @@ class Renderer:
         (deg/s), wind speed (m/s).
         """
         self.samples.append((t, e_az, e_el, r_az, r_el, cd_az, cd_el, wind))
+
+    def extend(self, *columns: np.ndarray) -> None:
+        """Add several samples: one array per field of :meth:`record`, in its order."""
+        self.samples.extend(zip(*(np.asarray(c, float).tolist() for c in columns), strict=True))
 
     # ------------------------------------------------------------------ drawing
     def _build(self) -> None:
