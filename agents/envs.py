@@ -235,7 +235,7 @@ def is_dss14_id(env_id: str) -> bool:
 
 
 def make_mixture_vec_env(mixture: list[dict[str, Any]], common: Mapping[str, Any], seed: int | None,
-                         env_config: Any, source: str = "<config>", readings: bool = False) -> MixtureVecEnv:
+                         env_config: Any, source: str = "<config>") -> MixtureVecEnv:
     """The batched VecEnv of a ``mixture`` (:func:`dss14_env.agents.config`'s checked parts):
     one :class:`~dss14_env.agents.vec_env.SB3VecEnv` per part -- its preset's registration, the
     ``common`` keys laid over, then the part's own ``env_kwargs`` -- side by side
@@ -243,12 +243,9 @@ def make_mixture_vec_env(mixture: list[dict[str, Any]], common: Mapping[str, Any
 
     :param env_config: the configuration the policy interface is built for: every part must
         share its :data:`MIXTURE_SHARED_KEYS`
-    :param readings: the parts keep their rows' mean wind speed readings
-        (:func:`dss14_env.agents.wind_readings.make_reading_vec_env`)
     :raises ValueError: a part whose environment differs in those keys, naming it
     """
     from dss14_env.agents.vec_env import MixtureVecEnv, make_sb3_vec_env
-    from dss14_env.agents.wind_readings import make_reading_vec_env
     from dss14_env.envs.presets import PRESETS
 
     kw = dict(common)
@@ -257,8 +254,8 @@ def make_mixture_vec_env(mixture: list[dict[str, Any]], common: Mapping[str, Any
     for k, part in enumerate(mixture):
         preset = PRESETS[part["preset"]]
         steps = part["max_episode_steps"] or default_steps or preset.max_episode_steps
-        make = make_reading_vec_env if readings else make_sb3_vec_env
-        venv = make(preset.env_id, part["n_envs"], max_episode_steps=steps, **{**kw, **part["env_kwargs"]})
+        venv = make_sb3_vec_env(preset.env_id, part["n_envs"], max_episode_steps=steps,
+                                **{**kw, **part["env_kwargs"]})
         cfg = venv.venv.config
         bad = [key for key in MIXTURE_SHARED_KEYS
                if env_config is not None and getattr(cfg, key) != getattr(env_config, key)]
@@ -347,21 +344,12 @@ def make_train_vec_env(cfg: TrainConfig, plan: EnvPlan, env_config: Any,
         if kind != "batched":
             raise ValueError(f"{cfg.source}: key 'mixture': needs the batched VecEnv (vec_env: auto "
                              f"or batched on a DSS14 environment)")
-        venv = make_mixture_vec_env(cfg.mixture, plan.base_kwargs, cfg.seed, env_config, cfg.source,
-                                    reads_wind(plan))
+        venv = make_mixture_vec_env(cfg.mixture, plan.base_kwargs, cfg.seed, env_config, cfg.source)
         return _wrap_batched(venv, cfg, plan, env_config, monitor_dir)
     if kind == "batched":
         kw = dict(plan.base_kwargs)
         steps = kw.pop("max_episode_steps", None)
-        if reads_wind(plan):
-            from dss14_env.agents.wind_readings import make_reading_vec_env
-
-            venv = make_reading_vec_env(plan.base_id, cfg.n_envs, max_episode_steps=steps, **kw)
-            if cfg.seed is not None:
-                venv.seed(cfg.seed)
-        else:
-            venv = make_sb3_vec_env(plan.base_id, cfg.n_envs, seed=cfg.seed, max_episode_steps=steps,
-                                    **kw)
+        venv = make_sb3_vec_env(plan.base_id, cfg.n_envs, seed=cfg.seed, max_episode_steps=steps, **kw)
         return _wrap_batched(venv, cfg, plan, env_config, monitor_dir)
     if cfg.action_change_penalty:
         raise ValueError(f"{cfg.source}: key 'action_change_penalty': needs the batched VecEnv "

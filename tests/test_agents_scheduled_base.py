@@ -13,8 +13,8 @@ from dss14_env.envs.config import load_env_config
 
 pytest.importorskip("stable_baselines3")
 
-from dss14_env.agents.vec_env import InterfaceVecEnv  # noqa: E402
-from dss14_env.agents.wind_readings import make_reading_vec_env, wind_source  # noqa: E402
+from dss14_env.agents.vec_env import InterfaceVecEnv, make_sb3_vec_env  # noqa: E402
+from dss14_env.agents.wind_readings import wind_source  # noqa: E402
 
 SPEC = InterfaceSpec(base="lqg_pointing_sched", action="residual", residual_scale=0.01,
                      lqg_features=("command", "disturbance"), context=("axis_encoders", "wind_reading"))
@@ -55,9 +55,8 @@ def test_restart_forgets_the_ended_episodes_reading() -> None:
 def test_rows_follow_their_own_readings_over_autoresets() -> None:
     """Each row's base is designed for its own environment's reading, refreshed at its autoreset."""
     env_cfg = load_env_config(scenario="hold")
-    venv = make_reading_vec_env("DSS14-Hold-v0", 4, max_episode_steps=3, wind_speed_kmh="random",
-                                wind_speed_grid_kmh=[10.0, 30.0, 70.0])
-    venv.seed(10_000)
+    venv = make_sb3_vec_env("DSS14-Hold-v0", 4, seed=10_000, max_episode_steps=3, wind_speed_kmh="random",
+                            wind_speed_grid_kmh=[10.0, 30.0, 70.0])
     iv = InterfaceVecEnv(venv, SPEC, env_cfg)
     iv.interface.wind_source = wind_source(venv)
     iface = iv.interface
@@ -65,7 +64,7 @@ def test_rows_follow_their_own_readings_over_autoresets() -> None:
     iv.reset()
     seen = []
     for _ in range(12):
-        readings = venv.venv.wind_readings_mps.copy()
+        readings = venv.venv.wind_speeds_mps
         expect = grid[np.argmin(np.abs(grid[None] - readings[:, None]), axis=1)]
         assert np.allclose(_design_speeds(iface), expect)
         assert np.allclose(iface.wind_readings, readings)

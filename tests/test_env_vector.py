@@ -189,3 +189,22 @@ def test_reset_now_starts_the_episode_the_autoreset_would() -> None:
     np.testing.assert_array_equal(obs_now, obs_later)
     np.testing.assert_array_equal(rew_now, rew_later)
     assert not trunc_now.any() and not trunc_later.any()
+
+
+def test_wind_speeds_are_each_rows_reset_info_through_autoresets() -> None:
+    """``wind_speeds_mps`` is every row's reset-info mean wind speed, and follows a row into its
+    next episode at an autoreset (the info of the step that resets it)."""
+    from dss14_env.envs.vector import DSS14VectorEnv
+
+    env = DSS14VectorEnv(4, max_episode_steps=2, scenario="hold", wind_speed_kmh="random",
+                         wind_speed_grid_kmh=[10.0, 30.0, 50.0, 70.0])
+    _, info = env.reset(seed=3)
+    assert np.array_equal(env.wind_speeds_mps, info["wind_speed_mps"])
+    seen = [env.wind_speeds_mps]
+    for _ in range(9):
+        _, _, _, _, info = env.step(np.zeros((4, 2), np.float32))
+        assert np.array_equal(env.wind_speeds_mps, info["wind_speed_mps"])
+        seen.append(env.wind_speeds_mps)
+    assert len(np.unique(np.round(seen, 9))) > 1  # new episodes drew other speeds
+    env.wind_speeds_mps[:] = -1.0  # a copy: the environment's own is untouched
+    assert (env.wind_speeds_mps >= 0).all()

@@ -346,6 +346,14 @@ class DSS14VectorEnv(VectorEnv):
         return self._reset_obs(idx)
 
     @property
+    def wind_speeds_mps(self) -> np.ndarray:
+        """The current episodes' mean wind speeds, m/s ``(N,)``: each row's reset info
+        ``wind_speed_mps`` (what an anemometer reads, never the gust state), set at every reset
+        and autoreset of the row; a copy.
+        """
+        return self._wind[:, 0].copy()
+
+    @property
     def n_rate_limited(self) -> np.ndarray:
         """Steps of the current episodes in which the rate clip acted, per sub-environment."""
         return self._s.hits[:, 0].astype(np.int64)
