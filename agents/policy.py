@@ -160,16 +160,14 @@ class PolicyController(Controller):
         self.input_dim = 12 if self.spec is not None else self.obs_dim
         if env is not None:
             self.target_env(env)
-        if self.spec is not None:
-            probe = PolicyInterface(self.spec, self.train_env_config, 1)
-            if probe.obs_dim != self.obs_dim:
-                raise PolicyFileError(f"{config.source}: the interface of env_id "
-                                      f"{config.env_id!r} gives {probe.obs_dim} observations, the "
-                                      f"weights expect {self.obs_dim}")
         self.info_batch: dict[str, np.ndarray] = {}
         #: the mean wind speed reading of :meth:`set_scenario` (m/s), kept over episodes
         self._reading: float | None = None
         self.reset_batch(1)
+        if self.interface is not None and self.interface.obs_dim != self.obs_dim:
+            raise PolicyFileError(f"{config.source}: the interface of env_id "
+                                  f"{config.env_id!r} gives {self.interface.obs_dim} observations, "
+                                  f"the weights expect {self.obs_dim}")
 
     def target_env(self, env: Any) -> None:
         """Act on ``env`` from now on: actions are converted from the training environment's

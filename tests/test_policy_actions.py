@@ -45,3 +45,20 @@ def test_another_policy_class_acts_through_predict() -> None:
     assert not is_gaussian_mlp(ActorCriticPolicy(box, box, lambda _: 0.0, squash_output=True,
                                                  use_sde=True))
     assert not is_gaussian_mlp(ActorCriticPolicy(box, spaces.Discrete(3), lambda _: 0.0))
+
+
+def test_a_config_whose_interface_does_not_fit_the_weights_is_refused_in_one_line(tmp_path) -> None:
+    """A policy folder whose config builds an interface of another observation size than the
+    weights take (its history lengthened) is refused, naming both sizes."""
+    import shutil
+
+    from dss14_env.agents.storage import PolicyFileError
+
+    folder = tmp_path / "p"
+    shutil.copytree(POLICIES_DIR / "ppo_residual_lqg", folder)
+    cfg = folder / "config.yaml"
+    text = cfg.read_text()
+    assert "  history: 4\n" in text
+    cfg.write_text(text.replace("  history: 4\n", "  history: 6\n"))
+    with pytest.raises(PolicyFileError, match=r"gives \d+ observations, the weights expect \d+"):
+        load_policy(folder)
