@@ -114,6 +114,7 @@ class LQGConfig:
     shaper_accel: float = spec("rad/s^2", lo=0.0, lo_open=True)
     shaper_accel_max: float = spec("rad/s^2", lo=0.0, lo_open=True)
     reference_pull: float = spec("1/s", lo=0.0, lo_open=True)
+    reference_accel_share: float = spec("1", lo=0.0, hi=1.0, lo_open=True)
 
 
 @dataclass(frozen=True)

@@ -23,6 +23,11 @@ from dss14_env.core.units import DEG, MDEG
 from dss14_env.envs.config import load_env_config
 from dss14_env.envs.core import OBS
 
+#: relative margin inside the limiter's limits that a controller's own limits keep: the action
+#: and the observed previous command are float32, the limiter checks in float64, so a command on
+#: the limit itself can land a rounding error past it and be clipped
+LIMIT_MARGIN = 1e-3
+
 
 @dataclass(frozen=True)
 class Weights:

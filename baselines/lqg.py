@@ -56,8 +56,14 @@ from dss14_env.baselines.design import (
     rigid_pointing,
     static_deflection_map,
 )
-from dss14_env.baselines.interface import ControlInterface, ObservationReader, Weights, as_interface
-from dss14_env.baselines.shaping import CommandShaper, ReferenceGenerator
+from dss14_env.baselines.interface import (
+    LIMIT_MARGIN,
+    ControlInterface,
+    ObservationReader,
+    Weights,
+    as_interface,
+)
+from dss14_env.baselines.shaping import FEEDFORWARD_MARGIN, CommandShaper, ReferenceGenerator
 from dss14_env.core.threads import single_threaded
 
 
@@ -275,9 +281,10 @@ class DesignMaps:
 
     @classmethod
     def build(cls, design: LQGDesign, interface: ControlInterface, shaped: bool,
-              reference_pull: float) -> DesignMaps:
+              reference_pull: float, reference_accel_share: float = FEEDFORWARD_MARGIN) -> DesignMaps:
         """The maps of ``design``; with ``shaped`` the reference model pulls onto the shaped
-        command with ``reference_pull`` (1/s).
+        command with ``reference_pull`` (1/s), its feedforward using at most
+        ``reference_accel_share`` of the limiter's acceleration.
 
         :raises ValueError: if the design's period is not the environment's
         """
@@ -303,7 +310,7 @@ class DesignMaps:
             K_ref = np.zeros((2, n + 2))
             K_ref[:, :2] = reference_pull * np.eye(2)
             reference = ReferenceGenerator(dm, K_ref, interface.rate_limit, interface.rate_step,
-                                           accel_ff=1.0)
+                                           accel_ff=1.0, accel_margin=reference_accel_share)
         Hx = Hd = None
         if dm.error_output == "pointing" or dm.encoders == "axis":
             Sinv_T = np.linalg.inv(rigid_pointing(dm.xel_scale)).T
@@ -352,19 +359,23 @@ class EstimatorController(Controller):
         :class:`dss14_env.baselines.shaping.ReferenceGenerator` on the design model), or None
         (the raw command as a ramp)
     :param reference_pull: gain (1/s) pulling the reference model onto the shaped command
+    :param reference_accel_share: share of the limiter's acceleration the reference model's
+        feedforward may use; the rest is the feedback's
     """
 
     batchable = True
 
     def __init__(self, design: LQGDesign, interface: ControlInterface, name: str,
                  integral_clip: float = math.inf, shaper: CommandShaper | None = None,
-                 reference_pull: float = 0.3) -> None:
+                 reference_pull: float = 0.3,
+                 reference_accel_share: float = FEEDFORWARD_MARGIN) -> None:
         super().__init__(name)
         self.interface = interface
         self.reader = ObservationReader(interface)
         self.integral_clip = float(integral_clip)
         self.shaper = shaper
         self.reference_pull = float(reference_pull)
+        self.reference_accel_share = float(reference_accel_share)
         self.default_design = design
         self._law_design = design           # the design :meth:`law` applies (set per group)
         self._maps: dict[int, DesignMaps] = {}
@@ -376,7 +387,7 @@ class EstimatorController(Controller):
         key = id(design)
         if key not in self._maps:
             self._maps[key] = DesignMaps.build(design, self.interface, self.shaper is not None,
-                                               self.reference_pull)
+                                               self.reference_pull, self.reference_accel_share)
         return self._maps[key]
 
     def select_designs(self, rows: np.ndarray, r0: np.ndarray, c_rate0: np.ndarray) -> list[LQGDesign]:
@@ -529,8 +540,9 @@ class EstimatorController(Controller):
         """Conditioning ``beta`` per row (see the class); shifts ``x_ref`` in place."""
         ci = self.interface
         r = self.lqr_command(M.design, z, r_ss)
-        lo = np.maximum(r_prev - ci.rate_step, -ci.rate_limit)
-        hi = np.minimum(r_prev + ci.rate_step, ci.rate_limit)
+        step, limit = ci.rate_step * (1.0 - LIMIT_MARGIN), ci.rate_limit * (1.0 - LIMIT_MARGIN)
+        lo = np.maximum(r_prev - step, -limit)
+        hi = np.minimum(r_prev + step, limit)
         viol = (r < lo) | (r > hi)
         beta = np.zeros(len(r))
         rows = np.flatnonzero(viol.any(axis=1))
@@ -775,7 +787,7 @@ class LQGController(EstimatorController):
         shaper = (CommandShaper(cfg.shaper_rate, cfg.shaper_accel, interface.dt, cfg.shaper_accel_max)
                   if cfg.shaper else None)
         super().__init__(self.design_for(None), interface, name, cfg.integral_clip, shaper,
-                         cfg.reference_pull)
+                         cfg.reference_pull, cfg.reference_accel_share)
 
     def design_for(self, wind: Any) -> LQGDesign:
         """The design for a wind key (:meth:`wind_key`; cached)."""

@@ -61,8 +61,10 @@ import numpy as np
 from scipy import linalg
 
 from dss14_env.baselines.design import LQGConfig, MPCConfig, PointingConfig, default_controllers_config
+from dss14_env.baselines.interface import LIMIT_MARGIN
 from dss14_env.baselines.lqg import LQGController, LQGDesign
 from dss14_env.baselines.qp import ParametricQP, set_values
+from dss14_env.baselines.shaping import FEEDFORWARD_MARGIN
 
 #: the path of a step whose unconstrained minimiser meets every constraint (no QP solved)
 PATH_UNCONSTRAINED = "unconstrained"
@@ -374,17 +376,17 @@ class MPCController(LQGController):
         cc = default_controllers_config()
         self.mpc_config = mcfg = config or cc.mpc
         lcfg = lqg_config or cc.lqg
-        lcfg = dataclasses.replace(lcfg, shaper=mcfg.shaper,
-                                   action_change_weight=mcfg.action_change_weight)
+        # the constraints keep the MPC within the limits: its reference keeps the default share
+        lcfg = dataclasses.replace(lcfg, shaper=mcfg.shaper, action_change_weight=mcfg.action_change_weight,
+                                   reference_accel_share=FEEDFORWARD_MARGIN)
         if pointing is not None:
             pointing = dataclasses.replace(pointing, action_change_weight=pointing.mpc_action_change_weight)
         self.fast, self.shortcut = bool(fast), bool(shortcut)
         self._mpcs: dict[int, CondensedMPC] = {}
         super().__init__(env, name, lcfg, pointing, pointing_noise=pointing_noise)
         ci = self.interface
-        # 0.1 % margin: the observed previous command is float32, the limiter checks in float64
-        self.settings = MPCSettings(int(mcfg.horizon), ci.rate_limit * (1 - 1e-3),
-                                    ci.rate_step * (1 - 1e-3),
+        self.settings = MPCSettings(int(mcfg.horizon), ci.rate_limit * (1 - LIMIT_MARGIN),
+                                    ci.rate_step * (1 - LIMIT_MARGIN),
                                     mcfg.error_soft_limit, mcfg.slack_weight_linear,
                                     mcfg.slack_weight_quadratic, mcfg.eps_abs, mcfg.eps_rel,
                                     int(mcfg.max_iter))

@@ -26,6 +26,9 @@ import numpy as np
 from dss14_env.baselines.base import check_mask
 from dss14_env.baselines.design import DesignModel
 
+#: default fraction of the limiter's limits the reference model's feedforward may use
+FEEDFORWARD_MARGIN = 0.9
+
 
 class CommandShaper:
     """Command preprocessor: a rate- and acceleration-limited copy of the command, per row.
@@ -117,19 +120,26 @@ class ReferenceGenerator:
     :param K_ref: state feedback of the reference model on ``[x; r_prev]`` (2 x (n + 2))
     :param rate_limit: command limiter's rate limit, rad/s
     :param rate_step: command limiter's largest change per period, rad/s
-    :param margin: fraction of the limits the feedforward may use
+    :param margin: fraction of the rate limit the feedforward may use
     :param accel_ff: share of the shaped acceleration in the feedforward (0: ramp only)
+    :param accel_margin: fraction of the acceleration limit (``rate_step``) the feedforward may
+        use, default ``margin``; the rest is left to the controller's feedback
     """
 
     def __init__(self, dm: DesignModel, K_ref: np.ndarray, rate_limit: float, rate_step: float,
-                 margin: float = 0.9, accel_ff: float = 0.0) -> None:
+                 margin: float = FEEDFORWARD_MARGIN, accel_ff: float = 0.0,
+                 accel_margin: float | None = None) -> None:
         if K_ref.shape != (2, dm.n + 2):
             raise ValueError(f"K_ref must be 2 x {dm.n + 2}, got {K_ref.shape}")
+        accel_margin = margin if accel_margin is None else accel_margin
+        for name, v in (("margin", margin), ("accel_margin", accel_margin)):
+            if not 0.0 < v <= 1.0:
+                raise ValueError(f"reference {name} must be in (0, 1], got {v!r}")
         self.dm = dm
         self.accel_ff = float(accel_ff)
         self.K = K_ref
         self.rate_limit, self.rate_step = float(rate_limit), float(rate_step)
-        self.margin = float(margin)
+        self.margin, self.accel_margin = float(margin), float(accel_margin)
         z2 = np.zeros(2)
         n = dm.n
         self.Xv, self.Xa = np.zeros((n, 2)), np.zeros((n, 2))
@@ -146,7 +156,7 @@ class ReferenceGenerator:
 
     def _feedforward(self, x: np.ndarray, r: np.ndarray, x_qs: np.ndarray, r_qs: np.ndarray) -> np.ndarray:
         r_des = r_qs - np.concatenate([x - x_qs, r - r_qs], axis=1) @ self.K.T
-        step, lim = self.margin * self.rate_step, self.margin * self.rate_limit
+        step, lim = self.accel_margin * self.rate_step, self.margin * self.rate_limit
         return np.clip(np.clip(r_des, r - step, r + step), -lim, lim)
 
     def start(self, c_s: np.ndarray, v_s: np.ndarray, a_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
