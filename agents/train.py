@@ -865,8 +865,8 @@ def _train_in(cfg: TrainConfig, run: Path, src: _Resume | None, plan: EnvPlan, o
     say(f"{model.num_timesteps} steps in {wall:.1f} s ({summary['steps_per_s']} steps/s); "
         f"run folder {run}")
     if requests.signum is not None:  # asked to stop as the run ended: the run is whole, and the
-        signal.raise_signal(requests.signum)  # signal goes on to the caller (a campaign stops)
-    return run
+        raise Stopped(requests.signum)  # stop goes on to the caller (a campaign stops), whatever
+    return run                          # handler the signal has there
 
 
 def last_checkpoint(run: Path, before: int | None = None) -> Path | None:
